@@ -1,0 +1,5 @@
+"""``python -m mppf`` runs the command line."""
+
+from mppf.cli import main
+
+main()

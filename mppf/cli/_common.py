@@ -1,0 +1,85 @@
+"""Shared pieces of the command line: consoles, JSON output, progress bars, options."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import click
+import numpy as np
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn
+
+console = Console(highlight=False)
+err_console = Console(stderr=True, highlight=False)
+
+units_option = click.option(
+    "--units",
+    type=click.Choice(["mm", "m"]),
+    default="mm",
+    show_default=True,
+    help="Length unit of the input point files (results are always in mm).",
+)
+
+
+def _jsonable(value):
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _jsonable(value.tolist())
+    if isinstance(value, (np.bool_,)):
+        return bool(value)
+    if isinstance(value, (np.integer,)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        value = float(value)
+        return value if math.isfinite(value) else None
+    return value
+
+
+def print_json(obj) -> None:
+    """Print ``obj`` as JSON on stdout (numpy values converted, NaN as null)."""
+    click.echo(json.dumps(_jsonable(obj), indent=2))
+
+
+class RichReporter:
+    """A :class:`mppf.progress.Reporter` drawing rich progress bars on stderr."""
+
+    def __init__(self, enabled: bool = True):
+        self._enabled = enabled
+        self._progress: Progress | None = None
+        self._task = None
+
+    def start(self, task: str, total: float | None = None) -> None:
+        self.finish()
+        if not self._enabled:
+            return
+        self._progress = Progress(
+            TextColumn("{task.description}"),
+            BarColumn(),
+            TaskProgressColumn(),
+            TimeElapsedColumn(),
+            console=err_console,
+            transient=False,
+        )
+        self._progress.start()
+        self._task = self._progress.add_task(task, total=total)
+
+    def advance(self, amount: float = 1.0) -> None:
+        if self._progress is not None:
+            self._progress.advance(self._task, amount)
+
+    def update(self, completed: float) -> None:
+        if self._progress is not None:
+            self._progress.update(self._task, completed=completed)
+
+    def finish(self) -> None:
+        if self._progress is not None:
+            self._progress.stop()
+            self._progress = None
+
+    def info(self, message: str) -> None:
+        if self._enabled:
+            err_console.print(message)
