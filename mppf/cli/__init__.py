@@ -33,9 +33,18 @@ def cli(ctx: click.Context, debug: bool) -> None:
 
 
 def _register_commands() -> None:
-    from mppf.cli import geometry, loop_cmd, plan_cmd, press_cmd, sim_cmd, unfold_cmd
+    from mppf.cli import (
+        compare_cmd,
+        geometry,
+        loop_cmd,
+        plan_cmd,
+        press_cmd,
+        register_cmd,
+        sim_cmd,
+        unfold_cmd,
+    )
 
-    for module in (geometry, unfold_cmd, plan_cmd, sim_cmd, press_cmd, loop_cmd):
+    for module in (geometry, register_cmd, unfold_cmd, plan_cmd, sim_cmd, press_cmd, compare_cmd, loop_cmd):
         for command in module.COMMANDS:
             cli.add_command(command)
 
