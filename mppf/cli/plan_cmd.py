@@ -1,5 +1,141 @@
-"""Commands of the mppf command line (this module's part)."""
+"""``mppf plan``: strokes of both punch matrices from a design and its flat plate."""
 
 from __future__ import annotations
 
-COMMANDS: list = []
+import click
+from rich.table import Table
+
+from mppf.cli._common import RichReporter, console, print_json, units_option
+from mppf.errors import InputError
+from mppf.io import read_points
+from mppf.job import save_job
+from mppf.plan import plan_job, plan_summary
+from mppf.press import example_press_path, load_press
+from mppf.springback import Material
+
+MATERIALS = {
+    "steel": Material(youngs_modulus_mpa=206000.0, poisson=0.3, yield_stress_mpa=235.0),
+    "ah36": Material(youngs_modulus_mpa=206000.0, poisson=0.3, yield_stress_mpa=355.0),
+}
+
+
+def _material(name, youngs, poisson, yield_mpa) -> Material | None:
+    if name is None and youngs is None and poisson is None and yield_mpa is None:
+        return None
+    base = MATERIALS[name or "steel"]
+    return Material(
+        youngs_modulus_mpa=base.youngs_modulus_mpa if youngs is None else youngs,
+        poisson=base.poisson if poisson is None else poisson,
+        yield_stress_mpa=base.yield_stress_mpa if yield_mpa is None else yield_mpa,
+    )
+
+
+def _fmt(value, digits=1):
+    return "-" if value is None else f"{value:.{digits}f}"
+
+
+def _print_summary(summary: dict, output) -> None:
+    reg, pose = summary["registration"], summary["pose"]
+    table = Table(title=f"plan: {summary['press']} ({summary['matrix'][0]} x {summary['matrix'][1]}), "
+                        f"plate {summary['thickness_mm']:g} mm")
+    table.add_column("item")
+    table.add_column("value", justify="right")
+    table.add_row("registration", f"{reg['method']}, RMS {_fmt(reg['rms_mm'], 2)} mm, "
+                                  f"turn {_fmt(reg['rotation_deg'])} deg")
+    if reg.get("neighbour_strain_p95_pct") is not None:
+        table.add_row("flat vs design strain (p95)", f"{reg['neighbour_strain_p95_pct']:.3f} %")
+    table.add_row("tilt x / y", f"{pose['tilt_x_deg']:.3f} / {pose['tilt_y_deg']:.3f} deg")
+    table.add_row("vertical offset", f"{pose['offset_mm']:.1f} mm")
+    table.add_row("largest punch travel", f"{summary['max_travel_mm']:.1f} mm")
+    table.add_row("steps", str(summary["n_steps"]))
+    table.add_row("largest neighbour change / step",
+                  f"{summary['max_neighbour_step_mm']:.1f} mm")
+    table.add_row("smallest tip gap", f"{_fmt(summary['min_gap_mm'], 2)} mm")
+    if summary["springback"].get("enabled"):
+        radii = summary["springback"]
+        table.add_row("springback: target radii", ", ".join(_fmt(r and r / 1000, 2) + " m" for r in radii["target_radii_mm"]))
+        table.add_row("springback: loaded radii", ", ".join(_fmt(r and r / 1000, 2) + " m" for r in radii["loaded_radii_mm"]))
+    console.print(table)
+
+    strokes = Table(title="final strokes (tip heights, mm)")
+    for col in ("matrix", "active", "parked", "min", "max", "limits", "largest travel"):
+        strokes.add_column(col, justify="right")
+    for name in ("upper", "lower"):
+        m = summary[name]
+        strokes.add_row(name, str(m["active"]), f"{m['parked']} at {m['park_mm']:g}", f"{m['min_mm']:.1f}",
+                        f"{m['max_mm']:.1f}", f"{m['limits_mm'][0]:g} .. {m['limits_mm'][1]:g}",
+                        f"{m['max_travel_mm']:.1f}")
+    console.print(strokes)
+
+    corners = Table(title=f"plate corners on the bed ({summary['plate_size_mm'][0]:.0f} x "
+                          f"{summary['plate_size_mm'][1]:.0f} mm plate)")
+    for col in ("corner", "x (mm)", "y (mm)"):
+        corners.add_column(col, justify="right")
+    for name, (x, y, _) in zip(("-x -y", "+x -y", "+x +y", "-x +y"), summary["plate_corners_mm"]):
+        corners.add_row(name, f"{x:.1f}", f"{y:.1f}")
+    console.print(corners)
+    if output:
+        console.print(f"job written to {output}")
+
+
+@click.command("plan")
+@click.argument("design", type=click.Path(dir_okay=False, path_type=str))
+@click.argument("flat", type=click.Path(dir_okay=False, path_type=str))
+@click.option("--press", "press_path", type=click.Path(dir_okay=False, path_type=str), default=None,
+              help="Press description (TOML). Default: the bundled example press.")
+@click.option("--thickness", "thickness_mm", type=float, required=True, help="Plate thickness in mm.")
+@click.option("--steps", type=click.IntRange(min=1), default=None,
+              help="Number of press steps (default: the fewest within the dimpling limit).")
+@click.option("--springback", is_flag=True, help="Over-bend to pre-compensate springback (needs a material).")
+@click.option("--material", type=click.Choice(sorted(MATERIALS)), default=None,
+              help="Material preset: steel (E 206 GPa, nu 0.3, yield 235 MPa) or ah36 (yield 355 MPa).")
+@click.option("--youngs", type=float, default=None, help="Young's modulus in MPa (overrides the preset).")
+@click.option("--poisson", type=float, default=None, help="Poisson's ratio (overrides the preset).")
+@click.option("--yield", "yield_mpa", type=float, default=None, help="Yield stress in MPa (overrides the preset).")
+@units_option
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=str), default=None,
+              help="Write the job file (JSON) here.")
+@click.option("--plot", type=click.Path(dir_okay=False, path_type=str), default=None,
+              help="Draw the stroke map of the last step (PNG).")
+@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
+def plan_command(design, flat, press_path, thickness_mm, steps, springback, material, youngs, poisson,
+                 yield_mpa, units, output, plot, as_json):
+    """Plan the strokes of both punch matrices to press FLAT into DESIGN.
+
+    DESIGN is the curved plate (mid-surface points or mesh), FLAT its unfolded plate
+    (e.g. from 'mppf unfold'; same point order = paired registration). Nothing is
+    written when the plan fails validation.
+    """
+    press = load_press(press_path or example_press_path())
+    mat = _material(material, youngs, poisson, yield_mpa)
+    if springback and mat is None:
+        raise InputError("--springback needs the plate material",
+                         hint="add --material steel|ah36 or --youngs/--poisson/--yield")
+    design_cloud = read_points(design, units=units)
+    flat_cloud = read_points(flat, units=units)
+    inputs = {
+        "design": {"path": str(design_cloud.path), "sha256": design_cloud.sha256},
+        "flat": {"path": str(flat_cloud.path), "sha256": flat_cloud.sha256},
+        "press": {"path": str(press_path or example_press_path())},
+        "units": units,
+    }
+    reporter = RichReporter(enabled=not as_json)
+    job = plan_job(design_cloud.points, flat_cloud.points, press, thickness_mm, steps=steps, material=mat,
+                   springback=springback, design_faces=design_cloud.faces, reporter=reporter, inputs=inputs)
+    reporter.finish()
+    if output:
+        save_job(job, output)
+    if plot:
+        from mppf.viz.plan import plot_strokes
+
+        plot_strokes(job, plot)
+    summary = plan_summary(job)
+    if output:
+        summary["job"] = {"path": output, "sha256": job.sha256()}
+    if as_json:
+        print_json(summary)
+    else:
+        _print_summary(summary, output)
+
+
+COMMANDS = [plan_command]

@@ -1,0 +1,282 @@
+"""The one client-side module that imports pymodbus.
+
+:class:`ModbusAdapter` wraps a synchronous pymodbus client (``ModbusTcpClient`` or
+``ModbusSerialClient`` in RTU framing) and speaks the project's language:
+
+- a Modbus exception reply becomes :class:`mppf.errors.PlcError` (with the function,
+  address and exception code);
+- a timeout, a refused or dropped connection or a garbled reply becomes
+  :class:`mppf.errors.LinkError`;
+- reads are chunked at 125 registers (FC3), writes at 122 (FC16), so that a block that
+  starts on an int32 boundary never has a value split between two frames;
+- retries (after a timeout only) are done here, never by pymodbus (its client is made
+  with ``retries=0``): reads and setpoint writes get ``url.retries`` extra attempts,
+  command writes (:meth:`write_command`) exactly one attempt, because a repeated
+  command can act twice.
+
+Each request holds a lock, so a heartbeat thread can share the adapter with the main
+thread; its writes slip in between the frames of a long upload.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Sequence
+
+from pymodbus.client import ModbusSerialClient, ModbusTcpClient
+from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
+
+from mppf.drivers.regmap import chunks
+from mppf.drivers.url import PlcUrl
+from mppf.errors import LinkError, PlcError
+
+MAX_READ_REGS = 125
+MAX_WRITE_REGS = 122
+RETRY_DELAY_S = 0.1  # pause before the n-th retry: n * RETRY_DELAY_S
+
+EXCEPTION_NAMES = {
+    1: "illegal function",
+    2: "illegal data address",
+    3: "illegal data value",
+    4: "server device failure",
+    5: "acknowledge",
+    6: "server device busy",
+    8: "memory parity error",
+    10: "gateway path unavailable",
+    11: "gateway target device failed to respond",
+}
+
+
+class ModbusAdapter:
+    """A Modbus master on one PLC URL (TCP or RTU).
+
+    Parameters
+    ----------
+    url : PlcUrl
+        Where the PLC is (see :func:`mppf.drivers.url.parse_plc_url`).
+    timeout_s : float, optional
+        Reply timeout; default ``url.timeout_s``.
+    retries : int, optional
+        Extra attempts for reads and setpoint writes; default ``url.retries``.
+
+    Attributes
+    ----------
+    requests : int
+        Modbus requests sent so far (all attempts).
+    """
+
+    def __init__(self, url: PlcUrl, *, timeout_s: float | None = None, retries: int | None = None):
+        self.url = url
+        self.timeout_s = url.timeout_s if timeout_s is None else float(timeout_s)
+        self.retries = url.retries if retries is None else int(retries)
+        self.requests = 0
+        self._lock = threading.Lock()
+        if url.scheme == "tcp":
+            self._client = ModbusTcpClient(url.host, port=url.port, timeout=self.timeout_s, retries=0)
+        else:
+            self._client = ModbusSerialClient(
+                url.device,
+                baudrate=url.baud,
+                parity=url.parity,
+                stopbits=url.stopbits,
+                bytesize=url.bytesize,
+                timeout=self.timeout_s,
+                retries=0,
+            )
+
+    # -- connection ------------------------------------------------------------------
+    def connect(self) -> None:
+        """Open the connection (idempotent).
+
+        Raises
+        ------
+        LinkError
+            The PLC cannot be reached (refused, no route, no such serial device).
+        """
+        with self._lock:
+            ok = self._client.connect()
+        if not ok:
+            raise LinkError(
+                f"cannot connect to the PLC at {self.url}",
+                hint="check the address, the cable and that the PLC is powered and in remote mode",
+            )
+
+    @property
+    def connected(self) -> bool:
+        """True while the transport is open."""
+        return bool(self._client.connected)
+
+    def close(self) -> None:
+        """Close the connection (idempotent)."""
+        with self._lock:
+            self._client.close()
+
+    # -- requests --------------------------------------------------------------------
+    def _call(self, what: str, fn, *args, **kwargs):
+        """One request under the lock; errors translated."""
+        with self._lock:
+            self.requests += 1
+            try:
+                reply = fn(*args, device_id=self.url.unit, **kwargs)
+            except ModbusIOException as exc:
+                self._after_timeout()
+                raise LinkError(
+                    f"no reply from the PLC at {self.url} to {what} within {self.timeout_s:g} s ({exc})",
+                    hint="check the link; a longer timeout=... in the URL helps on slow serial lines",
+                ) from None
+            except ConnectionException as exc:
+                self._client.close()
+                raise LinkError(
+                    f"connection to the PLC at {self.url} lost during {what} ({exc})",
+                    hint="check the cable / network and that the PLC is running",
+                ) from None
+            except ModbusException as exc:
+                raise LinkError(f"invalid reply from the PLC at {self.url} to {what}: {exc}") from None
+            except OSError as exc:
+                self._client.close()
+                raise LinkError(f"I/O error talking to the PLC at {self.url} during {what}: {exc}") from None
+        if reply is None:
+            raise LinkError(f"no reply from the PLC at {self.url} to {what}")
+        if reply.isError():
+            code = int(getattr(reply, "exception_code", 0))
+            error = PlcError(
+                f"the PLC at {self.url} refused {what}: Modbus exception {code} "
+                f"({EXCEPTION_NAMES.get(code, 'unknown')})",
+                hint="read 'mppf status' for the PLC's fault code",
+            )
+            error.exception_code = code
+            raise error
+        return reply
+
+    def _after_timeout(self) -> None:
+        """After a timeout, drop a late reply so that it is not paired with the next request.
+
+        TCP: the connection is closed (the next request opens a new one); RTU: the input
+        buffer is flushed after a short pause.
+        """
+        if self.url.scheme == "tcp":
+            self._client.close()
+        else:
+            port = getattr(self._client, "socket", None)
+            if port is not None and hasattr(port, "reset_input_buffer"):
+                time.sleep(min(0.05, self.timeout_s))
+                try:
+                    port.reset_input_buffer()
+                except OSError:
+                    pass
+
+    def _with_retries(self, retries: int, fn: Callable, *args, **kwargs):
+        """Call ``fn``; after a link failure wait ``RETRY_DELAY_S * attempt`` and try again."""
+        attempt = 0
+        while True:
+            try:
+                return fn(*args, **kwargs)
+            except PlcError:
+                raise  # the PLC answered: asking again gives the same answer
+            except LinkError:
+                if attempt >= retries:
+                    raise
+                attempt += 1
+                time.sleep(RETRY_DELAY_S * attempt)
+
+    def read_holding(
+        self,
+        address: int,
+        count: int,
+        *,
+        retries: int | None = None,
+        max_chunk: int = MAX_READ_REGS,
+        on_chunk: Callable[[int], None] | None = None,
+    ) -> list[int]:
+        """Read ``count`` holding registers (FC3) from ``address``, in frames of at most ``max_chunk``.
+
+        ``on_chunk`` (optional) is called with the number of registers read after each frame.
+
+        Returns
+        -------
+        list of int
+            Unsigned 16-bit register values.
+
+        Raises
+        ------
+        PlcError, LinkError
+        """
+        retries = self.retries if retries is None else retries
+        if not 1 <= max_chunk <= MAX_READ_REGS:
+            raise ValueError(f"max_chunk must be 1..{MAX_READ_REGS}, got {max_chunk}")
+        words: list[int] = []
+        for start in range(address, address + count, max_chunk):
+            n = min(max_chunk, address + count - start)
+            reply = self._with_retries(
+                retries, self._call, f"reading {n} registers at {start}", self._client.read_holding_registers,
+                start, count=n,
+            )
+            if len(reply.registers) != n:
+                raise LinkError(f"the PLC at {self.url} returned {len(reply.registers)} registers, asked {n}")
+            words.extend(reply.registers)
+            if on_chunk is not None:
+                on_chunk(n)
+        return words
+
+    def write_registers(
+        self,
+        address: int,
+        words: Sequence[int],
+        *,
+        retries: int | None = None,
+        max_chunk: int = MAX_WRITE_REGS,
+        on_chunk: Callable[[int], None] | None = None,
+    ) -> None:
+        """Write registers (FC16) from ``address``, in frames of at most ``max_chunk`` (<= 122).
+
+        Parameters
+        ----------
+        words : sequence of int
+            Unsigned 16-bit values.
+        retries : int, optional
+            Extra attempts after a timeout (default ``self.retries``; use :meth:`write_command`
+            for commands, which is never retried).
+        on_chunk : callable, optional
+            Called with the number of registers written after each frame (progress).
+
+        Raises
+        ------
+        PlcError, LinkError
+        """
+        retries = self.retries if retries is None else retries
+        if not 1 <= max_chunk <= MAX_WRITE_REGS or max_chunk % 2:
+            raise ValueError(f"max_chunk must be an even number 2..{MAX_WRITE_REGS}, got {max_chunk}")
+        words = [int(w) for w in words]
+        bad = [w for w in words if not 0 <= w <= 0xFFFF]
+        if bad:
+            raise ValueError(f"register values must be 0..65535, got {bad[:5]}")
+        for start, chunk in chunks(address, words, max_chunk):
+            self._with_retries(
+                retries, self._call, f"writing {len(chunk)} registers at {start}",
+                self._client.write_registers, start, chunk,
+            )
+            if on_chunk is not None:
+                on_chunk(len(chunk))
+
+    def write_command(self, address: int, words: Sequence[int]) -> None:
+        """Write a command (one FC16 frame, exactly one attempt: never retried).
+
+        Raises
+        ------
+        PlcError
+            The PLC refused the command.
+        LinkError
+            No reply: the command may or may not have been executed.
+        """
+        words = [int(w) for w in words]
+        if not 1 <= len(words) <= MAX_WRITE_REGS:
+            raise ValueError(f"a command is 1..{MAX_WRITE_REGS} registers, got {len(words)}")
+        self._call(f"command write at {address}", self._client.write_registers, address, words)
+
+    def __enter__(self) -> ModbusAdapter:
+        self.connect()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

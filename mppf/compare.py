@@ -1,0 +1,502 @@
+"""Compare a measured (scanned) plate with its design: register, deviate, summarise.
+
+The steps of :func:`compare` (the math is in ``docs/compare.md``):
+
+1. Fit the design surface: the design's own frame (best-fit plane) and a bicubic
+   B-spline height field ``w = D(u, v)`` (:func:`mppf.surface.fit_plate`).
+2. Offset the design to the measured skin: the design file is the mid-surface, a scanner
+   sees a skin; ``offset_mm`` moves the design along its normal (``+t/2`` for the top skin).
+3. Register the scan onto the (offset) design skin sampled densely from the fitted
+   surface (:func:`mppf.register.register_icp`): point-to-point ICP from the principal
+   axes (keeps the scan centred on the plate), then point-to-plane ICP with trimmed,
+   Huber-weighted pairs (accurate along the normal, ignores outliers); the point result
+   is kept if the plane stage slid part of the scan off the design's edge.
+4. Signed normal deviation of EVERY measured point: its foot point on the design surface
+   (:func:`mppf.localize.foot_points`), distance along the design normal minus the offset.
+   Positive = the measured plate lies on the +normal side of the design ("above").
+5. Outliers: a point whose deviation differs from a robust local plane through its
+   neighbours' deviations by more than a robust threshold (6 sigma of those differences,
+   at least 0.5 mm) is flagged and left out of the statistics; so are points whose foot point falls outside the design.
+   Smooth shape errors (a bump, springback) are NOT outliers: their neighbours agree.
+6. Statistics of the inliers (RMS, largest absolute, mean, percent within tolerance,
+   histogram) and, given the punch positions, the deviation at each punch.
+
+Which way is "+normal": with ``tf_press_design`` the design normal pointing up in press
+coordinates (+z); without it the normal of the design's frame (:mod:`mppf.frame`: the
+side from which a curved plate looks concave, like a bowl on the press bed).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import RBFInterpolator
+from matplotlib.path import Path as PolygonPath
+from scipy.spatial import ConvexHull, cKDTree
+
+from mppf.errors import GeometryError, InputError
+from mppf.frame import LocalFrame
+from mppf.localize import foot_points
+from mppf.register import Registration, register_icp
+from mppf.surface import fit_plate
+from mppf.transform import apply_rotation, apply_tf, as_points, tf_to_list
+
+OUTLIER_NEIGHBOURS = 16
+"""Neighbours (in the design plane) whose median deviation a point is compared with."""
+
+OUTLIER_SIGMAS = 6.0
+"""A point is an outlier when it differs from its neighbours by more than this many robust sigmas."""
+
+OUTLIER_FLOOR_MM = 0.5
+"""... and by more than this (so that a noise-free scan has no outliers)."""
+
+MIN_POINTS = 30
+"""Fewest measured points a comparison accepts."""
+
+MATCH_FRACTION = 0.5
+"""At least this fraction of the measured points must lie near the design (else: wrong plate)."""
+
+OVERHANG_FRACTION = 0.02
+"""Point-to-plane is rejected when it leaves this much more of the scan beyond the design's edge."""
+
+DENSE_POINTS = 60000
+"""Points of the dense design skin the scan is registered onto."""
+
+POINT_STAGE_POINTS = 3000
+"""Scan points used by the point-to-point stage (a seeded subsample)."""
+
+TRIM_FRACTION = 0.05
+"""Worst pairs dropped in each ICP iteration (outliers, the scan's edge beyond the design)."""
+
+
+@dataclass(frozen=True, eq=False)
+class Comparison:
+    """The result of :func:`compare`. Lengths in mm.
+
+    Attributes
+    ----------
+    rms_mm, max_abs_mm, mean_mm, std_mm : float
+        Statistics of the inlier deviations.
+    within_tolerance_pct : float
+        Percent of the inliers with ``|deviation| <= tolerance_mm``.
+    tolerance_mm, offset_mm : float
+        As given.
+    histogram_edges_mm : (b + 1,) float
+    histogram_counts : (b,) int
+        Histogram of the inlier deviations.
+    transform : (4, 4) float
+        Maps measured coordinates into design coordinates.
+    registration : Registration
+        The ICP report.
+    deviation_mm : (n,) float
+        Signed normal deviation of every measured point (NaN where the foot point search
+        failed).
+    inlier : (n,) bool
+        Points used in the statistics.
+    is_outlier : (n,) bool
+        Points flagged as outliers (off the surface relative to their neighbours).
+    is_outside : (n,) bool
+        Points whose foot point is outside the design plate (or did not converge).
+    measured_in_design : (n, 3) float
+        The measured points moved into design coordinates.
+    measured_uv_mm : (n, 2) float
+        Their foot points' (u, v) in the design's local frame (for maps).
+    design_frame : LocalFrame
+        The design's local frame (u, v, n rows, as :func:`mppf.frame.fit_frame` gives it).
+    normal_sign : float
+        +1 when positive deviations lie on the frame's +n side, -1 when on its -n side
+        (the normal was turned to point up in press coordinates).
+    design_uv_mm : (m, 2) float
+        The design points in that frame (for the outline of maps).
+    design_fit_rms_mm : float
+        RMS residual of the surface fitted to the design points.
+    punch_deviation_mm : (rows, cols) float or None
+        Deviation of the plate at each punch along press z (the stroke direction):
+        positive = plate above the design. NaN where the punch is off the plate.
+    punch_normal_deviation_mm : (rows, cols) float or None
+        The same along the design normal.
+    punch_interpolated : (rows, cols) bool or None
+        Punches without measured points nearby (occlusion) whose value is interpolated.
+    notes : list of str
+    """
+
+    rms_mm: float
+    max_abs_mm: float
+    mean_mm: float
+    std_mm: float
+    within_tolerance_pct: float
+    tolerance_mm: float
+    offset_mm: float
+    histogram_edges_mm: np.ndarray
+    histogram_counts: np.ndarray
+    transform: np.ndarray
+    registration: Registration
+    deviation_mm: np.ndarray
+    inlier: np.ndarray
+    is_outlier: np.ndarray
+    is_outside: np.ndarray
+    measured_in_design: np.ndarray
+    measured_uv_mm: np.ndarray
+    design_frame: LocalFrame
+    normal_sign: float
+    design_uv_mm: np.ndarray
+    design_fit_rms_mm: float
+    punch_deviation_mm: np.ndarray | None = None
+    punch_normal_deviation_mm: np.ndarray | None = None
+    punch_interpolated: np.ndarray | None = None
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def n_points(self) -> int:
+        """Number of measured points."""
+        return int(self.deviation_mm.shape[0])
+
+    @property
+    def n_inliers(self) -> int:
+        """Points in the statistics."""
+        return int(self.inlier.sum())
+
+    @property
+    def in_tolerance(self) -> bool:
+        """Largest absolute deviation within the tolerance."""
+        return bool(self.max_abs_mm <= self.tolerance_mm)
+
+    def to_dict(self) -> dict:
+        """JSON-able summary: statistics, transform (4x4 lists), histogram, registration, punches."""
+        doc = {
+            "rms_mm": self.rms_mm,
+            "max_abs_mm": self.max_abs_mm,
+            "mean_mm": self.mean_mm,
+            "std_mm": self.std_mm,
+            "within_tolerance_pct": self.within_tolerance_pct,
+            "tolerance_mm": self.tolerance_mm,
+            "offset_mm": self.offset_mm,
+            "in_tolerance": self.in_tolerance,
+            "n_points": self.n_points,
+            "n_inliers": self.n_inliers,
+            "n_outliers": int(self.is_outlier.sum()),
+            "n_outside": int(self.is_outside.sum()),
+            "inlier_fraction": self.n_inliers / max(self.n_points, 1),
+            "transform": tf_to_list(self.transform),
+            "histogram": {"edges_mm": self.histogram_edges_mm.tolist(), "counts": self.histogram_counts.tolist()},
+            "design_fit_rms_mm": self.design_fit_rms_mm,
+            "registration": self.registration.to_dict(),
+            "notes": list(self.notes),
+        }
+        if self.punch_deviation_mm is not None:
+            doc["punch_deviation_mm"] = _nan_to_none(self.punch_deviation_mm)
+            doc["punch_normal_deviation_mm"] = _nan_to_none(self.punch_normal_deviation_mm)
+            doc["punch_interpolated"] = self.punch_interpolated.tolist()
+        return doc
+
+
+def _nan_to_none(grid: np.ndarray) -> list:
+    return [[None if not np.isfinite(v) else float(v) for v in row] for row in grid]
+
+
+def compare(
+    design_points,
+    measured_points,
+    *,
+    tolerance_mm: float = 2.5,
+    offset_mm: float = 0.0,
+    design_faces=None,
+    punch_xy_mm=None,
+    tf_press_design=None,
+    bins: int | np.ndarray = 30,
+    punch_radius_mm: float | None = None,
+) -> Comparison:
+    """Register a scan onto its design and measure the deviation of every point.
+
+    Parameters
+    ----------
+    design_points : (m, 3) float, mm
+        The design plate (mid-surface), design coordinates.
+    measured_points : (n, 3) float, mm
+        The scan, in any pose.
+    tolerance_mm : float
+        Allowed absolute deviation.
+    offset_mm : float
+        The skin that was measured, as a normal offset of the design: ``+t/2`` top
+        skin, ``0`` mid-surface, ``-t/2`` bottom skin ("top" = +normal side, see the
+        module docstring).
+    design_faces : (k, 3) int, optional
+        Design mesh triangles (a stricter fold-over check of the design).
+    punch_xy_mm : (rows, cols, 2) float, optional
+        Punch axis positions (x, y) in press coordinates; needs ``tf_press_design``.
+    tf_press_design : (4, 4) float, optional
+        Maps design into press coordinates (the job's); also orients the normal up.
+    bins : int or (b + 1,) float
+        Histogram bins: a count (symmetric about 0) or the edges in mm.
+    punch_radius_mm : float, optional
+        Radius around a punch axis whose points give its deviation (default: 0.45 of
+        the punch pitch).
+
+    Returns
+    -------
+    Comparison
+
+    Raises
+    ------
+    InputError
+        Bad options or shapes.
+    GeometryError
+        Too few points, a design that is not a plate, or a scan that does not match the
+        design (registration failed or most points far from it).
+    """
+    # 0. inputs
+    design = as_points(design_points, name="design points")
+    measured = as_points(measured_points, name="measured points")
+    _check_options(tolerance_mm, offset_mm, measured, punch_xy_mm, tf_press_design)
+
+    # 1. the design surface, its normal oriented (up in press coordinates when known)
+    fitted = fit_plate(design, kind="spline", faces=design_faces, source="design")
+    frame, surface = fitted.frame, fitted.surface
+    sign = _normal_sign(frame, tf_press_design)
+    design_local = fitted.frame.to_local(design)
+    uv_d = design_local[:, :2]
+
+    # 2. the design moved to the measured skin, sampled densely
+    target = _dense_skin(fitted, uv_d, sign, offset_mm)
+
+    # 3. robust registration of the scan onto the design skin, and
+    # 4. signed normal deviation of every point (foot points on the design surface)
+    reg, moved, feet, deviation, outside, reg_note = _register(measured, target, fitted, uv_d, sign, offset_mm)
+    uv = np.asarray(feet.uv, dtype=float)
+    _check_match(deviation, outside, tolerance_mm, reg, depth_mm=float(np.ptp(design_local[:, 2])))
+
+    # 5. outliers relative to their neighbours
+    outlier = _outliers(uv, deviation, ~outside)
+    inlier = ~outside & ~outlier
+
+    # 6. statistics, histogram and punch deviations
+    d = deviation[inlier]
+    edges = _bin_edges(d, tolerance_mm, bins)
+    counts, _ = np.histogram(np.clip(d, edges[0], edges[-1]), bins=edges)
+    notes = [reg_note, f"{int(outlier.sum())} outlier(s) and {int(outside.sum())} point(s) outside the design "
+             "left out of the statistics"]
+    punch = punch_n = punch_interp = None
+    if punch_xy_mm is not None:
+        n_z = apply_rotation(np.asarray(tf_press_design, dtype=float) @ fitted.frame.tf_world_local,
+                             surface.normals(uv[:, 0], uv[:, 1]))[:, 2] * sign
+        foot_press = apply_tf(np.asarray(tf_press_design, dtype=float) @ fitted.frame.tf_world_local,
+                              np.asarray(feet.xyz, dtype=float))
+        design_press = apply_tf(tf_press_design, design)
+        punch, punch_n, punch_interp = _punch_deviation(
+            np.asarray(punch_xy_mm, dtype=float), foot_press[inlier, :2], d, np.maximum(n_z[inlier], 0.2),
+            design_press[:, :2], punch_radius_mm)
+        notes.append(f"punch deviations: {int(np.isfinite(punch).sum())} punches on the plate, "
+                     f"{int(punch_interp.sum())} interpolated across gaps in the scan")
+    return Comparison(
+        rms_mm=float(np.sqrt(np.mean(d**2))),
+        max_abs_mm=float(np.max(np.abs(d))),
+        mean_mm=float(np.mean(d)),
+        std_mm=float(np.std(d)),
+        within_tolerance_pct=float(100.0 * np.mean(np.abs(d) <= tolerance_mm)),
+        tolerance_mm=float(tolerance_mm),
+        offset_mm=float(offset_mm),
+        histogram_edges_mm=edges,
+        histogram_counts=counts,
+        transform=reg.tf,
+        registration=reg,
+        deviation_mm=deviation,
+        inlier=inlier,
+        is_outlier=outlier,
+        is_outside=outside,
+        measured_in_design=moved,
+        measured_uv_mm=uv,
+        design_frame=frame,
+        normal_sign=sign,
+        design_uv_mm=uv_d,
+        design_fit_rms_mm=float(fitted.rms_mm),
+        punch_deviation_mm=punch,
+        punch_normal_deviation_mm=punch_n,
+        punch_interpolated=punch_interp,
+        notes=notes,
+    )
+
+
+def _dense_skin(fitted, uv_design: np.ndarray, sign: float, offset_mm: float) -> np.ndarray:
+    """The design skin sampled densely from its fitted surface (world coordinates).
+
+    About ``DENSE_POINTS`` points on a square grid over the design's convex outline: a
+    dense target makes point-to-point ICP nearly a point-to-surface distance, without
+    the bias of a coarse design grid.
+    """
+    lo, hi = uv_design.min(axis=0), uv_design.max(axis=0)
+    step = max(float(np.sqrt(np.prod(hi - lo) / DENSE_POINTS)), 1e-6)
+    uu, vv = np.meshgrid(np.arange(lo[0], hi[0] + 1e-9, step), np.arange(lo[1], hi[1] + 1e-9, step))
+    uv = np.column_stack([uu.ravel(), vv.ravel()])
+    uv = uv[PolygonPath(uv_design[ConvexHull(uv_design).vertices]).contains_points(uv, radius=1e-9)]
+    w = fitted.surface.evaluate(uv[:, 0], uv[:, 1])
+    local = np.column_stack([uv, w]) + (sign * offset_mm) * fitted.surface.normals(uv[:, 0], uv[:, 1])
+    return fitted.frame.to_world(local)
+
+
+def _register(measured, target, fitted, uv_design, sign: float, offset_mm: float):
+    """Register in two stages, then deviate every point.
+
+    1. Point-to-point ICP (principal-axes start, plain least squares) on the dense design
+       skin: it keeps the scan centred on the plate even where the surface alone cannot
+       fix the in-plane position (a cylinder's axis, a nearly flat plate).
+    2. Point-to-plane ICP from there, trimmed and Huber-weighted: accurate along the
+       normal, insensitive to outliers. It is kept unless it slid part of the scan off
+       the design's edge (grossly different shapes), then stage 1 is used.
+    """
+    stages = []
+    init = "principal"
+    for method, trim, robust, max_points in (("point", None, None, POINT_STAGE_POINTS),
+                                             ("plane", TRIM_FRACTION, "huber", 30000)):
+        reg = register_icp(measured, target, method=method, init=init, trim_fraction=trim, robust=robust,
+                           pin_outline=False, max_points=max_points)
+        init = reg.tf
+        moved = apply_tf(reg.tf, measured)
+        feet = foot_points(fitted.surface, fitted.frame.to_local(moved))
+        distance = np.asarray(feet.distance_mm, dtype=float)
+        deviation = np.where(np.isfinite(distance), sign * distance - offset_mm, np.nan)
+        outside = (~np.asarray(feet.converged, dtype=bool) | ~np.isfinite(deviation)
+                   | _outside(uv_design, np.asarray(feet.uv, dtype=float)))
+        stages.append((reg, moved, feet, deviation, outside))
+    point, plane = stages
+    if plane[4].mean() <= point[4].mean() + OVERHANG_FRACTION:
+        return (*plane, "registration: point-to-point, then point-to-plane (trimmed, Huber)")
+    return (*point, f"registration: point-to-point only; point-to-plane left {100 * plane[4].mean():.0f} % of "
+                    "the scan outside the design (the shapes differ much)")
+
+
+def _check_options(tolerance_mm, offset_mm, measured, punch_xy_mm, tf_press_design) -> None:
+    if not (np.isfinite(tolerance_mm) and tolerance_mm > 0):
+        raise InputError(f"tolerance must be a positive length, got {tolerance_mm} mm")
+    if not np.isfinite(offset_mm):
+        raise InputError(f"skin offset must be finite, got {offset_mm} mm")
+    if measured.shape[0] < MIN_POINTS:
+        raise GeometryError(f"the scan has {measured.shape[0]} point(s), a comparison needs at least {MIN_POINTS}",
+                            hint="check the scan export")
+    if punch_xy_mm is not None:
+        grid = np.asarray(punch_xy_mm, dtype=float)
+        if grid.ndim != 3 or grid.shape[2] != 2:
+            raise InputError(f"punch positions must have shape (rows, cols, 2), got {grid.shape}")
+        if tf_press_design is None:
+            raise InputError("punch deviations need tf_press_design (design -> press)",
+                             hint="pass the job's tf_press_design")
+    if tf_press_design is not None and np.asarray(tf_press_design, dtype=float).shape != (4, 4):
+        raise InputError(f"tf_press_design must be 4x4, got {np.asarray(tf_press_design).shape}")
+
+
+def _normal_sign(frame: LocalFrame, tf_press_design) -> float:
+    """+1 or -1: the sign that makes the frame's normal point up in press coordinates (when known)."""
+    if tf_press_design is None:
+        return 1.0
+    up = apply_rotation(np.asarray(tf_press_design, dtype=float), frame.axes[2:3])[0, 2]
+    return 1.0 if up >= 0 else -1.0
+
+
+def _outside(uv_design: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Foot points outside the design: beyond its convex hull and away from its points."""
+    tree = cKDTree(uv_design)
+    spacing = float(np.median(tree.query(uv_design, k=2)[0][:, 1]))
+    hull = ConvexHull(uv_design)
+    beyond = ~PolygonPath(uv_design[hull.vertices]).contains_points(uv)
+    far = tree.query(uv)[0] > 1.5 * max(spacing, 1e-9)
+    return beyond & far
+
+
+def _check_match(deviation, outside, tolerance_mm: float, reg: Registration, depth_mm: float) -> None:
+    """Raise GeometryError when the scan is evidently of another plate (or did not register).
+
+    Another plate: more than half of the scan lies beyond the design's edge, or more than
+    half lies farther from the design than ``max(10 tolerance, 25 mm, depth / 2)`` (a
+    badly formed but right plate stays within half its design depth).
+    """
+    n = deviation.shape[0]
+    if outside.mean() > 1.0 - MATCH_FRACTION:
+        raise GeometryError(
+            f"the scan does not match the design: {100 * outside.mean():.0f} % of the measured points lie "
+            "outside the design plate after registration",
+            hint="check that the scan and the design are of the same plate (and the --units)")
+    gross_mm = max(10.0 * tolerance_mm, 25.0, 0.5 * depth_mm)
+    near = np.abs(np.where(outside, np.inf, deviation)) <= gross_mm
+    if near.sum() < MATCH_FRACTION * n:
+        raise GeometryError(
+            f"the scan does not match the design: only {100 * near.mean():.0f} % of the measured points lie "
+            f"within {gross_mm:g} mm of it after registration (registration RMS {reg.rms_mm:.1f} mm)",
+            hint="check that the scan and the design are of the same plate (and the --units)")
+
+
+def _outliers(uv: np.ndarray, deviation: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Points whose deviation differs from a robust local plane through their neighbours'.
+
+    For each point, a plane d = a + b u + c v is fitted to the deviations of its
+    ``OUTLIER_NEIGHBOURS`` nearest neighbours (in the design plane, the point itself left
+    out), reweighted twice to ignore neighbours that are outliers themselves. The
+    differences from those planes have a robust sigma (1.4826 MAD); a point is an outlier
+    beyond ``OUTLIER_SIGMAS`` sigma (and ``OUTLIER_FLOOR_MM``). The local plane follows
+    smooth shape errors, even steep ones, so those are never flagged.
+    """
+    idx = np.flatnonzero(valid)
+    out = np.zeros(deviation.shape[0], dtype=bool)
+    k = min(OUTLIER_NEIGHBOURS + 1, idx.size)
+    if k < 8:
+        return out
+    pts, dev = uv[idx], deviation[idx]
+    _, nb = cKDTree(pts).query(pts, k=k)
+    nb = nb[:, 1:]
+    rel = pts[nb] - pts[:, None, :]                                   # (m, k, 2)
+    scale = np.maximum(np.abs(rel).max(axis=(1, 2)), 1e-9)[:, None, None]
+    design = np.concatenate([np.ones(rel.shape[:2] + (1,)), rel / scale], axis=2)  # (m, k, 3)
+    values = dev[nb]
+    weight = np.ones_like(values)
+    for _ in range(3):
+        a = np.einsum("mki,mk,mkj->mij", design, weight, design) + 1e-9 * np.eye(3)
+        b = np.einsum("mki,mk,mk->mi", design, weight, values)
+        coef = np.linalg.solve(a, b[..., None])[..., 0]
+        resid = values - np.einsum("mki,mi->mk", design, coef)
+        spread = np.maximum(np.median(np.abs(resid), axis=1, keepdims=True), 1e-6)
+        weight = (np.abs(resid) <= 3.0 * spread).astype(float)
+    diff = dev - coef[:, 0]
+    sigma = 1.4826 * np.median(np.abs(diff - np.median(diff)))
+    out[idx] = np.abs(diff) > max(OUTLIER_SIGMAS * sigma, OUTLIER_FLOOR_MM)
+    return out
+
+
+def _bin_edges(d: np.ndarray, tolerance_mm: float, bins) -> np.ndarray:
+    if np.ndim(bins) == 0:
+        count = int(bins)
+        if count < 1:
+            raise InputError(f"histogram bins must be at least 1, got {bins}")
+        half = max(float(np.max(np.abs(d))) if d.size else 0.0, tolerance_mm) * 1.05
+        return np.linspace(-half, half, count + 1)
+    edges = np.asarray(bins, dtype=float)
+    if edges.ndim != 1 or edges.size < 2 or np.any(np.diff(edges) <= 0):
+        raise InputError("histogram edges must be an increasing 1-D array of at least 2 values")
+    return edges
+
+
+def _punch_deviation(punch_xy, xy, deviation, n_z, design_xy, radius_mm):
+    """Median deviation near each punch axis; interpolated where the scan has a gap.
+
+    Returns (stroke-direction deviation, normal deviation, interpolated mask), each
+    (rows, cols); NaN where the punch is off the plate.
+    """
+    rows, cols, _ = punch_xy.shape
+    flat = punch_xy.reshape(-1, 2)
+    if radius_mm is None:
+        pitch = cKDTree(flat).query(flat, k=2)[0][:, 1] if flat.shape[0] > 1 else np.array([100.0])
+        radius_mm = 0.45 * float(np.median(pitch))
+    hull = ConvexHull(design_xy)
+    on_plate = PolygonPath(design_xy[hull.vertices]).contains_points(flat)
+    normal = np.full(flat.shape[0], np.nan)
+    vertical = np.full(flat.shape[0], np.nan)
+    for i, near in enumerate(cKDTree(xy).query_ball_point(flat, radius_mm)):
+        if on_plate[i] and len(near) >= 3:
+            normal[i] = np.median(deviation[near])
+            vertical[i] = np.median(deviation[near] / n_z[near])
+    measured = np.isfinite(normal)
+    gap = on_plate & ~measured
+    if gap.any() and measured.sum() >= 3:
+        # smooth fill: a thin-plate spline through the measured punch values
+        for values in (normal, vertical):
+            spline = RBFInterpolator(flat[measured], values[measured], kernel="thin_plate_spline", smoothing=0.1)
+            values[gap] = spline(flat[gap])
+    return vertical.reshape(rows, cols), normal.reshape(rows, cols), gap.reshape(rows, cols)

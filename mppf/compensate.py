@@ -1,0 +1,252 @@
+"""Stroke compensation: displacement adjustment with a secant gain per punch.
+
+After a press cycle the plate is scanned and compared; ``e`` is the plate's deviation
+from the design at each punch, measured along the stroke direction (press z):
+``e > 0`` means the formed plate lies ABOVE the design there. The next strokes are
+
+    h_next = h - lambda * e          (displacement adjustment, DA)
+
+applied to both matrices alike (upper and lower tips move by the same amount, so the
+gap stays the plate thickness). ``lambda`` is the inverse of the stroke-to-shape gain
+``de/dh``. From the second cycle on it is estimated per punch by the secant of the last
+two cycles (the "modified DA"),
+
+    lambda_ij = (h_k - h_{k-1}) / (e_k - e_{k-1}),
+
+and falls back to the default gain where that is unreliable (a stroke or deviation
+change below 0.1 mm, or a negative estimate), clipped to [0.5, 3] otherwise. The
+corrections are smoothed on the punch grid, then limited so that neighbouring
+corrections differ by at most the press's dimpling limit (``max_neighbour_diff_mm``)
+and every corrected stroke stays within the matrices' tip-height limits. See
+``docs/compare.md``, section "Compensation".
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mppf.errors import InputError
+from mppf.press import PressConfig
+
+GAIN_RANGE = (0.5, 3.0)
+"""Range the secant gain is clipped to."""
+
+SECANT_MIN_MM = 0.1
+"""Smallest stroke change and deviation change between cycles that gives a secant gain."""
+
+SMOOTHING = 0.25
+"""Weight of the neighbour average in the smoothed correction (0 = none, 1 = only neighbours)."""
+
+
+@dataclass(frozen=True)
+class PreviousCycle:
+    """What the secant gain needs from the last cycle.
+
+    Attributes
+    ----------
+    lower_mm : (rows, cols) float
+        Lower tip heights pressed in the last cycle (the upper ones moved alike).
+    punch_error_mm : (rows, cols) float
+        The deviation measured after the last cycle (NaN where unknown).
+    """
+
+    lower_mm: np.ndarray
+    punch_error_mm: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class Correction:
+    """Corrected strokes for the next cycle.
+
+    Attributes
+    ----------
+    upper_mm, lower_mm : (rows, cols) float
+        Corrected tip heights (NaN where the punch is inactive).
+    gain : (rows, cols) float
+        lambda used per punch (NaN where inactive).
+    applied_mm : (rows, cols) float
+        Correction added to both matrices (0 where inactive or no error known).
+    clipped : (rows, cols) bool
+        Where the dimpling or stroke limit reduced the correction.
+    notes : list of str
+        What happened, for the operator and the history.
+    """
+
+    upper_mm: np.ndarray
+    lower_mm: np.ndarray
+    gain: np.ndarray
+    applied_mm: np.ndarray
+    clipped: np.ndarray
+    notes: list[str] = field(default_factory=list)
+
+    def previous(self, punch_error_mm) -> PreviousCycle:
+        """The :class:`PreviousCycle` to pass on after pressing these strokes and measuring ``punch_error_mm``."""
+        return PreviousCycle(lower_mm=self.lower_mm, punch_error_mm=np.asarray(punch_error_mm, dtype=float))
+
+
+def compensate(
+    upper_mm,
+    lower_mm,
+    punch_error_mm,
+    *,
+    press: PressConfig,
+    thickness_mm: float,
+    gain: float = 1.0,
+    previous: PreviousCycle | Mapping | None = None,
+    smoothing: float = SMOOTHING,
+) -> Correction:
+    """Correct the strokes of one press step from the measured deviation at the punches.
+
+    Parameters
+    ----------
+    upper_mm, lower_mm : (rows, cols) float
+        Tip heights pressed in the cycle just measured (NaN where inactive).
+    punch_error_mm : (rows, cols) float
+        Deviation of the formed plate from the design at each punch along press z
+        (``Comparison.punch_deviation_mm``): positive = plate above the design. NaN
+        where unknown (no correction there).
+    press : PressConfig
+    thickness_mm : float
+        Plate thickness; a note is added where the gap ``upper - lower`` differs from it.
+    gain : float
+        Default lambda (the first cycle, and where the secant is unreliable).
+    previous : PreviousCycle or mapping with ``lower_mm`` and ``punch_error_mm``, optional
+        The cycle before, for the secant gain.
+    smoothing : float
+        Weight of the neighbour average in the correction, in [0, 1].
+
+    Returns
+    -------
+    Correction
+
+    Raises
+    ------
+    InputError
+        Wrong shapes, a non-positive gain or a smoothing weight outside [0, 1].
+    """
+    upper, lower, error = (_grid(press, a, name) for a, name in
+                           ((upper_mm, "upper_mm"), (lower_mm, "lower_mm"), (punch_error_mm, "punch_error_mm")))
+    if not (np.isfinite(gain) and gain > 0):
+        raise InputError(f"the default gain must be positive, got {gain}", hint="1.0 is a safe start")
+    if not 0.0 <= smoothing <= 1.0:
+        raise InputError(f"smoothing must be within 0..1, got {smoothing}")
+    active = np.isfinite(upper) & np.isfinite(lower)
+    known = active & np.isfinite(error)
+    notes: list[str] = []
+    gap = (upper - lower)[active]
+    if gap.size and np.max(np.abs(gap - thickness_mm)) > 0.5:
+        notes.append(f"gap upper - lower differs from the thickness {thickness_mm:g} mm by up to "
+                     f"{np.max(np.abs(gap - thickness_mm)):.2f} mm")
+
+    # 1. gain per punch: the secant of the last two cycles, else the default
+    lam = np.where(active, float(gain), np.nan)
+    if previous is not None:
+        lam, fallback = _secant_gain(press, lower, error, previous, float(gain), known)
+        lam = np.where(active, lam, np.nan)
+        notes.append(f"secant gain at {int((known & ~fallback).sum())} punches, default {gain:g} at "
+                     f"{int((known & fallback).sum())}; gain range {np.nanmin(lam[known]) if known.any() else gain:.2f}"
+                     f"..{np.nanmax(lam[known]) if known.any() else gain:.2f}")
+
+    # 2. raw displacement adjustment, smoothed on the punch grid
+    raw = np.where(known, -lam * np.where(known, error, 0.0), 0.0)
+    smooth = (1.0 - smoothing) * raw + smoothing * _neighbour_mean(raw, known)
+    smooth = np.where(known, smooth, 0.0)
+
+    # 3. limits: dimpling (neighbour differences of the correction) and tip heights
+    lo = np.maximum(press.upper.min_mm - upper, press.lower.min_mm - lower)
+    hi = np.minimum(press.upper.max_mm - upper, press.lower.max_mm - lower)
+    applied = _limit(smooth, active, lo, hi, press.max_neighbour_diff_mm)
+    clipped = active & (np.abs(applied - smooth) > 1e-9)
+    if clipped.any():
+        notes.append(f"correction limited at {int(clipped.sum())} punches (dimpling limit "
+                     f"{press.max_neighbour_diff_mm:g} mm or stroke limits)")
+    return Correction(
+        upper_mm=np.where(active, upper + applied, np.nan),
+        lower_mm=np.where(active, lower + applied, np.nan),
+        gain=lam,
+        applied_mm=np.where(active, applied, 0.0),
+        clipped=clipped,
+        notes=notes,
+    )
+
+
+def _grid(press: PressConfig, values, name: str) -> np.ndarray:
+    arr = np.asarray(values, dtype=float)
+    if arr.shape != press.shape:
+        raise InputError(f"{name} has shape {arr.shape}, the press has {press.shape}")
+    return arr
+
+
+def _secant_gain(press, lower, error, previous, default: float, known) -> tuple[np.ndarray, np.ndarray]:
+    """Per-punch secant gain and the mask where it fell back to the default."""
+    if isinstance(previous, Mapping):
+        try:
+            previous = PreviousCycle(lower_mm=previous["lower_mm"], punch_error_mm=previous["punch_error_mm"])
+        except KeyError as exc:
+            raise InputError(f"previous cycle lacks {exc}", hint="give lower_mm and punch_error_mm") from None
+    lower_prev = _grid(press, previous.lower_mm, "previous lower_mm")
+    error_prev = _grid(press, previous.punch_error_mm, "previous punch_error_mm")
+    dh = lower - lower_prev
+    de = error - error_prev
+    with np.errstate(invalid="ignore", divide="ignore"):
+        secant = dh / de
+    ok = known & np.isfinite(secant) & (np.abs(dh) >= SECANT_MIN_MM) & (np.abs(de) >= SECANT_MIN_MM) & (secant > 0)
+    lam = np.where(ok, np.clip(np.where(ok, secant, default), *GAIN_RANGE), default)
+    return lam, ~ok
+
+
+def _neighbour_mean(values: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Mean of the 4-neighbours within ``mask`` (the value itself where it has none)."""
+    total = np.zeros_like(values)
+    count = np.zeros_like(values)
+    padded = np.pad(np.where(mask, values, 0.0), 1)
+    pmask = np.pad(mask.astype(float), 1)
+    rows, cols = values.shape
+    for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1)):
+        total += padded[1 + dr:1 + dr + rows, 1 + dc:1 + dc + cols]
+        count += pmask[1 + dr:1 + dr + rows, 1 + dc:1 + dc + cols]
+    return np.where(count > 0, total / np.maximum(count, 1.0), values)
+
+
+def _limit(correction, active, lo, hi, max_diff_mm: float, iterations: int = 200) -> np.ndarray:
+    """Clip ``correction`` to [lo, hi] and to neighbour differences <= ``max_diff_mm``.
+
+    Alternating projections: each violating neighbour pair is pulled towards its mean,
+    then the stroke range is enforced; a final uniform scale-down guarantees both.
+    """
+    c = np.clip(np.where(active, correction, 0.0), np.where(active, lo, 0.0), np.where(active, hi, 0.0))
+    for _ in range(iterations):
+        changed = False
+        for axis in (0, 1):
+            a = np.moveaxis(c, axis, 0)
+            act = np.moveaxis(active, axis, 0)
+            pair = act[1:] & act[:-1]
+            diff = a[1:] - a[:-1]
+            excess = np.where(pair, np.abs(diff) - max_diff_mm, 0.0)
+            if np.any(excess > 1e-9):
+                changed = True
+                shift = 0.5 * np.sign(diff) * np.maximum(excess, 0.0) * (1 + 1e-6)
+                a[1:] -= shift  # views: modify c in place
+                a[:-1] += shift
+        c = np.clip(c, np.where(active, lo, 0.0), np.where(active, hi, 0.0))
+        if not changed and _max_neighbour_diff(c, active) <= max_diff_mm + 1e-9:
+            return c
+    # rare: did not settle; shrink towards zero, which satisfies both limits when 0 does
+    worst = _max_neighbour_diff(c, active)
+    if worst > max_diff_mm:
+        c = c * (max_diff_mm / worst)
+    return c
+
+
+def _max_neighbour_diff(c: np.ndarray, active: np.ndarray) -> float:
+    worst = 0.0
+    for axis in (0, 1):
+        a = np.moveaxis(c, axis, 0)
+        act = np.moveaxis(active, axis, 0)
+        pair = act[1:] & act[:-1]
+        if pair.any():
+            worst = max(worst, float(np.abs(a[1:] - a[:-1])[pair].max()))
+    return worst

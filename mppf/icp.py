@@ -1,0 +1,552 @@
+"""The ICP machinery behind :func:`mppf.register.register_icp`.
+
+One :class:`Problem` holds the fixed target (kd-tree, lazily computed normals, plate
+frame, pair weighting); :func:`run` iterates "match closest points, weight the pairs,
+solve one step (quaternion or linearised point-to-plane), pin the outline, test the
+stop criteria"; :func:`evaluate` and :func:`uncertainty` describe the result. All
+lengths in mm, angles in radians unless a name says ``_deg``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import ConvexHull, QhullError, cKDTree
+from scipy.spatial.transform import Rotation
+
+from mppf.errors import GeometryError
+from mppf.progress import NULL_REPORTER, Reporter
+from mppf.transform import apply_tf, make_tf, quaternion_to_matrix
+
+NORMAL_NEIGHBOURS = 10
+"""Target points used for each local PCA normal."""
+
+HUBER_K = 1.345
+"""Huber threshold in robust scales (95 % efficiency for Gaussian residuals)."""
+
+TUKEY_C = 4.685
+"""Tukey biweight cut-off in robust scales (95 % efficiency for Gaussian residuals)."""
+
+SCORE_KEEP = 0.6
+"""Fraction of the best pair distances that scores a principal-axes candidate."""
+
+COVERAGE_TOL = 0.12
+"""Outline areas and extents of source and target within this fraction: same plate."""
+
+ELONGATED = 1.3
+"""Outline second-moment ratio above which the outline also pins the turn about the normal."""
+
+UNOBSERVABLE = 1e-5
+"""Directions of a linearised step whose information is below this fraction of the largest are held."""
+
+MAX_EXTRAPOLATION = 25.0
+"""Largest jump of the accelerated ICP, in multiples of the last increment."""
+
+PIN_BAND_FRACTION = 0.02
+"""Width of the band of outline candidates along the convex outline, in plate sizes (sqrt area)."""
+
+OUTLINE_NEIGHBOURS = 8
+"""Neighbour rank whose distance tells isolated points (outliers) from the plate."""
+
+ISOLATED = 4.0
+"""Points whose neighbour distance exceeds this many times the median are not outline."""
+
+PIN_TURN_DEG = 0.05
+"""The outline also pins the turn about the normal when the surface fixes it worse than this
+(one sigma, in degrees, for 1 mm noise on the source points)."""
+
+
+def horn_fit(source: np.ndarray, target: np.ndarray, weights=None) -> np.ndarray:
+    """Closed-form rigid fit of paired points (no checks), the paper's eq. (2.3)-(2.10).
+
+    Parameters
+    ----------
+    source, target : (n, 3) float, mm
+        Pairs ``source[i] <-> target[i]``.
+    weights : (n,) float >= 0, optional
+
+    Returns
+    -------
+    (4, 4) float
+        ``tf`` minimising ``sum w_i |target_i - (R source_i + t)|^2``.
+    """
+    if weights is None:
+        w = np.full(source.shape[0], 1.0 / source.shape[0])
+    else:
+        w = weights / weights.sum()
+    mu_p = w @ source  # (2.3)
+    mu_x = w @ target  # (2.4)
+    sigma = ((source - mu_p) * w[:, None]).T @ (target - mu_x)  # (2.5) cross-covariance
+    anti = sigma - sigma.T
+    delta = np.array([anti[1, 2], anti[2, 0], anti[0, 1]])
+    trace = np.trace(sigma)
+    q_mat = np.empty((4, 4))  # (2.6), symmetric 4 x 4
+    q_mat[0, 0] = trace
+    q_mat[0, 1:] = delta
+    q_mat[1:, 0] = delta
+    q_mat[1:, 1:] = sigma + sigma.T - trace * np.eye(3)
+    eigval, eigvec = np.linalg.eigh(q_mat)
+    rotation = quaternion_to_matrix(eigvec[:, np.argmax(eigval)])  # (2.7), (2.8) standard form
+    translation = mu_x - rotation @ mu_p  # (2.9)
+    return make_tf(rotation, translation)  # (2.10)
+
+
+@dataclass(eq=False)
+class Problem:
+    """The fixed side of an ICP: target points, kd-tree, frame and pair weighting.
+
+    Attributes
+    ----------
+    target : (m, 3) float, mm
+    tree : scipy.spatial.cKDTree of ``target``
+    frame : mppf.frame.LocalFrame of the target (plate plane, normal n)
+    method : {"point", "plane"}
+    trim_fraction : float or None
+    robust : {"huber", "tukey"} or None
+    """
+
+    target: np.ndarray
+    tree: object
+    frame: object
+    method: str
+    trim_fraction: float | None = None
+    robust: str | None = None
+    _normals: np.ndarray | None = field(default=None, repr=False)
+    _outline: tuple | None = field(default=None, repr=False)
+
+    def normals(self, idx: np.ndarray) -> np.ndarray:
+        """Unit normals (k, 3) of target points ``idx`` by local PCA (computed once each)."""
+        if self._normals is None:
+            self._normals = np.full(self.target.shape, np.nan)
+        missing = np.unique(idx)
+        missing = missing[np.isnan(self._normals[missing, 0])]
+        if missing.size:
+            k = min(NORMAL_NEIGHBOURS, self.target.shape[0])
+            _, nb = self.tree.query(self.target[missing], k=k, workers=-1)
+            hood = self.target[nb]
+            hood = hood - hood.mean(axis=1, keepdims=True)
+            cov = np.einsum("mki,mkj->mij", hood, hood)
+            _, vec = np.linalg.eigh(cov)
+            self._normals[missing] = vec[:, :, 0]
+        return self._normals[idx]
+
+    def target_outline(self):
+        """Area, centroid (2,) and central second moments (2, 2) of the target's outline."""
+        if self._outline is None:
+            self._outline = polygon_moments(self.frame.to_local(self.target)[:, :2])
+        return self._outline
+
+
+@dataclass(frozen=True, eq=False)
+class Pairs:
+    """Matched pairs at one transform."""
+
+    moved: np.ndarray
+    matched: np.ndarray
+    index: np.ndarray
+    distance: np.ndarray
+    residual: np.ndarray
+    weight: np.ndarray
+    normal: np.ndarray | None
+
+    @property
+    def mse(self) -> float:
+        """Weighted mean squared residual, mm^2."""
+        return float(np.average(self.residual**2, weights=self.weight))
+
+    @property
+    def rms_mm(self) -> float:
+        """Weighted RMS residual, mm."""
+        return float(np.sqrt(self.mse))
+
+    @property
+    def inlier_fraction(self) -> float:
+        """Fraction of pairs with a non-zero weight."""
+        return float(np.count_nonzero(self.weight) / self.weight.size)
+
+
+def pair_weights(residual: np.ndarray, trim_fraction, robust) -> np.ndarray:
+    """Weights of pairs: trimmed (worst fraction dropped) and/or robust (Huber, Tukey).
+
+    The robust scale is 1.4826 times the median absolute residual of the kept pairs.
+    """
+    a = np.abs(residual)
+    w = np.ones_like(a)
+    if trim_fraction:
+        keep = max(3, int(np.ceil((1.0 - trim_fraction) * a.size)))
+        if keep < a.size:
+            cutoff = np.partition(a, keep - 1)[keep - 1]
+            w[a > cutoff] = 0.0
+    if robust:
+        scale = 1.4826 * float(np.median(a[w > 0]))
+        scale = max(scale, 1e-9 * (1.0 + float(a.max())))
+        if robust == "huber":
+            c = HUBER_K * scale
+            w *= np.where(a <= c, 1.0, c / np.maximum(a, c))
+        else:
+            c = TUKEY_C * scale
+            w *= np.where(a < c, (1.0 - (a / c) ** 2) ** 2, 0.0)
+    return w
+
+
+def match(problem: Problem, source: np.ndarray, tf: np.ndarray, metric: str | None = None) -> Pairs:
+    """Closest target points of the moved source, residuals and weights."""
+    metric = metric or problem.method
+    moved = apply_tf(tf, source)
+    dist, idx = problem.tree.query(moved, workers=-1)
+    matched = problem.target[idx]
+    normal = None
+    if metric == "plane":
+        normal = problem.normals(idx)
+        residual = np.einsum("ij,ij->i", moved - matched, normal)
+    else:
+        residual = dist
+    weight = pair_weights(residual, problem.trim_fraction, problem.robust)
+    if np.count_nonzero(weight) < 6:
+        raise GeometryError(
+            f"only {np.count_nonzero(weight)} source points are matched to the target",
+            hint="the clouds do not overlap; give a better start or fewer outliers",
+        )
+    return Pairs(moved, matched, idx, dist, residual, weight, normal)
+
+
+def _plane_step(pairs: Pairs) -> np.ndarray:
+    """One linearised point-to-plane step (small rotation about the weighted centroid)."""
+    return _linear_step(pairs, "plane", np.eye(3), np.ones(6, bool))
+
+
+def _linear_step(pairs: Pairs, metric: str, axes: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """One linearised step (point or plane metric) with some degrees of freedom held.
+
+    Parameters
+    ----------
+    axes : (3, 3) float
+        Rows are the axes in which ``free`` is expressed (the target's u, v, n).
+    free : (6,) bool
+        Which of (turn about u, v, n; shift along u, v, n) may change.
+    """
+    w = pairs.weight
+    centre = np.average(pairs.moved, axis=0, weights=w)
+    arm = (pairs.moved - centre) @ axes.T
+    scale = max(float(np.sqrt(np.average((arm**2).sum(axis=1), weights=w))), 1e-9)
+    if metric == "plane":
+        normal = pairs.normal @ axes.T
+        jac = np.hstack([np.cross(arm, normal) / scale, normal])  # (n, 6)
+        res = pairs.residual
+    else:
+        # d(omega x arm)/d omega = -[arm]x ; three rows per pair
+        jac = np.zeros((arm.shape[0], 3, 6))
+        jac[:, 0, 1], jac[:, 0, 2] = arm[:, 2], -arm[:, 1]
+        jac[:, 1, 0], jac[:, 1, 2] = -arm[:, 2], arm[:, 0]
+        jac[:, 2, 0], jac[:, 2, 1] = arm[:, 1], -arm[:, 0]
+        jac[:, :, :3] /= scale
+        jac[:, :, 3:] = np.eye(3)
+        res = ((pairs.moved - pairs.matched) @ axes.T).reshape(-1)
+        jac = jac.reshape(-1, 6)
+        w = np.repeat(w, 3)
+    jac = jac[:, free]
+    hess = (jac * w[:, None]).T @ jac
+    grad = (jac * w[:, None]).T @ res
+    eigval, eigvec = np.linalg.eigh(hess)
+    keep = eigval > UNOBSERVABLE * eigval[-1]  # nearly free directions (a cylinder's slide) stay put
+    x = np.zeros(6)
+    x[free] = -(eigvec[:, keep] @ ((eigvec[:, keep].T @ grad) / eigval[keep]))
+    rotation = axes.T @ Rotation.from_rotvec(x[:3] / scale).as_matrix() @ axes
+    return make_tf(np.eye(3), centre + axes.T @ x[3:]) @ make_tf(rotation) @ make_tf(np.eye(3), -centre)
+
+
+def step(pairs: Pairs, metric: str, pin=None) -> np.ndarray:
+    """Incremental transform of one ICP iteration for the given metric.
+
+    Unpinned point-to-point is the paper's closed-form quaternion step; with an
+    outline pin the held in-plane degrees of freedom need the linearised step.
+    """
+    if pin is not None:
+        return _linear_step(pairs, metric, pin.frame.axes, pin.free)
+    if metric == "plane":
+        return _plane_step(pairs)
+    keep = pairs.weight > 0
+    return horn_fit(pairs.moved[keep], pairs.matched[keep], pairs.weight[keep])
+
+
+def increment(tf_old: np.ndarray, tf_new: np.ndarray, centre: np.ndarray) -> tuple[float, float]:
+    """(displacement of ``centre`` in mm, turn in rad) between two transforms."""
+    shift = float(np.linalg.norm(apply_tf(tf_new, centre[None])[0] - apply_tf(tf_old, centre[None])[0]))
+    rel = tf_new[:3, :3] @ tf_old[:3, :3].T
+    turn = float(np.arccos(np.clip((np.trace(rel) - 1.0) / 2.0, -1.0, 1.0)))
+    return shift, turn
+
+
+@dataclass(frozen=True, eq=False)
+class Stage:
+    """Result of one run of the ICP loop."""
+
+    tf: np.ndarray
+    iterations: int
+    rms_history: list
+    converged: bool
+    stop_reason: str
+
+
+def _extrapolate(tf: np.ndarray, centre: np.ndarray, rotvec: np.ndarray, shift: np.ndarray,
+                 factor: float) -> np.ndarray:
+    """``tf`` followed by ``factor`` times the last increment (turn about the moved centre)."""
+    moved_centre = apply_tf(tf, centre[None])[0]
+    rot = Rotation.from_rotvec(factor * rotvec).as_matrix()
+    return make_tf(rot, moved_centre + factor * shift - rot @ moved_centre) @ tf
+
+
+def _increment_vector(tf_old, tf_new, centre) -> tuple[np.ndarray, np.ndarray]:
+    rotvec = Rotation.from_matrix(tf_new[:3, :3] @ tf_old[:3, :3].T).as_rotvec()
+    shift = apply_tf(tf_new, centre[None])[0] - apply_tf(tf_old, centre[None])[0]
+    return rotvec, shift
+
+
+def run(problem: Problem, source: np.ndarray, tf0: np.ndarray, *, max_iterations: int,
+        tol: tuple[float, float, float], pin=None, metric: str | None = None,
+        accelerate: bool = True, reporter: Reporter = NULL_REPORTER) -> Stage:
+    """The ICP loop: match, weight, step, pin, test; from ``tf0``.
+
+    Parameters
+    ----------
+    tol : (translation mm, rotation rad, relative MSE change)
+    pin : OutlinePin, optional
+        Applied after every step (and to the start).
+    metric : {"point", "plane"}, optional
+        Overrides ``problem.method`` (the principal-axes scoring uses "point").
+    accelerate : bool
+        When successive increments keep their direction and shrink (slow, linear
+        convergence), jump ahead by the geometric remainder of the series (at most
+        ``MAX_EXTRAPOLATION`` steps); the jump is undone if it raises the MSE.
+    """
+    metric = metric or problem.method
+    tol_t, tol_r, tol_mse = tol
+    centre = source.mean(axis=0)
+    radius = max(float(np.sqrt(((source - centre) ** 2).sum(axis=1).mean())), 1e-9)
+    tf = pin.apply(tf0) if pin is not None else tf0.copy()
+    history: list[float] = []
+    prev_mse = None
+    last = None  # previous increment as a scaled 6-vector
+    fallback = None  # transform before an extrapolation, and the MSE it had to beat
+    cooldown = 0
+    for it in range(max_iterations):
+        pairs = match(problem, source, tf, metric)  # closest points and weights
+        mse = pairs.mse
+        if fallback is not None:
+            if mse > fallback[1]:  # the jump made it worse: undo it
+                tf, cooldown, last = fallback[0], 5, None
+                pairs = match(problem, source, tf, metric)
+                mse = pairs.mse
+            fallback = None
+        history.append(float(np.sqrt(mse)))
+        if prev_mse is not None and abs(prev_mse - mse) <= tol_mse * prev_mse:
+            return Stage(tf, it, history, True, "relative change of the MSE below tolerance")
+        tf_new = step(pairs, metric, pin) @ tf  # quaternion or linearised step
+        if pin is not None:
+            tf_new = pin.apply(tf_new)  # outline and centroid fix the in-plane position
+        shift, turn = increment(tf, tf_new, centre)
+        reporter.advance(1)
+        if shift < tol_t and turn < tol_r:
+            return Stage(tf_new, it + 1, history, True, "transform increment below tolerance")
+        rotvec, shift_vec = _increment_vector(tf, tf_new, centre)
+        vec = np.concatenate([rotvec * radius, shift_vec])
+        tf = tf_new
+        cooldown = max(cooldown - 1, 0)
+        if accelerate and last is not None and cooldown == 0:
+            ratio = np.linalg.norm(vec) / max(np.linalg.norm(last), 1e-300)
+            cos = vec @ last / max(np.linalg.norm(vec) * np.linalg.norm(last), 1e-300)
+            if cos > 0.99 and ratio < 0.999:
+                factor = min(ratio / (1.0 - ratio), MAX_EXTRAPOLATION)
+                fallback = (tf, mse)
+                tf = _extrapolate(tf, centre, rotvec, shift_vec, factor)
+                if pin is not None:
+                    tf = pin.apply(tf)
+                vec = None
+        last = vec
+        prev_mse = mse
+    return Stage(tf, max_iterations, history, False, "iteration limit reached")
+
+
+def evaluate(problem: Problem, source: np.ndarray, tf: np.ndarray) -> Pairs:
+    """Pairs (with target normals) at the final transform."""
+    pairs = match(problem, source, tf)
+    if pairs.normal is None:
+        pairs = Pairs(pairs.moved, pairs.matched, pairs.index, pairs.distance, pairs.residual,
+                      pairs.weight, problem.normals(pairs.index))
+    return pairs
+
+
+def trimmed_rms(problem: Problem, source: np.ndarray, tf: np.ndarray) -> float:
+    """RMS of the best ``SCORE_KEEP`` fraction of closest-point distances, mm."""
+    dist, _ = problem.tree.query(apply_tf(tf, source), workers=-1)
+    keep = max(3, int(SCORE_KEEP * dist.size))
+    return float(np.sqrt(np.mean(np.partition(dist, keep - 1)[:keep] ** 2)))
+
+
+def uncertainty(problem: Problem, pairs: Pairs, sigma_mm: float | None = None) -> dict:
+    """One-sigma uncertainty per degree of freedom from the point-to-plane information.
+
+    In the target's plate frame (u, v in-plane, n normal): translations in mm, turns
+    about the axes in degrees; None where the surface shape does not fix the
+    degree of freedom (e.g. sliding along a cylinder). ``observability`` lists the
+    normalised eigenvalues of the information matrix (turns scaled by the plate's
+    RMS radius), ascending: values near 0 are nearly free directions. The noise is
+    estimated from the normal residuals unless ``sigma_mm`` is given.
+    """
+    axes = problem.frame.axes
+    w = pairs.weight
+    local = (pairs.moved - problem.frame.origin) @ axes.T
+    normal = pairs.normal @ axes.T
+    centre = np.average(local, axis=0, weights=w)
+    arm = local - centre
+    radius = max(float(np.sqrt(np.average((arm[:, :2] ** 2).sum(axis=1), weights=w))), 1e-9)
+    jac = np.hstack([normal, np.cross(arm, normal) / radius])
+    hess = (jac * w[:, None]).T @ jac
+    residual = np.einsum("ij,ij->i", pairs.moved - pairs.matched, pairs.normal)
+    dof = max(float(w.sum()) - 6.0, 1.0)
+    sigma2 = float((w * residual**2).sum() / dof) if sigma_mm is None else sigma_mm**2
+    eigval, eigvec = np.linalg.eigh(hess)
+    free = eigval <= 1e-9 * eigval[-1]
+    inv_diag = (eigvec[:, ~free] ** 2 / eigval[~free]) @ np.ones((~free).sum())
+    fixed = np.abs(eigvec[:, free]).max(axis=1) < 1e-3 if free.any() else np.ones(6, bool)
+    std = np.sqrt(sigma2 * inv_diag)
+    std[3:] = np.degrees(std[3:] / radius)
+    names = ("t_u_mm", "t_v_mm", "t_n_mm", "r_u_deg", "r_v_deg", "r_n_deg")
+    out = {name: (float(s) if ok else None) for name, s, ok in zip(names, std, fixed)}
+    out["noise_sigma_mm"] = float(np.sqrt(sigma2))
+    out["observability"] = [float(v) for v in np.clip(eigval / eigval[-1], 0.0, None)]
+    return out
+
+
+# ------------------------------------------------------------------ outline pinning
+
+
+def polygon_moments(points_2d: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """Area (mm^2), area centroid (2,) and central second moments (2, 2) of the convex outline.
+
+    Raises
+    ------
+    GeometryError
+        The points do not span an area in the plane.
+    """
+    try:
+        hull = ConvexHull(points_2d)
+    except QhullError as exc:
+        raise GeometryError(f"the outline of the plate cannot be formed: {exc}".splitlines()[0]) from None
+    poly = points_2d[hull.vertices]  # counter-clockwise
+    ref = poly.mean(axis=0)
+    x0, y0 = (poly - ref).T
+    x1, y1 = np.roll(x0, -1), np.roll(y0, -1)
+    cross = x0 * y1 - x1 * y0
+    area = cross.sum() / 2.0
+    cx = ((x0 + x1) * cross).sum() / (6.0 * area)
+    cy = ((y0 + y1) * cross).sum() / (6.0 * area)
+    ixx = ((x0 * x0 + x0 * x1 + x1 * x1) * cross).sum() / 12.0
+    iyy = ((y0 * y0 + y0 * y1 + y1 * y1) * cross).sum() / 12.0
+    ixy = ((x0 * y1 + 2 * x0 * y0 + 2 * x1 * y1 + x1 * y0) * cross).sum() / 24.0
+    moments = np.array([[ixx - area * cx * cx, ixy - area * cx * cy],
+                        [ixy - area * cx * cy, iyy - area * cy * cy]]) / area
+    return float(area), ref + np.array([cx, cy]), moments
+
+
+def _major_axis_angle(moments: np.ndarray) -> tuple[float, float]:
+    """(angle of the major axis in rad, ratio of the second moments major/minor)."""
+    eigval, eigvec = np.linalg.eigh(moments)
+    major = eigvec[:, 1]
+    return float(np.arctan2(major[1], major[0])), float(eigval[1] / max(eigval[0], 1e-300))
+
+
+@dataclass(frozen=True, eq=False)
+class OutlinePin:
+    """Fixes the in-plane position of the source by the outline in the target's plane.
+
+    After each ICP step the moved source's convex outline (in the target's plate
+    plane) is brought onto the target's: area centroid onto area centroid, and for
+    elongated plates the major axis onto the major axis (a turn about the normal).
+    The normal offset and the tilts stay as the surface fit gives them.
+    """
+
+    frame: object
+    points: np.ndarray
+    centroid_t: np.ndarray
+    angle_t: float
+    pin_turn: bool
+
+    @property
+    def free(self) -> np.ndarray:
+        """(6,) bool: degrees of freedom (turns about u, v, n; shifts along u, v, n) left to ICP."""
+        return np.array([True, True, not self.pin_turn, False, False, True])
+
+    def apply(self, tf: np.ndarray) -> np.ndarray:
+        """``tf`` corrected in-plane, (4, 4)."""
+        local = self.frame.to_local(apply_tf(tf, self.points))[:, :2]
+        _, centroid_s, moments_s = polygon_moments(local)
+        turn = 0.0
+        if self.pin_turn:
+            angle_s, _ = _major_axis_angle(moments_s)
+            turn = (self.angle_t - angle_s + np.pi / 2) % np.pi - np.pi / 2
+        rot = Rotation.from_rotvec([0.0, 0.0, turn]).as_matrix()
+        c_s = np.array([centroid_s[0], centroid_s[1], 0.0])
+        c_t = np.array([self.centroid_t[0], self.centroid_t[1], 0.0])
+        correction = make_tf(rot, c_t - rot @ c_s)
+        return self.frame.tf_world_local @ correction @ self.frame.tf_local_world @ tf
+
+
+def outline_candidates(frame, points: np.ndarray) -> np.ndarray:
+    """Points of a cloud that may form its outline: a band along its convex outline.
+
+    Isolated points (stray returns, outliers: their ``OUTLINE_NEIGHBOURS``-th
+    neighbour farther than ``ISOLATED`` times the median such distance) are dropped
+    first. The band is ``PIN_BAND_FRACTION`` of the plate size wide, in the cloud's
+    own plate plane (``frame``), so the outline can be recomputed cheaply in any pose.
+    """
+    k = min(OUTLINE_NEIGHBOURS + 1, points.shape[0])
+    spacing = cKDTree(points).query(points, k=k, workers=-1)[0][:, -1]
+    points = points[spacing <= ISOLATED * np.median(spacing)]
+    local = frame.to_local(points)[:, :2]
+    try:
+        hull = ConvexHull(local)
+    except QhullError:
+        return points
+    depth = -(local @ hull.equations[:, :2].T + hull.equations[:, 2]).max(axis=1)
+    return points[depth <= PIN_BAND_FRACTION * np.sqrt(hull.volume)]
+
+
+def outline_pin(problem: Problem, candidates: np.ndarray, tf: np.ndarray, *,
+                require_coverage: bool, pin_turn: bool) -> tuple[OutlinePin | None, str]:
+    """Build the outline pin at ``tf``, or say why not.
+
+    Parameters
+    ----------
+    candidates : (k, 3) float, mm
+        Source points along its outline (:func:`outline_candidates`).
+    require_coverage : bool
+        Only pin when both outlines have areas and extents within ``COVERAGE_TOL``.
+    pin_turn : bool
+        Also pin the turn about the normal (for elongated outlines).
+
+    Returns
+    -------
+    (OutlinePin or None, str)
+        The pin, and a description of the coverage test.
+    """
+    area_t, centroid_t, moments_t = problem.target_outline()
+    near = candidates
+    if near.shape[0] < 10:
+        return None, "too few source points on the outline"
+    local = problem.frame.to_local(apply_tf(tf, near))[:, :2]
+    try:
+        area_s, _, moments_s = polygon_moments(local)
+    except GeometryError:
+        return None, "the source has no outline in the target's plane"
+    ext_s, ext_t = np.sqrt(np.linalg.eigvalsh(moments_s)), np.sqrt(np.linalg.eigvalsh(moments_t))
+    ratios = np.concatenate([[area_s / area_t], ext_s / ext_t])
+    coverage = (f"outline area ratio {ratios[0]:.3f}, extent ratios {ratios[1]:.3f} / {ratios[2]:.3f} "
+                f"(source / target)")
+    if require_coverage and np.any(np.abs(np.log(ratios)) > np.log1p(COVERAGE_TOL)):
+        return None, coverage + ": the clouds do not cover the same plate"
+    angle_t, elongation = _major_axis_angle(moments_t)
+    pin = OutlinePin(frame=problem.frame, points=near, centroid_t=centroid_t, angle_t=angle_t,
+                     pin_turn=pin_turn and elongation > ELONGATED)
+    return pin, coverage

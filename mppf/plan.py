@@ -1,0 +1,210 @@
+"""Stroke planning: a design surface and its flat plate -> strokes of both punch matrices.
+
+:func:`plan_job` is the whole planner as a short sequence of calls; each stage is a
+small module: :mod:`mppf.placement` (flat on the bed, registration, offset and tilt),
+:mod:`mppf.contact` (exact ball-tip contact), :mod:`mppf.overbend` (springback
+pre-compensation), :mod:`mppf.steps` (multi-step forming and validation). The math is
+in ``docs/planning.md``; the job file in ``docs/file-formats.md``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from matplotlib.path import Path
+from scipy.spatial import ConvexHull
+
+from mppf.contact import PlacedSurface
+from mppf.errors import InputError, LimitError
+from mppf.job import Job
+from mppf.overbend import overbend
+from mppf.placement import (check_flat_belongs, design_area_mm2, optimise_pose, place_flat,
+                            register_design)
+from mppf.press import PressConfig
+from mppf.progress import NULL_REPORTER
+from mppf.springback import Material
+from mppf.steps import split_steps, steps_needed, validate_steps
+from mppf.surface import fit_plate
+from mppf.transform import apply_tf, as_points, rotation_angle_deg
+
+SURFACE_KIND = "poly"
+SURFACE_DEGREE = 4
+
+
+def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float, *, steps: int | None = None,
+             material: Material | None = None, springback: bool = False, design_faces=None,
+             reporter=NULL_REPORTER, inputs: dict | None = None) -> Job:
+    """Plan the strokes of every punch of both matrices for one plate.
+
+    Parameters
+    ----------
+    design_points : (n, 3) float, mm
+        The design (curved) plate's mid-surface, any coordinates (e.g. hull).
+    flat_points : (k, 3) float, mm
+        Its unfolded (flat) plate; with k == n the points are taken as paired with
+        the design's, in the same order (as :func:`mppf.unfold.unfold` gives them).
+    press : PressConfig
+    thickness_mm : float
+        Plate thickness t, > 0.
+    steps : int, optional
+        Number of press steps; by default the fewest within the dimpling limit.
+    material : Material, optional
+        Needed for ``springback``.
+    springback : bool
+        Over-bend the principal curvatures so the plate springs back to the design.
+    design_faces : (m, 3) int, optional
+        Mesh triangles of the design (better fold and area checks).
+    reporter : Reporter
+    inputs : dict, optional
+        ``{"design": {"path", "sha256"}, "flat": {...}}`` recorded in the job.
+
+    Returns
+    -------
+    Job
+        Validated; ``extra`` holds ``registration``, ``validation``,
+        ``plate_corners_mm``, ``plate_outline_mm``, ``pose``, ``inputs``,
+        ``material``, ``springback``, ``n_steps``.
+
+    Raises
+    ------
+    InputError
+        Bad thickness, step count or points; GeometryError for a flat that does not
+        belong to the design; LimitError for a plate that does not fit or strokes
+        that cannot be kept inside the press limits (nothing is planned).
+    """
+    design = as_points(design_points, "design points")
+    flat = as_points(flat_points, "flat points")
+    if isinstance(thickness_mm, bool) or not isinstance(thickness_mm, (int, float)) \
+            or not math.isfinite(thickness_mm) or thickness_mm <= 0:
+        raise InputError(f"the plate thickness must be a positive number of mm, got {thickness_mm!r}",
+                         hint="give e.g. --thickness 20")
+    if springback and material is None:
+        raise InputError("springback compensation needs the plate material",
+                         hint="give --material steel|ah36 or --youngs/--poisson/--yield")
+    if steps is not None and (isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1):
+        raise InputError(f"the number of steps must be a whole number >= 1, got {steps!r}")
+    t = float(thickness_mm)
+
+    # 1. lay the flat plate on the bed: centred, long side along x, bottom skin at z = 0
+    reporter.info("placing the flat plate on the bed")
+    placement = place_flat(flat, press, t)
+    # 2. fit the design in its own frame; register it onto the flat on the bed
+    fitted = fit_plate(design, degree=SURFACE_DEGREE, kind=SURFACE_KIND, faces=design_faces)
+    reporter.info("registering the design onto the flat plate")
+    registration = register_design(design, placement.flat_press_mm, reporter=reporter)
+    paired = registration.method == "paired"
+    belongs = check_flat_belongs(design, placement.flat_press_mm, paired,
+                                 design_area_mm2(fitted, design, design_faces))
+    # 3. the surface to press: the design, over-bent for springback if asked
+    surface, springback_report = fitted.surface, {"enabled": False}
+    if springback:
+        reach = float(np.linalg.norm(fitted.frame.to_local(design)[:, :2], axis=1).max()) + press.trim_allowance_mm
+        surface = overbend(fitted.surface, t, material, reach)
+        springback_report = _springback_report(surface)
+    placed = PlacedSurface(surface, registration.tf @ fitted.frame.tf_world_local)
+    # 4. active punches: axes inside the design's outline seen from above
+    design_press = apply_tf(registration.tf, design)
+    gx, gy = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    outline = Path(_outline(design_press))
+    active = outline.contains_points(np.column_stack([gx.ravel(), gy.ravel()])).reshape(press.shape)
+    if not active.any():
+        raise LimitError("the plate covers no punch axis", hint="check the plate size and the press pitch")
+    rows, cols = np.nonzero(active)
+    # 5. strokes: exact ball contact, with the offset and tilt of least travel
+    reporter.info(f"solving the contact of {2 * len(rows)} punches")
+    centre = np.array([0.0, 0.0, t / 2.0])
+    pose = optimise_pose(placed, gx[active], gy[active], [f"[{r},{c}]" for r, c in zip(rows, cols)],
+                         press, t, centre)
+    upper = np.full(press.shape, np.nan)
+    lower = np.full(press.shape, np.nan)
+    upper[active], lower[active] = pose.upper_mm, pose.lower_mm
+    tf_press_design = pose.tf_adjust @ registration.tf
+    # 6. press steps from flat to the target, within the dimpling limit
+    n_steps = steps if steps is not None else steps_needed(upper, lower, active, press, t)
+    step_list = split_steps(upper, lower, active, t, int(n_steps))
+    # 7. validate everything before a job exists
+    validation = validate_steps(step_list, press, t)
+    validation["contact_exact_fraction"] = float(np.mean(pose.exact))
+    outline = _outline(apply_tf(pose.tf_adjust, design_press))
+    extra = {
+        "planner": {"surface_kind": fitted.kind, "surface_degree": fitted.degree,
+                    "surface_fit_rms_mm": fitted.rms_mm, "surface_fit_max_mm": fitted.max_abs_mm},
+        "registration": {**registration.to_dict(), **belongs,
+                         "rotation_deg": rotation_angle_deg(registration.tf)},
+        "pose": {"tilt_x_deg": pose.tilt_x_deg, "tilt_y_deg": pose.tilt_y_deg, "offset_mm": pose.offset_mm,
+                 "max_travel_mm": pose.travel_mm,
+                 "travel_definition": "largest |tip height - flat-plate tip height| (upper t, lower 0)"},
+        "validation": validation,
+        "plate_corners_mm": placement.corners_mm.tolist(),
+        "plate_size_mm": placement.size_mm.tolist(),
+        "plate_outline_mm": outline.tolist(),
+        "n_active": int(active.sum()),
+        "n_steps": int(n_steps),
+        "inputs": inputs or {},
+        "material": None if material is None else {
+            "youngs_modulus_mpa": material.youngs_modulus_mpa, "poisson": material.poisson,
+            "yield_stress_mpa": material.yield_stress_mpa},
+        "springback": springback_report,
+    }
+    return Job(press=press, thickness_mm=t, steps=step_list, tf_press_design=tf_press_design,
+               tf_press_flat=placement.tf_press_flat, extra=extra)
+
+
+def _outline(points_press: np.ndarray) -> np.ndarray:
+    """(k, 2) convex outline of points seen from above, counter-clockwise."""
+    xy = points_press[:, :2]
+    return xy[ConvexHull(xy).vertices]
+
+
+def _springback_report(surface) -> dict:
+    def radii(k):
+        return [None if abs(v) < 1e-12 else float(1.0 / v) for v in k]
+
+    return {
+        "enabled": True,
+        "method": "principal arcs at the plate centre replaced by over-bent arcs (docs/planning.md)",
+        "target_radii_mm": radii(surface.target_k),
+        "loaded_radii_mm": radii(surface.loaded_k),
+        "directions_uv": surface.directions.tolist(),
+    }
+
+
+def plan_summary(job: Job) -> dict:
+    """The figures an operator checks before pressing (for tables and ``--json``).
+
+    Returns
+    -------
+    dict
+        Registration, pose, strokes per matrix, steps and plate corners.
+    """
+    extra = job.extra
+    final = job.steps[-1]
+    act = final.active
+
+    def matrix(values, limits, flat_mm):
+        vals = values[act]
+        return {"active": int(act.sum()), "parked": int((~act).sum()), "park_mm": limits.park_mm,
+                "min_mm": float(vals.min()), "max_mm": float(vals.max()),
+                "limits_mm": [limits.min_mm, limits.max_mm],
+                "max_travel_mm": float(np.abs(vals - flat_mm).max())}
+
+    reg = extra.get("registration", {})
+    return {
+        "press": job.press.name,
+        "matrix": [job.press.rows, job.press.cols],
+        "thickness_mm": job.thickness_mm,
+        "inputs": extra.get("inputs", {}),
+        "registration": {k: reg.get(k) for k in ("method", "rms_mm", "iterations", "rotation_deg",
+                                                  "neighbour_strain_p95_pct", "area_mismatch_pct")},
+        "pose": extra.get("pose", {}),
+        "n_steps": len(job.steps),
+        "upper": matrix(final.upper_mm, job.press.upper, job.thickness_mm),
+        "lower": matrix(final.lower_mm, job.press.lower, 0.0),
+        "max_travel_mm": extra.get("pose", {}).get("max_travel_mm"),
+        "min_gap_mm": extra.get("validation", {}).get("min_gap_mm"),
+        "max_neighbour_step_mm": extra.get("validation", {}).get("max_neighbour_step_mm"),
+        "plate_corners_mm": extra.get("plate_corners_mm"),
+        "plate_size_mm": extra.get("plate_size_mm"),
+        "springback": extra.get("springback", {"enabled": False}),
+    }

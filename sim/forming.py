@@ -1,0 +1,424 @@
+"""Simulated plate forming: from the punch tips of a press step to the formed plate.
+
+The model, in three steps (see ``docs/compare.md``, section "Simulated forming"):
+
+1. **Contact.** At every active punch pair the plate's mid-surface passes midway between
+   the lower ball (top at ``lower_mm``) and the upper ball (bottom at ``upper_mm``):
+   ``z = (lower + upper) / 2`` on the punch axis. (On a slope ``s = sqrt(1 + |grad z|^2)``
+   the balls touch off-axis and hold the mid-surface at ``lower - r + (r + t/2) s`` and
+   ``upper + r - (r + t/2) s``; the two slope terms cancel in the mean.)
+2. **Loaded surface.** A thin-plate-spline (scipy ``RBFInterpolator``) through those
+   mid-surface heights, evaluated on a regular grid covering the plate's outline.
+3. **Springback.** The loaded surface's deviation ``w`` from its best-fit plane has the
+   curvature tensor ``H`` (the Hessian of ``w``, small-slope approximation). Each principal
+   curvature ``k_i`` is scaled by the elastic-plastic ratio ``R_i/R_f = 4x^3 - 3x + 1``,
+   ``x = R_i sy' / (E' t)`` (:func:`mppf.springback.springback_ratio`) with the plate's
+   TRUE material and thickness. The scaled tensor field is integrated back to heights by
+   sparse least squares; the unloaded plate keeps the loaded plate's best-fit plane.
+
+Everything is deterministic; the plate's scatter of properties comes from
+:func:`sample_plate`, seeded.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from matplotlib.path import Path as PolygonPath
+from scipy import sparse
+from scipy.interpolate import RBFInterpolator, RectBivariateSpline
+from scipy.sparse.linalg import spsolve
+
+from mppf.errors import GeometryError, InputError
+from mppf.press import PressConfig
+from mppf.springback import Material, springback_ratio
+
+GRID_SPACING_MM = 20.0
+"""Spacing of the internal grid on which the loaded and unloaded surfaces are computed."""
+
+RBF_SMOOTHING = 1e-3
+"""Smoothing of the thin-plate spline through the contact heights (0 = interpolate exactly)."""
+
+
+@dataclass(frozen=True)
+class PlateSample:
+    """The TRUE properties of one physical plate (unknown to the planner).
+
+    Attributes
+    ----------
+    thickness_mm : float
+        Actual thickness.
+    material : Material
+        Actual material (the yield stress scatters; E and nu are taken as nominal).
+    """
+
+    thickness_mm: float
+    material: Material
+
+
+def sample_plate(
+    thickness_mm: float,
+    material: Material,
+    seed: int,
+    yield_scatter: float = 0.15,
+    thickness_scatter: float = 0.03,
+) -> PlateSample:
+    """Draw a plate's true properties around the nominal ones, reproducibly.
+
+    The yield stress is ``sy * (1 + yield_scatter * a)`` and the thickness
+    ``t * (1 + thickness_scatter * b)`` with ``a, b`` independent standard normal numbers
+    truncated to [-1, 1] (so the scatter values are hard bounds: +-15 % and +-3 % by
+    default, about 2/3 of the plates within half of that).
+
+    Parameters
+    ----------
+    thickness_mm : float
+        Nominal thickness, mm (> 0).
+    material : Material
+        Nominal material.
+    seed : int
+        Seed of the random generator; the same seed gives the same plate.
+    yield_scatter, thickness_scatter : float
+        Relative bounds of the scatter, in [0, 0.9].
+
+    Returns
+    -------
+    PlateSample
+    """
+    if not np.isfinite(thickness_mm) or thickness_mm <= 0:
+        raise InputError(f"plate thickness must be positive, got {thickness_mm} mm")
+    for name, value in (("yield_scatter", yield_scatter), ("thickness_scatter", thickness_scatter)):
+        if not 0.0 <= value <= 0.9:
+            raise InputError(f"{name} must be within 0..0.9, got {value}")
+    rng = np.random.default_rng(seed)
+    a, b = _truncated_normal(rng, 2)
+    true_material = replace(material, yield_stress_mpa=material.yield_stress_mpa * (1.0 + yield_scatter * a))
+    return PlateSample(thickness_mm=float(thickness_mm * (1.0 + thickness_scatter * b)), material=true_material)
+
+
+def _truncated_normal(rng: np.random.Generator, n: int) -> np.ndarray:
+    """``n`` standard normal numbers redrawn until within [-1, 1]."""
+    out = rng.standard_normal(n)
+    while np.any(np.abs(out) > 1.0):
+        bad = np.abs(out) > 1.0
+        out[bad] = rng.standard_normal(int(bad.sum()))
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class FormedPlate:
+    """A plate after a press step, in press coordinates (mm).
+
+    The surfaces are height fields ``z(x, y)`` on a regular grid (``x_mm`` along the
+    press columns, ``y_mm`` along the rows); the plate covers the polygon ``outline_xy_mm``.
+
+    Attributes
+    ----------
+    x_mm : (nx,) float
+    y_mm : (ny,) float
+    loaded_z_mm : (ny, nx) float
+        Mid-surface while held between the punches.
+    unloaded_z_mm : (ny, nx) float
+        Mid-surface after springback.
+    outline_xy_mm : (k, 2) float
+        The plate's outline in press x, y.
+    plate : PlateSample
+        The true thickness and material used.
+    contact_xyz_mm : (m, 3) float
+        Mid-surface points at the active punch axes (loaded).
+    mean_ratio : float
+        Mean springback ratio R_i/R_f over the plate (1 = no springback).
+    """
+
+    x_mm: np.ndarray
+    y_mm: np.ndarray
+    loaded_z_mm: np.ndarray
+    unloaded_z_mm: np.ndarray
+    outline_xy_mm: np.ndarray
+    plate: PlateSample
+    contact_xyz_mm: np.ndarray
+    mean_ratio: float
+
+    @property
+    def thickness_mm(self) -> float:
+        """True thickness of the plate."""
+        return self.plate.thickness_mm
+
+    def _spline(self, loaded: bool) -> RectBivariateSpline:
+        z = self.loaded_z_mm if loaded else self.unloaded_z_mm
+        return RectBivariateSpline(self.y_mm, self.x_mm, z, kx=3, ky=3, s=0)
+
+    def height_mm(self, x_mm, y_mm, *, loaded: bool = False) -> np.ndarray:
+        """Mid-surface height z at press positions (x, y) (any matching shapes), mm."""
+        x = np.asarray(x_mm, dtype=float)
+        y = np.asarray(y_mm, dtype=float)
+        return self._spline(loaded).ev(y, x)
+
+    def sample_xy(self, spacing_mm: float) -> np.ndarray:
+        """Press (x, y) (n, 2) of a regular grid of ``spacing_mm`` inside the outline."""
+        if not np.isfinite(spacing_mm) or spacing_mm <= 0:
+            raise InputError(f"sampling spacing must be positive, got {spacing_mm} mm")
+        lo = self.outline_xy_mm.min(axis=0)
+        hi = self.outline_xy_mm.max(axis=0)
+        xs = np.arange(lo[0], hi[0] + 1e-9, spacing_mm)
+        ys = np.arange(lo[1], hi[1] + 1e-9, spacing_mm)
+        xx, yy = np.meshgrid(xs, ys)
+        xy = np.column_stack([xx.ravel(), yy.ravel()])
+        inside = PolygonPath(self.outline_xy_mm).contains_points(xy, radius=1e-6)
+        return xy[inside]
+
+    def mid_surface_points(self, spacing_mm: float = GRID_SPACING_MM, *, loaded: bool = False) -> np.ndarray:
+        """Mid-surface points on a regular x, y grid inside the outline.
+
+        Parameters
+        ----------
+        spacing_mm : float
+            Grid spacing in press x and y.
+        loaded : bool
+            The loaded surface instead of the unloaded (sprung-back) one.
+
+        Returns
+        -------
+        (n, 3) float, press coordinates, mm
+        """
+        xy = self.sample_xy(spacing_mm)
+        return np.column_stack([xy, self._spline(loaded).ev(xy[:, 1], xy[:, 0])])
+
+    def skin_points(self, spacing_mm: float = GRID_SPACING_MM, side: float = 1.0) -> np.ndarray:
+        """Points of a skin of the unloaded plate: the mid-surface offset by ``side * t/2``.
+
+        Parameters
+        ----------
+        spacing_mm : float
+            Grid spacing in press x, y of the mid-surface points offset.
+        side : float
+            +1 for the top skin, -1 for the bottom skin, 0 for the mid-surface.
+
+        Returns
+        -------
+        (n, 3) float, press coordinates, mm
+        """
+        xy = self.sample_xy(spacing_mm)
+        return self.offset_points(xy, side * 0.5 * self.thickness_mm)
+
+    def top_skin_points(self, spacing_mm: float = GRID_SPACING_MM) -> np.ndarray:
+        """Top-skin points of the unloaded plate (mid-surface + t/2 along the up normal), (n, 3) mm."""
+        return self.skin_points(spacing_mm, side=1.0)
+
+    def offset_points(self, xy_mm, offset_mm: float) -> np.ndarray:
+        """Unloaded mid-surface points above ``xy_mm`` (m, 2) moved ``offset_mm`` along the up normal.
+
+        Returns
+        -------
+        (m, 3) float, press coordinates, mm
+        """
+        xy = np.asarray(xy_mm, dtype=float).reshape(-1, 2)
+        spline = self._spline(False)
+        z = spline.ev(xy[:, 1], xy[:, 0])
+        zx = spline.ev(xy[:, 1], xy[:, 0], dy=1)
+        zy = spline.ev(xy[:, 1], xy[:, 0], dx=1)
+        normal = np.column_stack([-zx, -zy, np.ones_like(z)])
+        normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+        return np.column_stack([xy, z]) + offset_mm * normal
+
+    def normals(self, xy_mm) -> np.ndarray:
+        """Unit up normals (m, 3) of the unloaded mid-surface above ``xy_mm`` (m, 2)."""
+        xy = np.asarray(xy_mm, dtype=float).reshape(-1, 2)
+        return self.offset_points(xy, 1.0) - self.offset_points(xy, 0.0)
+
+
+def form_plate(
+    press: PressConfig,
+    upper_mm,
+    lower_mm,
+    active,
+    plate: PlateSample,
+    outline_xy_mm=None,
+    *,
+    grid_spacing_mm: float = GRID_SPACING_MM,
+) -> FormedPlate:
+    """Form a plate between the punch tips of one press step, then let it spring back.
+
+    Parameters
+    ----------
+    press : PressConfig
+    upper_mm, lower_mm : (rows, cols) float
+        Tip heights in press z (the actual positions read back from the PLC); entries
+        of inactive punches are ignored (may be NaN).
+    active : (rows, cols) bool
+        Punch pairs that hold the plate; at least 3, not all in one line.
+    plate : PlateSample
+        The plate's true thickness and material.
+    outline_xy_mm : (k, 2) float, optional
+        The plate's outline in press x, y (e.g. the flat plate's corners mapped by the
+        job's ``tf_press_flat``). Default: the rectangle of the active punches grown by
+        half a pitch.
+    grid_spacing_mm : float
+        Spacing of the internal computation grid.
+
+    Returns
+    -------
+    FormedPlate
+
+    Raises
+    ------
+    InputError
+        Grids of the wrong shape, NaN tip heights at active punches, upper below lower.
+    GeometryError
+        Too few active punches, or an outline that is not a polygon of at least 3 points.
+    """
+    upper, lower, act = _check_step(press, upper_mm, lower_mm, active)
+    t = plate.thickness_mm
+    r = press.tip_radius_mm
+    gap = upper[act] - lower[act]
+    if np.any(gap < t * 0.5):
+        i = int(np.argmin(gap))
+        raise InputError(
+            f"upper tip below lower tip + t/2 at an active punch: gap {gap[i]:.3f} mm, plate {t:.3f} mm",
+            hint="the step would crush the plate; check the strokes",
+        )
+    px, py = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    xy_contact = np.column_stack([px[act], py[act]])
+    outline = _outline(press, act, outline_xy_mm)
+
+    # 1. contact heights at the punch axes: midway between the lower and the upper ball.
+    # On a slope s = sqrt(1 + |grad z|^2) the lower ball holds the mid-surface at
+    # (lower - r) + (r + t/2) s and the upper ball at (upper + r) - (r + t/2) s; their mean,
+    # the value used, is (lower + upper) / 2 whatever the slope.
+    z_contact = 0.5 * (lower[act] + upper[act])
+
+    # 2. loaded mid-surface: thin-plate spline through the contact heights
+    rbf = RBFInterpolator(xy_contact, z_contact, kernel="thin_plate_spline", smoothing=RBF_SMOOTHING)
+    x_mm, y_mm = _grid_axes(outline, grid_spacing_mm)
+    gx, gy = np.meshgrid(x_mm, y_mm)
+    loaded = rbf(np.column_stack([gx.ravel(), gy.ravel()])).reshape(gx.shape)
+
+    # 3. springback of the principal curvatures, integrated back to heights
+    unloaded, mean_ratio = _spring_back(x_mm, y_mm, loaded, plate, outline)
+    return FormedPlate(
+        x_mm=x_mm,
+        y_mm=y_mm,
+        loaded_z_mm=loaded,
+        unloaded_z_mm=unloaded,
+        outline_xy_mm=outline,
+        plate=plate,
+        contact_xyz_mm=np.column_stack([xy_contact, z_contact]),
+        mean_ratio=mean_ratio,
+    )
+
+
+def _check_step(press: PressConfig, upper_mm, lower_mm, active):
+    shape = press.shape
+    upper = np.asarray(upper_mm, dtype=float)
+    lower = np.asarray(lower_mm, dtype=float)
+    act = np.asarray(active, dtype=bool)
+    for name, arr in (("upper_mm", upper), ("lower_mm", lower), ("active", act)):
+        if arr.shape != shape:
+            raise InputError(f"{name} has shape {arr.shape}, the press has {shape}")
+    if act.sum() < 3:
+        raise GeometryError(f"a plate needs at least 3 active punches, got {int(act.sum())}")
+    if not (np.all(np.isfinite(upper[act])) and np.all(np.isfinite(lower[act]))):
+        raise InputError("NaN or infinite tip height at an active punch", hint="every active punch needs a height")
+    return upper, lower, act
+
+
+def _outline(press: PressConfig, act: np.ndarray, outline_xy_mm) -> np.ndarray:
+    if outline_xy_mm is None:
+        rows, cols = np.nonzero(act)
+        x, y = press.punch_x_mm, press.punch_y_mm
+        x0, x1 = x[cols.min()] - press.pitch_x_mm / 2, x[cols.max()] + press.pitch_x_mm / 2
+        y0, y1 = y[rows.min()] - press.pitch_y_mm / 2, y[rows.max()] + press.pitch_y_mm / 2
+        return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
+    outline = np.asarray(outline_xy_mm, dtype=float)
+    if outline.ndim != 2 or outline.shape[1] != 2 or outline.shape[0] < 3 or not np.all(np.isfinite(outline)):
+        raise GeometryError(f"the plate outline must be a polygon (k >= 3, 2) in mm, got shape {outline.shape}")
+    area = 0.5 * abs(np.dot(outline[:, 0], np.roll(outline[:, 1], 1)) - np.dot(outline[:, 1], np.roll(outline[:, 0], 1)))
+    if area <= 0:
+        raise GeometryError("the plate outline has no area", hint="give the corners of the flat plate in press x, y")
+    return outline
+
+
+def _grid_axes(outline: np.ndarray, spacing_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    lo = outline.min(axis=0) - 2 * spacing_mm
+    hi = outline.max(axis=0) + 2 * spacing_mm
+    nx = max(int(np.ceil((hi[0] - lo[0]) / spacing_mm)) + 1, 6)
+    ny = max(int(np.ceil((hi[1] - lo[1]) / spacing_mm)) + 1, 6)
+    return np.linspace(lo[0], hi[0], nx), np.linspace(lo[1], hi[1], ny)
+
+
+def _best_plane(x: np.ndarray, y: np.ndarray, z: np.ndarray, weight: np.ndarray) -> np.ndarray:
+    """Coefficients (a, b, c) of z ~ a + b x + c y, weighted least squares."""
+    design = np.column_stack([np.ones_like(x), x, y]) * weight[:, None]
+    coef, *_ = np.linalg.lstsq(design, z * weight, rcond=None)
+    return coef
+
+
+def _spring_back(x_mm, y_mm, loaded, plate: PlateSample, outline) -> tuple[np.ndarray, float]:
+    """Unloaded heights: principal curvatures scaled by the springback ratio, re-integrated."""
+    gx, gy = np.meshgrid(x_mm, y_mm)
+    inside = PolygonPath(outline).contains_points(np.column_stack([gx.ravel(), gy.ravel()]), radius=1e-6)
+    weight = np.where(inside, 1.0, 1e-3)
+    plane = _best_plane(gx.ravel(), gy.ravel(), loaded.ravel(), weight)
+    base = plane[0] + plane[1] * gx + plane[2] * gy
+    w = loaded - base
+    hx = x_mm[1] - x_mm[0]
+    hy = y_mm[1] - y_mm[0]
+    # curvature tensor (Hessian, small slopes) and its principal decomposition
+    wy, wx = np.gradient(w, hy, hx)
+    wxx = np.gradient(wx, hx, axis=1)
+    wyy = np.gradient(wy, hy, axis=0)
+    wxy = 0.5 * (np.gradient(wx, hy, axis=0) + np.gradient(wy, hx, axis=1))
+    hess = np.stack([np.stack([wxx, wxy], -1), np.stack([wxy, wyy], -1)], -2)
+    kappa, vec = np.linalg.eigh(hess)
+    ratio = springback_ratio(np.where(kappa == 0, np.inf, 1.0 / np.where(kappa == 0, 1.0, kappa)),
+                             plate.thickness_mm, plate.material)
+    scaled = np.einsum("...ik,...k,...jk->...ij", vec, kappa * ratio, vec)
+    w_unloaded = _integrate_hessian(scaled[..., 0, 0], scaled[..., 0, 1], scaled[..., 1, 1], hx, hy)
+    # keep the loaded plate's best-fit plane (the unloaded plate rests there)
+    fix = _best_plane(gx.ravel(), gy.ravel(), w_unloaded.ravel(), weight)
+    w_unloaded -= fix[0] + fix[1] * gx + fix[2] * gy
+    # mean ratio of the main (largest) curvature over the bent part of the plate
+    main = np.argmax(np.abs(kappa), axis=-1)[..., None]
+    main_ratio = np.take_along_axis(ratio, main, axis=-1)[..., 0]
+    bent = inside.reshape(gx.shape) & (np.abs(kappa).max(axis=-1) > 1e-9)
+    mean_ratio = float(main_ratio[bent].mean()) if bent.any() else 1.0
+    return base + w_unloaded, mean_ratio
+
+
+def _second_difference(n: int, h: float) -> sparse.csr_matrix:
+    """(n, n) second-difference operator; one-sided at the ends (rows copy the neighbours)."""
+    main = np.full(n, -2.0)
+    d = sparse.diags([np.ones(n - 1), main, np.ones(n - 1)], [-1, 0, 1], format="lil")
+    d[0, :3] = [1.0, -2.0, 1.0]
+    d[n - 1, n - 3:] = [1.0, -2.0, 1.0]
+    return d.tocsr() / (h * h)
+
+
+def _first_difference(n: int, h: float) -> sparse.csr_matrix:
+    """(n, n) central first-difference operator, one-sided at the ends."""
+    d = sparse.diags([-np.ones(n - 1), np.ones(n - 1)], [-1, 1], format="lil") * 0.5
+    d[0, :2] = [-1.0, 1.0]
+    d[n - 1, n - 2:] = [-1.0, 1.0]
+    return d.tocsr() / h
+
+
+def _integrate_hessian(hxx, hxy, hyy, hx: float, hy: float) -> np.ndarray:
+    """Heights w (ny, nx) whose second derivatives best match the given fields (least squares).
+
+    The free plane a + b x + c y is fixed afterwards by the caller; here a tiny Tikhonov
+    term keeps the system regular.
+    """
+    ny, nx = hxx.shape
+    ix, iy = sparse.identity(nx), sparse.identity(ny)
+    dxx = sparse.kron(iy, _second_difference(nx, hx))
+    dyy = sparse.kron(_second_difference(ny, hy), ix)
+    dxy = sparse.kron(_first_difference(ny, hy), _first_difference(nx, hx))
+    scale = max(hx, hy) ** 2
+    reg = sparse.identity(nx * ny) * 1e-6
+    a = sparse.vstack([dxx * scale, dyy * scale, np.sqrt(2.0) * dxy * scale, reg]).tocsr()
+    b = np.concatenate([hxx.ravel() * scale, hyy.ravel() * scale, np.sqrt(2.0) * hxy.ravel() * scale,
+                        np.zeros(nx * ny)])
+    normal = (a.T @ a).tocsc()
+    sol = spsolve(normal, a.T @ b)
+    return sol.reshape(ny, nx)

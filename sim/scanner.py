@@ -1,0 +1,189 @@
+"""Simulated 3D scanner: samples a formed plate's top skin as a real scan would.
+
+A scan (see ``docs/compare.md``, section "Simulated scanner") is
+
+- the top skin of the unloaded plate sampled on a grid of ``spacing_mm`` with a small
+  random jitter (a scanner does not hit the CAD grid),
+- with isotropic Gaussian noise of ``noise_mm`` per coordinate,
+- with ``occlusion_fraction`` of the plate missing as one or two contiguous elliptic
+  blobs (clamps, the crane hook, shadows), not as random points,
+- with ``outlier_fraction`` of the points thrown 5-50 mm off the surface along its normal
+  (reflections, dust),
+- in an arbitrary rigid pose (a random rotation and a translation of up to 2 m): the
+  scanner knows nothing of the press coordinates.
+
+The scanner owns one seeded random generator: successive scans differ, the sequence is
+reproducible. Build a new scanner with the same seed to repeat a scan.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from mppf.errors import InputError
+from mppf.io import write_points
+from mppf.sim.forming import FormedPlate
+from mppf.transform import apply_tf, make_tf
+
+OUTLIER_OFFSET_MM = (5.0, 50.0)
+"""Range of the distance of outliers from the surface."""
+
+MAX_TRANSLATION_MM = 2000.0
+"""Largest component of the random translation of the scan pose."""
+
+
+@dataclass(frozen=True, eq=False)
+class ScanSample:
+    """One simulated scan with its ground truth.
+
+    Attributes
+    ----------
+    points : (n, 3) float
+        The scan, in the scanner's coordinates, mm.
+    tf_scan_press : (4, 4) float
+        The pose: maps press coordinates into the scanner's.
+    is_outlier : (n,) bool
+        Which points are outliers.
+    occluded_fraction : float
+        Fraction of the plate's sample points hidden by the occlusion blobs.
+    n_blobs : int
+        Number of occlusion blobs (1 or 2; 0 without occlusion).
+    hidden_xy_mm : (m, 2) float
+        Press (x, y) of the sample positions hidden by the blobs.
+    """
+
+    points: np.ndarray
+    tf_scan_press: np.ndarray
+    is_outlier: np.ndarray
+    occluded_fraction: float
+    n_blobs: int
+    hidden_xy_mm: np.ndarray
+
+
+class SimulatedScanner:
+    """A seeded simulated scanner.
+
+    Parameters
+    ----------
+    noise_mm : float
+        Standard deviation of the Gaussian noise per coordinate (so also along the normal).
+    occlusion_fraction : float
+        Fraction of the plate missing, in [0, 0.9].
+    outlier_fraction : float
+        Fraction of the returned points that are outliers, in [0, 0.5].
+    spacing_mm : float
+        Sampling distance on the plate.
+    seed : int
+        Seed of the scanner's random generator.
+    """
+
+    def __init__(
+        self,
+        noise_mm: float = 0.3,
+        occlusion_fraction: float = 0.2,
+        outlier_fraction: float = 0.01,
+        spacing_mm: float = 20.0,
+        seed: int = 0,
+    ):
+        checks = (
+            ("noise_mm", noise_mm, 0.0, 50.0),
+            ("occlusion_fraction", occlusion_fraction, 0.0, 0.9),
+            ("outlier_fraction", outlier_fraction, 0.0, 0.5),
+            ("spacing_mm", spacing_mm, 1.0, 1000.0),
+        )
+        for name, value, lo, hi in checks:
+            if not (np.isfinite(value) and lo <= value <= hi):
+                raise InputError(f"scanner {name} must be within {lo}..{hi}, got {value}")
+        self.noise_mm = float(noise_mm)
+        self.occlusion_fraction = float(occlusion_fraction)
+        self.outlier_fraction = float(outlier_fraction)
+        self.spacing_mm = float(spacing_mm)
+        self.seed = seed
+        self._rng = np.random.default_rng(seed)
+
+    def sample(self, formed: FormedPlate) -> ScanSample:
+        """Scan ``formed`` and return the points with their ground truth.
+
+        Parameters
+        ----------
+        formed : FormedPlate
+
+        Returns
+        -------
+        ScanSample
+        """
+        rng = self._rng
+        # 1. sample positions on the plate (grid + jitter), top skin
+        xy = formed.sample_xy(self.spacing_mm)
+        xy = xy + rng.uniform(-0.25, 0.25, xy.shape) * self.spacing_mm
+        # 2. occlusion: drop the points nearest to one or two random blob centres
+        keep, n_blobs = self._occlusion_mask(xy, rng)
+        occluded = 1.0 - keep.mean()
+        hidden = xy[~keep]
+        xy = xy[keep]
+        normals = formed.normals(xy)
+        points = formed.offset_points(xy, 0.5 * formed.thickness_mm)
+        # 3. noise
+        points = points + rng.normal(0.0, self.noise_mm, points.shape) if self.noise_mm > 0 else points
+        # 4. outliers along the normal, either side
+        n_out = int(round(self.outlier_fraction * len(points)))
+        is_outlier = np.zeros(len(points), dtype=bool)
+        if n_out:
+            idx = rng.choice(len(points), n_out, replace=False)
+            offset = rng.uniform(*OUTLIER_OFFSET_MM, n_out) * rng.choice([-1.0, 1.0], n_out)
+            points[idx] += offset[:, None] * normals[idx]
+            is_outlier[idx] = True
+        # 5. arbitrary pose; shuffle the order as a scanner would not keep the grid order
+        rotation = Rotation.random(random_state=rng).as_matrix()
+        tf_scan_press = make_tf(rotation, rng.uniform(-MAX_TRANSLATION_MM, MAX_TRANSLATION_MM, 3))
+        order = rng.permutation(len(points))
+        return ScanSample(
+            points=apply_tf(tf_scan_press, points[order]),
+            tf_scan_press=tf_scan_press,
+            is_outlier=is_outlier[order],
+            occluded_fraction=float(occluded),
+            n_blobs=n_blobs,
+            hidden_xy_mm=hidden,
+        )
+
+    def _occlusion_mask(self, xy: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, int]:
+        n = len(xy)
+        n_hidden = int(round(self.occlusion_fraction * n))
+        if n_hidden == 0:
+            return np.ones(n, dtype=bool), 0
+        n_blobs = int(rng.integers(1, 3))
+        share = np.full(n_blobs, n_hidden // n_blobs)
+        share[0] += n_hidden - share.sum()
+        keep = np.ones(n, dtype=bool)
+        for count in share:
+            # an ellipse of random orientation and aspect around a random plate point
+            centre = xy[rng.integers(n)]
+            angle = rng.uniform(0, np.pi)
+            aspect = rng.uniform(1.0, 2.5)
+            c, s = np.cos(angle), np.sin(angle)
+            d = xy - centre
+            dist = np.hypot(d @ [c, s], (d @ [-s, c]) * aspect)
+            dist[~keep] = np.inf
+            keep[np.argsort(dist, kind="stable")[:count]] = False
+        return keep, n_blobs
+
+    def scan_points(self, formed: FormedPlate) -> np.ndarray:
+        """Scan ``formed``; (n, 3) float points in the scanner's coordinates, mm."""
+        return self.sample(formed).points
+
+    def scan(self, formed: FormedPlate, path) -> Path:
+        """Scan ``formed`` and write the points to ``path`` (.ply binary, .csv, .txt, .xyz).
+
+        Returns
+        -------
+        Path
+            The file written.
+        """
+        sample = self.sample(formed)
+        header = (f"simulated scan: noise {self.noise_mm} mm, occlusion {sample.occluded_fraction:.3f}, "
+                  f"outliers {int(sample.is_outlier.sum())}, seed {self.seed}")
+        return write_points(path, sample.points, header=header)

@@ -1,0 +1,201 @@
+"""The bend - measure - compare loop: decisions, scan folder, convergence on the simulated press, bad input."""
+
+from __future__ import annotations
+
+import json
+import os
+import sqlite3
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mppf.cli import main
+from mppf.errors import InputError
+from mppf.history import History
+from mppf.io import read_points, write_points
+from mppf.loop import LoopSettings, decide
+from mppf.press import example_press_path
+from mppf.scanners import DirectoryScanner, ScanContext
+from mppf.unfold import unfold
+
+PLATE = "K2_fwd_bilge_convex"  # a weakly doubly curved KCS bilge plate: plans and forms fast
+
+
+@pytest.fixture(scope="module")
+def plate_files(tmp_path_factory, hull_dir):
+    """The design of a real hull plate and its unfolded flat, as files."""
+    folder = tmp_path_factory.mktemp("plate")
+    design = hull_dir / f"{PLATE}.csv"
+    flat = write_points(folder / f"{PLATE}.flat.csv", unfold(read_points(design).points).flat)
+    return design, flat
+
+
+def loop_args(design, flat, home: Path, *extra) -> list[str]:
+    return ["loop", str(design), str(flat), "--press", str(example_press_path()), "--thickness", "20",
+            "--history", str(home / "history.sqlite"), "--time-scale", "200", *extra]
+
+
+# -- decisions ---------------------------------------------------------------------------------
+
+
+def test_decide_in_tolerance_needs_both_limits():
+    s = LoopSettings(tolerance_mm=2.5, rms_tolerance_mm=1.0, max_cycles=5)
+    assert decide([0.9], 2.4, 1, s) == "in_tolerance"
+    assert decide([1.1], 2.4, 1, s) == "continue"  # RMS too large
+    assert decide([0.9], 2.6, 1, s) == "continue"  # one place too far off
+
+
+def test_decide_divergence_and_max_cycles():
+    s = LoopSettings(max_cycles=4, divergence_factor=1.5)
+    assert decide([2.0, 3.1], 9.0, 2, s) == "diverged"  # grew by more than 1.5x
+    assert decide([2.0, 2.9], 9.0, 2, s) == "continue"
+    assert decide([1.5, 1.7, 1.9], 9.0, 3, s) == "diverged"  # grew twice in a row
+    assert decide([1.5, 1.55, 1.6], 9.0, 3, s) == "continue"  # within the noise margin
+    assert decide([3.0, 2.0, 1.5, 1.2], 3.0, 4, s) == "max_cycles"
+
+
+@pytest.mark.parametrize("kwargs", [{"tolerance_mm": 0}, {"rms_tolerance_mm": -1}, {"max_cycles": 0},
+                                    {"divergence_factor": 1.0}, {"gain": float("nan")}])
+def test_bad_loop_settings(kwargs):
+    with pytest.raises(InputError):
+        LoopSettings(**kwargs)
+
+
+# -- the scan folder ---------------------------------------------------------------------------
+
+
+def _context(tmp_path, since_s, used=()):
+    grid = np.zeros((2, 2))
+    return ScanContext(plate_id="P", work_dir=tmp_path, since_s=since_s, upper_mm=grid, lower_mm=grid,
+                       active=grid.astype(bool), used_paths=tuple(str(p) for p in used))
+
+
+def test_directory_scanner_takes_the_new_complete_file(tmp_path):
+    folder = tmp_path / "scans"
+    folder.mkdir()
+    old = folder / "old.csv"
+    old.write_text("0,0,0\n")
+    os.utime(old, (time.time() - 3600, time.time() - 3600))  # from before the cycle
+    used = folder / "used.csv"
+    used.write_text("1,1,1\n")  # an earlier cycle's scan
+    (folder / "notes.txt.bak").write_text("not a scan")
+    scanner = DirectoryScanner(folder, timeout_s=10, poll_s=0.05)
+    target = folder / "cycle2.ply"
+
+    def operator_saves_scan():
+        time.sleep(0.3)
+        target.write_bytes(b"x" * 100)
+
+    thread = threading.Thread(target=operator_saves_scan)
+    thread.start()
+    try:
+        got = scanner.acquire(2, _context(tmp_path, time.time() - 1, used=[used]))
+    finally:
+        thread.join()
+    assert got == target
+
+
+def test_directory_scanner_times_out_with_a_clear_error(tmp_path):
+    scanner = DirectoryScanner(tmp_path, timeout_s=0.2, poll_s=0.05)
+    with pytest.raises(InputError, match="no new scan file appeared") as info:
+        scanner.acquire(1, _context(tmp_path, time.time()))
+    assert "--resume" in info.value.hint
+
+
+def test_directory_scanner_needs_a_folder(tmp_path):
+    with pytest.raises(InputError, match="does not exist"):
+        DirectoryScanner(tmp_path / "missing")
+
+
+# -- the loop on the simulated press -----------------------------------------------------------
+
+
+def test_loop_converges_on_the_simulated_press(plate_files, tmp_path, capsys):
+    design, flat = plate_files
+    code = main(loop_args(design, flat, tmp_path, "--plate-id", "K2-A", "--seed", "2", "--json"))
+    out = capsys.readouterr().out
+    assert code == 0, out
+    doc = json.loads(out)
+    assert doc["status"] == "in_tolerance"
+    last = doc["cycles"][-1]
+    assert last["max_abs_mm"] <= 2.5 and last["rms_mm"] <= 1.0 and last["state"] == "done"
+    assert len(doc["cycles"]) <= 3
+    with History(tmp_path / "history.sqlite") as history:
+        cycles = history.cycles("K2-A")
+        # every cycle went through every state; strokes, scan and deviations are recorded
+        for c in cycles:
+            states = [e.state for e in history.events("K2-A") if e.cycle == c.cycle]
+            assert states[:1] == ["planned"] and {"pressing", "pressed", "scanned", "compared"} <= set(states)
+            assert c.steps_done == len(c.steps) and len(c.results) == len(c.steps)
+            assert Path(c.scan_path).exists() and len(c.scan_sha256) == 64
+            assert np.isfinite(c.punch_deviation_mm).any()
+            assert Path(c.job_path).exists()
+        # the correction moved the strokes by what was measured
+        if len(cycles) > 1:
+            moved = cycles[1].steps[0].lower_mm - cycles[0].steps[-1].lower_mm
+            assert np.nanmax(np.abs(moved)) > 0.1
+    # the audit log has exactly one GO per press step, each with its cycle's job hash
+    audit = sqlite3.connect(tmp_path / "audit.sqlite")
+    for c in cycles:
+        (gos,) = audit.execute("SELECT COUNT(*) FROM audit WHERE action = 'go' AND outcome = 'ok' "
+                               "AND job_sha256 = ?", (c.job_sha256,)).fetchone()
+        assert gos == len(c.steps)
+
+
+def test_loop_with_a_bad_design_file_exits_2_without_planning(plate_files, tmp_path, capsys):
+    _, flat = plate_files
+    bad = tmp_path / "design.csv"
+    bad.write_text("x,y,z\n1,2,oops\n")
+    assert main(loop_args(bad, flat, tmp_path)) == 2
+    err = capsys.readouterr().err
+    assert "design.csv" in err and "line" in err
+    assert not (tmp_path / "audit.sqlite").exists()
+
+
+def test_loop_with_a_flat_of_another_plate_exits_2(hull_dir, plate_files, tmp_path, capsys):
+    _, flat = plate_files
+    other = hull_dir / "P1_midbody_bilge_smooth.csv"
+    assert main(loop_args(other, flat, tmp_path)) == 2
+    err = capsys.readouterr().err
+    assert "error:" in err and "Traceback" not in err
+    with History(tmp_path / "history.sqlite") as history:
+        assert history.plates() == []  # nothing recorded, nothing pressed
+
+
+def test_loop_option_errors_exit_2(plate_files, tmp_path, capsys):
+    design, flat = plate_files
+    assert main(loop_args(design, flat, tmp_path, "--tolerance", "-1")) == 2
+    assert "tolerance_mm must be a positive number" in capsys.readouterr().err
+    assert main(["loop", str(design), "--history", str(tmp_path / "h.sqlite")]) == 2
+    assert "needs DESIGN, FLAT" in capsys.readouterr().err
+    assert main(["loop", "--resume", "--history", str(tmp_path / "h.sqlite")]) == 2
+    assert "no unfinished plate" in capsys.readouterr().err
+
+
+def test_loop_with_a_bad_scan_file_exits_2_and_resumes(plate_files, tmp_path, capsys):
+    design, flat = plate_files
+    scans = tmp_path / "scans"
+    scans.mkdir()
+    (scans / "scan1.csv").write_text("this is not a point file\n")
+    args = loop_args(design, flat, tmp_path, "--plate-id", "K2-B", "--scanner", str(scans), "--scan-timeout", "5")
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "scan1.csv" in err and "Traceback" not in err
+    with History(tmp_path / "history.sqlite") as history:
+        assert history.cycle("K2-B", 1).state == "pressed"  # pressed, waiting for a usable scan
+    # a scan of another plate is refused by the comparison
+    (scans / "scan1.csv").unlink()
+    other = read_points(Path(design).parent / "P1_midbody_bilge_smooth.csv").points
+    write_points(scans / "scan2.csv", other + [0.0, 0.0, 10.0])
+    assert main(["loop", "--resume", "--plate-id", "K2-B", "--history", str(tmp_path / "history.sqlite"),
+                 "--scan-timeout", "5"]) == 2
+    assert "does not match the design" in capsys.readouterr().err
+    with History(tmp_path / "history.sqlite") as history:
+        record = history.cycle("K2-B", 1)
+        assert record.state == "scanned" and record.steps_done == len(record.steps)
+    audit = sqlite3.connect(tmp_path / "audit.sqlite")
+    (gos,) = audit.execute("SELECT COUNT(*) FROM audit WHERE action = 'go'").fetchone()
+    assert gos == len(record.steps)  # the resume pressed nothing

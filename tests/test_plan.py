@@ -1,0 +1,237 @@
+"""Stroke planning end to end on closed-form plates and the real hull patches."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mppf.errors import GeometryError, InputError, LimitError
+from mppf.io import read_points
+from mppf.job import load_job, save_job
+from mppf.plan import plan_job, plan_summary
+from mppf.press import example_press_path, load_press, press_from_dict
+from mppf.springback import Material, loaded_curvature
+from mppf.transform import apply_rotation, apply_tf
+from mppf.unfold import unfold
+from plan_helpers import cylinder_points, cylinder_tips_mm, developed_cylinder
+
+T = 20.0
+PRESS = load_press(example_press_path())
+
+
+def _press(**changes) -> object:
+    doc = PRESS.to_dict()
+    for key, value in changes.items():
+        table, name = key.split("__")
+        doc[table][name] = value
+    return press_from_dict(doc)
+
+
+def _expected_cylinder_tips(job, radius_mm):
+    """Closed-form tips of a valley cylinder whose axis the plan put along press x."""
+    axis_dir = apply_rotation(job.tf_press_design, [[1.0, 0.0, 0.0]])[0]
+    assert abs(abs(axis_dir[0]) - 1.0) < 1e-9  # the cylinder axis lies along the matrix
+    axis_point = apply_tf(job.tf_press_design, [[0.0, 0.0, radius_mm]])[0]
+    gy = np.broadcast_to(job.punch_y_mm[:, None], job.press.shape) - axis_point[1]
+    lowest = apply_tf(job.tf_press_design, [[0.0, 0.0, 0.0]])[0]
+    if axis_point[2] > lowest[2]:  # a valley
+        up, lo = cylinder_tips_mm(gy, radius_mm, job.press.tip_radius_mm, job.thickness_mm)
+        return up + lowest[2], lo + lowest[2]
+    # a ridge (the registration may turn the plate over): mirror the valley about z = 0
+    up, lo = cylinder_tips_mm(gy, radius_mm, job.press.tip_radius_mm, job.thickness_mm)
+    return -lo + lowest[2], -up + lowest[2]
+
+
+@pytest.fixture(scope="module")
+def cylinder_job():
+    radius = 3000.0
+    design = cylinder_points(radius, 2800.0, 1500.0)
+    flat = developed_cylinder(radius, 2800.0, 1500.0)
+    return plan_job(design, flat, PRESS, T), radius
+
+
+def test_cylinder_matches_ball_on_offset_cylinder(cylinder_job):
+    job, radius = cylinder_job
+    final = job.steps[-1]
+    act = final.active
+    exp_up, exp_lo = _expected_cylinder_tips(job, radius)
+    assert act.sum() > 100
+    np.testing.assert_allclose(final.upper_mm[act], exp_up[act], atol=0.01)
+    np.testing.assert_allclose(final.lower_mm[act], exp_lo[act], atol=0.01)
+    assert np.isnan(final.upper_mm[~act]).all() and np.isnan(final.lower_mm[~act]).all()
+
+
+def test_symmetric_plate_gives_symmetric_strokes(cylinder_job):
+    job, _ = cylinder_job
+    final = job.steps[-1]
+    for grid in (final.upper_mm, final.lower_mm):
+        np.testing.assert_allclose(grid, grid[::-1, :], atol=0.01, equal_nan=True)
+        np.testing.assert_allclose(grid, grid[:, ::-1], atol=0.01, equal_nan=True)
+    np.testing.assert_array_equal(final.active, final.active[::-1, ::-1])
+
+
+def test_travel_is_minimal_and_centred(cylinder_job):
+    job, _ = cylinder_job
+    final = job.steps[-1]
+    act = final.active
+    travel = np.concatenate([final.upper_mm[act] - T, final.lower_mm[act]])
+    # minimax: the largest upward and downward travel are equal
+    assert travel.max() == pytest.approx(-travel.min(), abs=1e-6)
+    assert job.extra["pose"]["max_travel_mm"] == pytest.approx(np.abs(travel).max(), abs=1e-6)
+
+
+def test_flat_plate_gives_flat_strokes():
+    flat = developed_cylinder(1e9, 2400.0, 1600.0)
+    job = plan_job(flat, flat, PRESS, T)
+    final = job.steps[-1]
+    act = final.active
+    assert len(job.steps) == 1
+    np.testing.assert_allclose(final.upper_mm[act], T, atol=1e-6)
+    np.testing.assert_allclose(final.lower_mm[act], 0.0, atol=1e-6)
+    # the flat lies centred on the bed, bottom skin at z = 0
+    corners = np.array(job.extra["plate_corners_mm"])
+    np.testing.assert_allclose(np.abs(corners[:, :2]), [[1200.0, 800.0]] * 4, atol=1e-6)
+    np.testing.assert_allclose(corners[:, 2], 0.0)
+
+
+def test_dome_from_unfold_is_symmetric_and_within_gap():
+    u, v = np.meshgrid(np.linspace(-1300, 1300, 27), np.linspace(-900, 900, 19), indexing="ij")
+    design = np.column_stack([u.ravel(), v.ravel(), (u**2 / 16000.0 + v**2 / 12000.0).ravel()])
+    job = plan_job(design, unfold(design).flat, PRESS, T)
+    final = job.steps[-1]
+    for grid in (final.upper_mm, final.lower_mm):
+        np.testing.assert_allclose(grid, grid[::-1, ::-1], atol=0.02, equal_nan=True)
+    gap = (final.upper_mm - final.lower_mm)[final.active]
+    assert gap.min() >= T - 0.01
+
+
+def test_multi_step_is_monotonic_and_ends_at_target(cylinder_job):
+    job1, _ = cylinder_job
+    flat = developed_cylinder(3000.0, 2800.0, 1500.0)
+    job = plan_job(cylinder_points(3000.0, 2800.0, 1500.0), flat, PRESS, T, steps=4)
+    assert len(job.steps) == 4 and job.extra["n_steps"] == 4
+    act = job.steps[-1].active
+    np.testing.assert_allclose(job.steps[-1].upper_mm[act], job1.steps[-1].upper_mm[act], atol=1e-9)
+    ups = np.array([s.upper_mm[act] for s in job.steps])
+    moves = np.diff(np.vstack([np.full(act.sum(), T), ups]), axis=0)
+    assert np.all(moves * np.sign(moves[-1]) >= -1e-9)
+    np.testing.assert_allclose(moves, np.broadcast_to(moves[0], moves.shape), atol=1e-6)  # equal fractions
+
+
+def test_step_count_follows_the_dimpling_limit():
+    design = cylinder_points(2000.0, 2800.0, 1500.0)
+    flat = developed_cylinder(2000.0, 2800.0, 1500.0)
+    strict = _press(forming__max_neighbour_diff_mm=5.0)
+    job = plan_job(design, flat, strict, T)
+    n = len(job.steps)
+    assert n > 1
+    assert job.extra["validation"]["max_neighbour_step_mm"] <= 5.0 + 1e-6
+    # one step fewer would exceed the limit: the validation refuses it
+    with pytest.raises(LimitError, match="dimpling limit"):
+        plan_job(design, flat, strict, T, steps=n - 1)
+
+
+def test_springback_over_bends_a_cylinder_exactly():
+    radius = 4000.0
+    design = cylinder_points(radius, 2800.0, 1500.0)
+    flat = developed_cylinder(radius, 2800.0, 1500.0)
+    steel = Material(206000.0, 0.3, 235.0)
+    job = plan_job(design, flat, PRESS, T, material=steel, springback=True)
+    loaded_radius = 1.0 / float(loaded_curvature(1.0 / radius, T, steel))
+    assert loaded_radius < radius
+    report = job.extra["springback"]
+    assert report["enabled"] and min(abs(r) for r in report["loaded_radii_mm"] if r) == pytest.approx(loaded_radius, rel=1e-3)
+    final = job.steps[-1]
+    act = final.active
+    # the tips touch a cylinder of the loaded radius (axis along x, same lowest line)
+    axis_point = apply_tf(job.tf_press_design, [[0.0, 0.0, 0.0]])[0]
+    gy = np.broadcast_to(job.punch_y_mm[:, None], job.press.shape) - axis_point[1]
+    up, lo = cylinder_tips_mm(gy, loaded_radius, PRESS.tip_radius_mm, T, lift_mm=axis_point[2])
+    np.testing.assert_allclose(final.upper_mm[act], up[act], atol=0.01)
+    np.testing.assert_allclose(final.lower_mm[act], lo[act], atol=0.01)
+
+
+def test_springback_needs_material():
+    flat = developed_cylinder(1e9, 2400.0, 1600.0)
+    with pytest.raises(InputError, match="material"):
+        plan_job(flat, flat, PRESS, T, springback=True)
+
+
+@pytest.mark.parametrize("thickness", [0.0, -5.0, float("nan")])
+def test_bad_thickness(thickness):
+    flat = developed_cylinder(1e9, 2400.0, 1600.0)
+    with pytest.raises(InputError, match="thickness"):
+        plan_job(flat, flat, PRESS, thickness)
+
+
+def test_plate_larger_than_bed():
+    flat = developed_cylinder(1e9, 3600.0, 1600.0)
+    with pytest.raises(LimitError, match="does not fit"):
+        plan_job(flat, flat, PRESS, T)
+
+
+def test_strokes_beyond_limits_name_the_punches():
+    design = cylinder_points(2000.0, 2800.0, 1500.0)
+    flat = developed_cylinder(2000.0, 2800.0, 1500.0)
+    tight = _press(upper__min_mm=-20.0, upper__park_mm=40.0, upper__max_mm=40.0, lower__max_mm=20.0,
+                   lower__min_mm=-40.0, lower__park_mm=-40.0)
+    with pytest.raises(LimitError, match=r"beyond the press limits.*(upper|lower)\[\d+,\d+\]"):
+        plan_job(design, flat, tight, T)
+
+
+def test_flat_of_another_plate_is_refused(hull_dir):
+    k1 = read_points(hull_dir / "K1_midbody_bilge.csv").points
+    p2 = read_points(hull_dir / "P2_bow_flare_smooth.csv").points
+    with pytest.raises(GeometryError, match="does not belong"):
+        plan_job(k1, unfold(p2).flat, PRESS, T)
+    # unpaired (different point count): judged by area
+    other = developed_cylinder(1e9, 2000.0, 1200.0)
+    with pytest.raises(GeometryError, match="does not belong"):
+        plan_job(k1, other, PRESS, T)
+
+
+def test_unpaired_flat_uses_icp():
+    radius = 3000.0
+    design = cylinder_points(radius, 2800.0, 1500.0)
+    flat = developed_cylinder(radius, 2800.0, 1500.0, n_u=37, n_v=27)
+    job = plan_job(design, flat, PRESS, T)
+    assert job.extra["registration"]["method"] == "point"
+    exp_up, _ = _expected_cylinder_tips(job, radius)
+    act = job.steps[-1].active
+    np.testing.assert_allclose(job.steps[-1].upper_mm[act], exp_up[act], atol=0.01)
+
+
+def test_job_round_trip(tmp_path, cylinder_job):
+    job, _ = cylinder_job
+    path = save_job(job, tmp_path / "job.json")
+    back = load_job(path)
+    assert len(back.steps) == len(job.steps)
+    for a, b in zip(back.steps, job.steps):
+        np.testing.assert_array_equal(a.active, b.active)
+        np.testing.assert_allclose(a.upper_mm, b.upper_mm, atol=1e-4, equal_nan=True)
+        np.testing.assert_allclose(a.lower_mm, b.lower_mm, atol=1e-4, equal_nan=True)
+    np.testing.assert_allclose(back.tf_press_design, job.tf_press_design)
+    for key in ("registration", "validation", "plate_corners_mm", "inputs", "springback", "n_steps", "pose"):
+        assert key in back.extra
+    assert plan_summary(back)["n_steps"] == len(job.steps)
+
+
+HULL = ["K1_midbody_bilge.csv", "K2_fwd_bilge_convex.csv", "K3_stern_saddle.csv", "P1_midbody_bilge.csv",
+        "P1_midbody_bilge_smooth.csv", "P2_bow_flare.csv", "P2_bow_flare_smooth.csv", "P3_stern_saddle.csv",
+        "P3_stern_saddle_smooth.csv"]
+
+
+@pytest.mark.parametrize("name", HULL)
+def test_hull_patch_plans_within_the_example_press(hull_dir, name):
+    design = read_points(hull_dir / name).points
+    job = plan_job(design, unfold(design).flat, PRESS, T)
+    validation = job.extra["validation"]
+    assert validation["passed"]
+    for step in job.steps:
+        act = step.active
+        assert act.sum() >= 200
+        assert PRESS.upper.min_mm <= step.upper_mm[act].min() and step.upper_mm[act].max() <= PRESS.upper.max_mm
+        assert PRESS.lower.min_mm <= step.lower_mm[act].min() and step.lower_mm[act].max() <= PRESS.lower.max_mm
+        assert (step.upper_mm - step.lower_mm)[act].min() >= T - 0.01
+    assert job.extra["validation"]["contact_exact_fraction"] == 1.0
+    assert job.extra["registration"]["neighbour_strain_p95_pct"] < 0.5
