@@ -45,12 +45,13 @@ def main() -> None:
     args = parser.parse_args()
     rows = [run(path.name, read_points(path).points, args.repeat) for path in sorted(HULL.glob("*.csv"))]
     rows.append(run("saddle grid 200 x 200", saddle_grid(), max(1, args.repeat // 2)))
-    header = f"{'plate':<30} {'points':>7} {'triangles':>9} {'time s':>7} {'cpu s':>6} {'iter':>5} {'RMS %':>8} {'max %':>8}"
+    header = (f"{'plate':<30} {'points':>7} {'triangles':>9} {'time s':>7} {'cpu s':>6} {'iter':>5} "
+              f"{'RMS %':>8} {'max %':>8}")
     print(header)
     print("-" * len(header))
     for r in rows:
-        print(f"{r['plate']:<30} {r['points']:>7} {r['triangles']:>9} {r['time_s']:>7.2f} {r['cpu_s']:>6.2f} {r['iterations']:>5} "
-              f"{r['rms_pct']:>8.4f} {r['max_pct']:>8.4f}")
+        print(f"{r['plate']:<30} {r['points']:>7} {r['triangles']:>9} {r['time_s']:>7.2f} {r['cpu_s']:>6.2f} "
+              f"{r['iterations']:>5} {r['rms_pct']:>8.4f} {r['max_pct']:>8.4f}")
 
 
 if __name__ == "__main__":

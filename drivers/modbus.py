@@ -144,14 +144,14 @@ class ModbusPress:
         try:
             self._io.connect()
             self.identity = self._identify(word_order)
+            if self.heartbeat_s > 0:
+                self.start_heartbeat()
         except Exception as exc:
-            self._io.close()
+            self.close()
             self._record("connect", "failed", detail=str(exc))
             raise
         self._record("connect", "ok", detail=f"word order {self.identity.word_order}, "
                      f"{self.identity.rows} x {self.identity.cols} punches")
-        if self.heartbeat_s > 0:
-            self.start_heartbeat()
 
     # ------------------------------------------------------------------------------
     # connection

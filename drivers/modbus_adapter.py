@@ -20,6 +20,7 @@ thread; its writes slip in between the frames of a long upload.
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -30,6 +31,12 @@ from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOEx
 from mppf.drivers.regmap import chunks
 from mppf.drivers.url import PlcUrl
 from mppf.errors import LinkError, PlcError
+
+# pymodbus logs every failed connection and dumps the last frames at ERROR level; with no
+# handler configured Python would print them on stderr beside our own message. The errors
+# reach the user as LinkError / PlcError instead; an application that wants the pymodbus
+# log configures a handler for it.
+logging.getLogger("pymodbus").addHandler(logging.NullHandler())
 
 MAX_READ_REGS = 125
 MAX_WRITE_REGS = 122
@@ -101,11 +108,6 @@ class ModbusAdapter:
                 f"cannot connect to the PLC at {self.url}",
                 hint="check the address, the cable and that the PLC is powered and in remote mode",
             )
-
-    @property
-    def connected(self) -> bool:
-        """True while the transport is open."""
-        return bool(self._client.connected)
 
     def close(self) -> None:
         """Close the connection (idempotent)."""

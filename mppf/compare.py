@@ -36,7 +36,7 @@ from matplotlib.path import Path as PolygonPath
 from scipy.spatial import ConvexHull, cKDTree
 
 from mppf.errors import GeometryError, InputError
-from mppf.frame import LocalFrame
+from mppf.frame import LocalFrame, fit_frame
 from mppf.localize import foot_points
 from mppf.register import Registration, register_icp
 from mppf.surface import fit_plate
@@ -54,13 +54,16 @@ OUTLIER_FLOOR_MM = 0.5
 MIN_POINTS = 30
 """Fewest measured points a comparison accepts."""
 
+SIZE_RATIO = (0.3, 1.3)
+"""Accepted range of the scan's length (largest in-plane extent) over the design's."""
+
 MATCH_FRACTION = 0.5
 """At least this fraction of the measured points must lie near the design (else: wrong plate)."""
 
 OVERHANG_FRACTION = 0.02
 """Point-to-plane is rejected when it leaves this much more of the scan beyond the design's edge."""
 
-DENSE_POINTS = 60000
+DENSE_POINTS = 25000
 """Points of the dense design skin the scan is registered onto."""
 
 POINT_STAGE_POINTS = 3000
@@ -256,6 +259,7 @@ def compare(
     sign = _normal_sign(frame, tf_press_design)
     design_local = fitted.frame.to_local(design)
     uv_d = design_local[:, :2]
+    _check_size(uv_d, measured)
 
     # 2. the design moved to the measured skin, sampled densely
     target = _dense_skin(fitted, uv_d, sign, offset_mm)
@@ -269,6 +273,10 @@ def compare(
     # 5. outliers relative to their neighbours
     outlier = _outliers(uv, deviation, ~outside)
     inlier = ~outside & ~outlier
+    if inlier.sum() < MIN_POINTS:
+        raise GeometryError(f"only {int(inlier.sum())} of {len(inlier)} measured points are usable "
+                            f"({int(outlier.sum())} outliers, {int(outside.sum())} outside the design)",
+                            hint="check the scan: it should cover most of the plate")
 
     # 6. statistics, histogram and punch deviations
     d = deviation[inlier]
@@ -346,10 +354,10 @@ def _register(measured, target, fitted, uv_design, sign: float, offset_mm: float
     """
     stages = []
     init = "principal"
-    for method, trim, robust, max_points in (("point", None, None, POINT_STAGE_POINTS),
-                                             ("plane", TRIM_FRACTION, "huber", 30000)):
+    for method, trim, robust, max_points, iterations in (("point", None, None, POINT_STAGE_POINTS, 40),
+                                                         ("plane", TRIM_FRACTION, "huber", 30000, 100)):
         reg = register_icp(measured, target, method=method, init=init, trim_fraction=trim, robust=robust,
-                           pin_outline=False, max_points=max_points)
+                           pin_outline=False, max_points=max_points, max_iterations=iterations)
         init = reg.tf
         moved = apply_tf(reg.tf, measured)
         feet = foot_points(fitted.surface, fitted.frame.to_local(moved))
@@ -402,12 +410,22 @@ def _outside(uv_design: np.ndarray, uv: np.ndarray) -> np.ndarray:
     return beyond & far
 
 
+def _check_size(uv_design: np.ndarray, measured: np.ndarray) -> None:
+    """Raise GeometryError when the scan's length is out of proportion with the design's."""
+    design_mm = float(np.ptp(uv_design[:, 0]))
+    scan_mm = float(np.ptp(fit_frame(measured).to_local(measured)[:, 0]))
+    if not SIZE_RATIO[0] * design_mm <= scan_mm <= SIZE_RATIO[1] * design_mm:
+        raise GeometryError(
+            f"the scan is {scan_mm:.0f} mm long, the design {design_mm:.0f} mm: not the same plate",
+            hint="check the files and the --units (a scan in metres read as millimetres is 1000 times too small)")
+
+
 def _check_match(deviation, outside, tolerance_mm: float, reg: Registration, depth_mm: float) -> None:
     """Raise GeometryError when the scan is evidently of another plate (or did not register).
 
     Another plate: more than half of the scan lies beyond the design's edge, or more than
-    half lies farther from the design than ``max(10 tolerance, 25 mm, depth / 2)`` (a
-    badly formed but right plate stays within half its design depth).
+    half lies farther from the design than ``max(10 tolerance, 25 mm, depth / 4)`` (a
+    badly formed but right plate stays within a quarter of its design depth).
     """
     n = deviation.shape[0]
     if outside.mean() > 1.0 - MATCH_FRACTION:
@@ -415,7 +433,7 @@ def _check_match(deviation, outside, tolerance_mm: float, reg: Registration, dep
             f"the scan does not match the design: {100 * outside.mean():.0f} % of the measured points lie "
             "outside the design plate after registration",
             hint="check that the scan and the design are of the same plate (and the --units)")
-    gross_mm = max(10.0 * tolerance_mm, 25.0, 0.5 * depth_mm)
+    gross_mm = max(10.0 * tolerance_mm, 25.0, 0.25 * depth_mm)
     near = np.abs(np.where(outside, np.inf, deviation)) <= gross_mm
     if near.sum() < MATCH_FRACTION * n:
         raise GeometryError(

@@ -82,10 +82,6 @@ class Correction:
     clipped: np.ndarray
     notes: list[str] = field(default_factory=list)
 
-    def previous(self, punch_error_mm) -> PreviousCycle:
-        """The :class:`PreviousCycle` to pass on after pressing these strokes and measuring ``punch_error_mm``."""
-        return PreviousCycle(lower_mm=self.lower_mm, punch_error_mm=np.asarray(punch_error_mm, dtype=float))
-
 
 def compensate(
     upper_mm,

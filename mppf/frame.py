@@ -31,8 +31,8 @@ from mppf.transform import as_points
 BULGE_MIN_MM = 0.5
 """Smallest mean bulge (mm over the plate) that decides the sign of n; below, world z decides."""
 
-FOLD_SLOPE_MAX = 4.0
-"""Steepest slope |dw / d(u, v)| between near neighbours that still counts as one layer."""
+FOLD_SLOPE_MAX = 1.0
+"""Steepest slope |dw / d(u, v)| (45 degrees) between near neighbours that still counts as one layer."""
 
 FOLD_GAP_FRACTION = 0.01
 """Height gap between near neighbours, as a fraction of the plate's in-plane size, that is tolerated."""
@@ -41,11 +41,11 @@ FOLD_NEIGHBOURS = 8
 """Nearest (u, v) neighbours each point is compared with."""
 
 FOLD_OUTLIER_VOTES = 5
-"""A point at odds with this many of its neighbours is an isolated outlier, not a layer."""
+"""A point off at least this many of its 8 neighbours, all on one side, is an isolated outlier."""
 
 FOLD_MIN_POINTS = 3
 FOLD_MIN_FRACTION = 0.001
-"""A fold needs at least this many (and this share of) points on distinct layers."""
+"""A fold needs at least this many (and this share of all) points next to another layer."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -173,10 +173,12 @@ def check_height_field(frame: LocalFrame, points, faces=None) -> None:
     (u, v) plane is flipped against the majority means a fold. Without faces (a point
     cloud or grid): two near neighbours in (u, v) (the 8 nearest) whose heights differ
     by more than ``FOLD_SLOPE_MAX`` times their (u, v) distance plus
-    ``FOLD_GAP_FRACTION`` of the plate size lie on distinct layers. Points at odds with
-    most of their neighbours (isolated scanner outliers) are set aside first; the plate
-    folds when at least ``FOLD_MIN_POINTS`` (and 0.1 %) of the rest sit next to another
-    layer.
+    ``FOLD_GAP_FRACTION`` of the plate size lie on distinct layers (or on a wall
+    steeper than 45 degrees). Isolated scanner outliers are set aside first: points
+    off at least 5 of their 8 neighbours by half that allowance, all on one side (a
+    point of a steep or folded surface has neighbours above and below). The plate
+    folds when at least 3 (and 0.1 %) of the remaining points each conflict with two
+    or more neighbours.
 
     Parameters
     ----------
@@ -207,27 +209,27 @@ def check_height_field(frame: LocalFrame, points, faces=None) -> None:
             )
         return
     tolerance_mm = FOLD_GAP_FRACTION * size_mm
-    # isolated outliers (a point at odds with most of its neighbours) are no layer: drop them
-    keep = ~(_layer_conflicts(uv, w, tolerance_mm).sum(axis=1) >= FOLD_OUTLIER_VOTES)
-    index = np.flatnonzero(keep)
-    conflicts = _layer_conflicts(uv[index], w[index], tolerance_mm)
-    layered = conflicts.any(axis=1)
+    # isolated outliers: a point off most of its neighbours (by half the allowance), all
+    # on one side of it; points of a steep or folded surface have neighbours above and below
+    dist, idx = _neighbours(uv)
+    rise = w[idx] - w[:, None]
+    off = np.abs(rise) > 0.5 * (FOLD_SLOPE_MAX * dist + tolerance_mm)
+    one_side = np.all((rise > 0) | ~off, axis=1) | np.all((rise < 0) | ~off, axis=1)
+    keep = ~((off.sum(axis=1) >= FOLD_OUTLIER_VOTES) & one_side)
+    conflict = np.abs(rise) > FOLD_SLOPE_MAX * dist + tolerance_mm
+    layered = keep & ((conflict & keep[idx]).sum(axis=1) >= 2)
     if layered.sum() >= max(FOLD_MIN_POINTS, FOLD_MIN_FRACTION * len(w)):
-        first = index[np.argmax(layered)]
         raise GeometryError(
-            f"the plate folds over in its own frame: {int(layered.sum())} points have neighbours in the "
-            f"plate plane at a height differing by more than {FOLD_SLOPE_MAX:g} x their distance + "
-            f"{tolerance_mm:.3g} mm (e.g. point {first})",
-            hint="it is not a height field z = D(u, v): split the plate into parts that are "
-            "(or remove the gross outliers of the scan)",
+            f"the plate folds over (or stands steeper than {np.degrees(np.arctan(FOLD_SLOPE_MAX)):.0f} degrees) "
+            f"in its frame: {int(layered.sum())} points have neighbours in the plate plane at a height "
+            f"differing by more than {FOLD_SLOPE_MAX:g} x their distance + {tolerance_mm:.3g} mm "
+            f"(e.g. point {int(np.argmax(layered))})",
+            hint="it is not a height field z = D(u, v): split the plate into parts that are",
         )
 
 
-def _layer_conflicts(uv: np.ndarray, w: np.ndarray, tolerance_mm: float) -> np.ndarray:
-    """(n, k) bool: which of each point's nearest (u, v) neighbours lie on another layer."""
-    k = min(FOLD_NEIGHBOURS + 1, len(w))
-    if k < 2:
-        return np.zeros((len(w), 0), dtype=bool)
+def _neighbours(uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distances and indices (n, k) of each point's nearest (u, v) neighbours, itself excluded."""
+    k = min(FOLD_NEIGHBOURS + 1, len(uv))
     dist, idx = cKDTree(uv).query(uv, k=k)
-    dist, idx = dist[:, 1:], idx[:, 1:]
-    return np.abs(w[idx] - w[:, None]) > FOLD_SLOPE_MAX * dist + tolerance_mm
+    return dist.reshape(len(uv), k)[:, 1:], idx.reshape(len(uv), k)[:, 1:]

@@ -270,14 +270,6 @@ def step(pairs: Pairs, metric: str, pin=None) -> np.ndarray:
     return horn_fit(pairs.moved[keep], pairs.matched[keep], pairs.weight[keep])
 
 
-def increment(tf_old: np.ndarray, tf_new: np.ndarray, centre: np.ndarray) -> tuple[float, float]:
-    """(displacement of ``centre`` in mm, turn in rad) between two transforms."""
-    shift = float(np.linalg.norm(apply_tf(tf_new, centre[None])[0] - apply_tf(tf_old, centre[None])[0]))
-    rel = tf_new[:3, :3] @ tf_old[:3, :3].T
-    turn = float(np.arccos(np.clip((np.trace(rel) - 1.0) / 2.0, -1.0, 1.0)))
-    return shift, turn
-
-
 @dataclass(frozen=True, eq=False)
 class Stage:
     """Result of one run of the ICP loop."""
@@ -297,7 +289,8 @@ def _extrapolate(tf: np.ndarray, centre: np.ndarray, rotvec: np.ndarray, shift: 
     return make_tf(rot, moved_centre + factor * shift - rot @ moved_centre) @ tf
 
 
-def _increment_vector(tf_old, tf_new, centre) -> tuple[np.ndarray, np.ndarray]:
+def increment(tf_old: np.ndarray, tf_new: np.ndarray, centre: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(turn as a rotation vector in rad, displacement of ``centre`` in mm) from one transform to the next."""
     rotvec = Rotation.from_matrix(tf_new[:3, :3] @ tf_old[:3, :3].T).as_rotvec()
     shift = apply_tf(tf_new, centre[None])[0] - apply_tf(tf_old, centre[None])[0]
     return rotvec, shift
@@ -345,11 +338,10 @@ def run(problem: Problem, source: np.ndarray, tf0: np.ndarray, *, max_iterations
         tf_new = step(pairs, metric, pin) @ tf  # quaternion or linearised step
         if pin is not None:
             tf_new = pin.apply(tf_new)  # outline and centroid fix the in-plane position
-        shift, turn = increment(tf, tf_new, centre)
+        rotvec, shift_vec = increment(tf, tf_new, centre)
         reporter.advance(1)
-        if shift < tol_t and turn < tol_r:
+        if np.linalg.norm(shift_vec) < tol_t and np.linalg.norm(rotvec) < tol_r:
             return Stage(tf_new, it + 1, history, True, "transform increment below tolerance")
-        rotvec, shift_vec = _increment_vector(tf, tf_new, centre)
         vec = np.concatenate([rotvec * radius, shift_vec])
         tf = tf_new
         cooldown = max(cooldown - 1, 0)

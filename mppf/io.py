@@ -305,6 +305,9 @@ def _read_ply(path: Path, data: bytes) -> tuple[np.ndarray, np.ndarray | None]:
 
 def _fan_triangles(path: Path, polygons: list, n_points: int) -> np.ndarray:
     """Split polygons (lists of vertex indices) into triangles by fans."""
+    sizes = np.array([len(polygon) for polygon in polygons])
+    if sizes.size and np.all(sizes == 3):  # the usual case: triangles already
+        return _check_faces(path, np.stack(polygons).astype(np.int64), n_points)
     triangles = []
     for number, polygon in enumerate(polygons):
         polygon = np.asarray(polygon, dtype=np.int64)
@@ -312,7 +315,10 @@ def _fan_triangles(path: Path, polygons: list, n_points: int) -> np.ndarray:
             raise FileFormatError(path, f"face {number} has {polygon.size} vertices, expected >= 3")
         for k in range(1, polygon.size - 1):
             triangles.append((polygon[0], polygon[k], polygon[k + 1]))
-    faces = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    return _check_faces(path, np.asarray(triangles, dtype=np.int64).reshape(-1, 3), n_points)
+
+
+def _check_faces(path: Path, faces: np.ndarray, n_points: int) -> np.ndarray:
     if faces.size and (faces.min() < 0 or faces.max() >= n_points):
         raise FileFormatError(
             path, f"a face refers to vertex {int(faces.max())}, but there are {n_points} vertices",

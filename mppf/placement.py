@@ -244,8 +244,8 @@ def minimax_offset(dev_mm, x_mm, y_mm, low_mm, high_mm, *, max_slope: float):
     ])
     b_ub = np.concatenate([-dev_mm, dev_mm, high_mm - dev_mm, dev_mm - low_mm])
     bound = max_slope * scale
-    res = linprog([0, 0, 0, 1], A_ub=a_ub, b_ub=b_ub, bounds=[(-bound, bound), (-bound, bound), (None, None), (0, None)],
-                  method="highs")
+    bounds = [(-bound, bound), (-bound, bound), (None, None), (0, None)]
+    res = linprog([0, 0, 0, 1], A_ub=a_ub, b_ub=b_ub, bounds=bounds, method="highs")
     if res.status != 0:
         return None
     a, b, c, s = res.x
@@ -264,6 +264,26 @@ def _hull_rows(dev_mm, x_mm, y_mm, low_mm, high_mm) -> np.ndarray:
         except (QhullError, ValueError):  # too few or degenerate points: keep them all
             keep.append(rows)
     return np.concatenate(keep)
+
+
+def distance_outside_mm(points_xy, polygon_xy) -> np.ndarray:
+    """Distance (mm) of each point outside a convex polygon (0 inside).
+
+    Parameters
+    ----------
+    points_xy : (m, 2) float
+    polygon_xy : (k, 2) float, counter-clockwise
+    """
+    pts = np.asarray(points_xy, dtype=float)
+    a = np.asarray(polygon_xy, dtype=float)
+    b = np.roll(a, -1, axis=0)
+    edge = b - a
+    rel = pts[:, None, :] - a[None, :, :]
+    along = np.clip(np.sum(rel * edge, axis=2) / np.sum(edge * edge, axis=1), 0.0, 1.0)
+    nearest = a[None] + along[:, :, None] * edge[None]
+    dist = np.linalg.norm(pts[:, None, :] - nearest, axis=2).min(axis=1)
+    outside = np.any(edge[None, :, 0] * rel[:, :, 1] - edge[None, :, 1] * rel[:, :, 0] < 0, axis=1)
+    return np.where(outside, dist, 0.0)
 
 
 def limit_violations(values_mm, low_mm, high_mm, labels) -> list[str]:
@@ -328,6 +348,8 @@ class Pose:
         Final tip heights of the active punches.
     exact : (m,) bool
         Newton contact converged for both punches of the pair.
+    contact_xy_mm : (2m, 2) float
+        Where the upper, then the lower balls touch the mid-surface, seen from above.
     travel_mm : float
         Largest |tip height - flat-plate tip height| over both matrices.
     """
@@ -339,13 +361,14 @@ class Pose:
     upper_mm: np.ndarray
     lower_mm: np.ndarray
     exact: np.ndarray
+    contact_xy_mm: np.ndarray
     travel_mm: float
 
 
 def _tips(placed: PlacedSurface, tf_adjust, x_mm, y_mm, press, thickness_mm):
     moved = PlacedSurface(placed.surface, tf_adjust @ placed.tf_press_local)
     up, lo = tip_heights(moved, x_mm, y_mm, tip_radius_mm=press.tip_radius_mm, thickness_mm=thickness_mm)
-    return up.tip_mm, lo.tip_mm, up.exact & lo.exact
+    return up.tip_mm, lo.tip_mm, (up.exact & lo.exact, np.vstack([up.contact_mm, lo.contact_mm]))
 
 
 def optimise_pose(placed: PlacedSurface, x_mm, y_mm, labels, press: PressConfig, thickness_mm: float,
@@ -388,11 +411,11 @@ def optimise_pose(placed: PlacedSurface, x_mm, y_mm, labels, press: PressConfig,
     high = np.concatenate([np.full(m, press.upper.max_mm - up0), np.full(m, press.lower.max_mm - lo0)])
 
     def travel(tf):
-        up, lo, exact = _tips(placed, tf, x_mm, y_mm, press, thickness_mm)
-        return np.concatenate([up - up0, lo - lo0]), exact
+        up, lo, contact = _tips(placed, tf, x_mm, y_mm, press, thickness_mm)
+        return np.concatenate([up - up0, lo - lo0]), contact
 
     tf = np.eye(4)
-    dev, exact = travel(tf)
+    dev, contact = travel(tf)
     level = minimax_offset(dev, xx, yy, low, high, max_slope=0.0)
     tilted = minimax_offset(dev, xx, yy, low, high, max_slope=np.tan(np.radians(MAX_TILT_DEG)))
     if tilted is None:
@@ -409,14 +432,14 @@ def optimise_pose(placed: PlacedSurface, x_mm, y_mm, labels, press: PressConfig,
         for _ in range(3):
             a, b = tilted[0], tilted[1]
             tf = tilt_tf(a, b, centre_mm) @ tf
-            dev, exact = travel(tf)
+            dev, contact = travel(tf)
             tilted = minimax_offset(dev, xx, yy, low, high, max_slope=np.tan(np.radians(MAX_TILT_DEG)))
             if tilted is None or max(abs(tilted[0]), abs(tilted[1])) < 1e-7:
                 break
     final = minimax_offset(dev, xx, yy, low, high, max_slope=0.0)
     if final is None:  # cannot happen unless the tilt iteration went astray: fall back to level
         tf = np.eye(4)
-        dev, exact = travel(tf)
+        dev, contact = travel(tf)
         final = level
     offset = final[2]
     tf = make_tf(translation=[0.0, 0.0, offset]) @ tf
@@ -429,6 +452,7 @@ def optimise_pose(placed: PlacedSurface, x_mm, y_mm, labels, press: PressConfig,
         offset_mm=float(offset),
         upper_mm=dev[:m] + up0,
         lower_mm=dev[m:] + lo0,
-        exact=exact,
+        exact=contact[0],
+        contact_xy_mm=contact[1][:, :2],
         travel_mm=float(np.abs(dev).max()),
     )

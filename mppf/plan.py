@@ -16,11 +16,11 @@ from matplotlib.path import Path
 from scipy.spatial import ConvexHull
 
 from mppf.contact import PlacedSurface
-from mppf.errors import InputError, LimitError
+from mppf.errors import GeometryError, InputError, LimitError
 from mppf.job import Job
 from mppf.overbend import overbend
-from mppf.placement import (check_flat_belongs, design_area_mm2, optimise_pose, place_flat,
-                            register_design)
+from mppf.placement import (check_flat_belongs, design_area_mm2, distance_outside_mm, optimise_pose,
+                            place_flat, register_design)
 from mppf.press import PressConfig
 from mppf.progress import NULL_REPORTER
 from mppf.springback import Material
@@ -94,6 +94,9 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
     reporter.info("registering the design onto the flat plate")
     registration = register_design(design, placement.flat_press_mm, reporter=reporter)
     paired = registration.method == "paired"
+    if registration.ambiguous_start:
+        reporter.info("the plate is nearly symmetric: check that the plate lies the right way round "
+                      "(registration start was ambiguous)")
     belongs = check_flat_belongs(design, placement.flat_press_mm, paired,
                                  design_area_mm2(fitted, design, design_faces))
     # 3. the surface to press: the design, over-bent for springback if asked
@@ -106,8 +109,8 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
     # 4. active punches: axes inside the design's outline seen from above
     design_press = apply_tf(registration.tf, design)
     gx, gy = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
-    outline = Path(_outline(design_press))
-    active = outline.contains_points(np.column_stack([gx.ravel(), gy.ravel()])).reshape(press.shape)
+    outline_xy = _outline(design_press)
+    active = Path(outline_xy).contains_points(np.column_stack([gx.ravel(), gy.ravel()])).reshape(press.shape)
     if not active.any():
         raise LimitError("the plate covers no punch axis", hint="check the plate size and the press pitch")
     rows, cols = np.nonzero(active)
@@ -126,6 +129,7 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
     # 7. validate everything before a job exists
     validation = validate_steps(step_list, press, t)
     validation["contact_exact_fraction"] = float(np.mean(pose.exact))
+    validation["contact_beyond_edge_mm"] = _check_trim(pose.contact_xy_mm, outline_xy, press)
     outline = _outline(apply_tf(pose.tf_adjust, design_press))
     extra = {
         "planner": {"surface_kind": fitted.kind, "surface_degree": fitted.degree,
@@ -155,6 +159,19 @@ def _outline(points_press: np.ndarray) -> np.ndarray:
     """(k, 2) convex outline of points seen from above, counter-clockwise."""
     xy = points_press[:, :2]
     return xy[ConvexHull(xy).vertices]
+
+
+def _check_trim(contact_xy_mm, outline_xy, press: PressConfig) -> float:
+    """Largest distance of a ball contact past the plate edge; refuse it beyond the trim allowance."""
+    beyond = float(distance_outside_mm(contact_xy_mm, outline_xy).max())
+    if beyond > press.trim_allowance_mm:
+        raise GeometryError(
+            f"a punch ball touches the design surface {beyond:.0f} mm past the plate edge, beyond the "
+            f"press's trim allowance of {press.trim_allowance_mm:g} mm",
+            hint="raise [forming] trim_allowance_mm in the press description if the surface may be "
+                 "extended that far",
+        )
+    return beyond
 
 
 def _springback_report(surface) -> dict:

@@ -286,7 +286,7 @@ def register_icp(
     pin_outline="auto",
     tol_translation_mm: float = 1e-3,
     tol_rotation_rad: float = 1e-5,
-    tol_relative_mse: float = 1e-6,
+    tol_relative_mse: float = 1e-9,
     seed: int = 0,
     reporter: Reporter = NULL_REPORTER,
 ) -> Registration:
@@ -329,7 +329,7 @@ def register_icp(
     seed : int
         Seed of the subsampling (results are reproducible).
     reporter : Reporter
-        Progress (iterations) and notes.
+        Progress (iterations). Decisions are returned in ``Registration.notes``.
 
     Returns
     -------
@@ -358,8 +358,6 @@ def register_icp(
         method = "point"
         notes.append("point-to-plane overridden by point-to-point: one plate is flat and the other "
                      "curved, and a plane metric slides the flat plate off the curved one")
-    for note in notes:
-        reporter.info(note)
 
     # 2. the fixed target: kd-tree, lazily computed normals, outline
     tree = cKDTree(tgt)
@@ -375,9 +373,6 @@ def register_icp(
         score_idx = fine_idx[_subsample(fine_idx.size, SCORE_POINTS, rng)]
         tf0, init_info = _principal_start(problem, src[score_idx], frame_s, frame_t)
         ambiguous = init_info["ambiguous"]
-        if ambiguous:
-            reporter.info("the principal-axes start is ambiguous (a nearly symmetric plate): "
-                          "check the turn of the result")
     elif isinstance(init, str):
         tf0, init_info = np.eye(4), {"kind": "identity"}
     else:

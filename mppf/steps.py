@@ -179,14 +179,18 @@ def validate_steps(steps: list[StepStrokes], press: PressConfig, thickness_mm: f
         )
     final = steps[-1]
     act = final.active
+
+    def value_range(values):
+        return [float(np.min(values[act])), float(np.max(values[act]))] if act.any() else None
+
     return {
         "passed": True,
         "n_steps": len(steps),
         "min_gap_mm": None if not math.isfinite(min_gap) else min_gap,
         "max_neighbour_step_mm": max_step_diff,
         "dimpling_limit_mm": press.max_neighbour_diff_mm,
-        "upper_range_mm": [float(np.min(final.upper_mm[act])), float(np.max(final.upper_mm[act]))] if act.any() else None,
-        "lower_range_mm": [float(np.min(final.lower_mm[act])), float(np.max(final.lower_mm[act]))] if act.any() else None,
+        "upper_range_mm": value_range(final.upper_mm),
+        "lower_range_mm": value_range(final.lower_mm),
         "upper_limits_mm": [press.upper.min_mm, press.upper.max_mm],
         "lower_limits_mm": [press.lower.min_mm, press.lower.max_mm],
     }

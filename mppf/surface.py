@@ -605,12 +605,15 @@ def fit_plate(points, degree: int | str = 3, kind: str = "poly", smoothing: floa
     Raises
     ------
     InputError
-        Unknown kind or degree.
+        Unknown kind or degree, or smoothing for a polynomial.
     GeometryError
         Too few, coincident or collinear points; a plate that folds over in its frame.
     """
     if kind not in KINDS:
         raise InputError(f"surface kind must be one of {KINDS}, got {kind!r}")
+    if kind == "poly" and smoothing is not None:
+        raise InputError(f"smoothing ({smoothing} mm) applies to the spline surface only",
+                         hint="use kind 'spline' or leave smoothing out")
     if kind == "poly" and degree not in DEGREES and degree != "auto":
         raise InputError(f"polynomial degree must be one of {DEGREES} or 'auto', got {degree!r}")
     min_points = 16 if kind == "spline" or degree == "auto" else (degree + 1) ** 2

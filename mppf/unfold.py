@@ -47,7 +47,7 @@ SLIVER_QUALITY = 0.05
 """Boundary triangles of a Delaunay triangulation with quality 4*sqrt(3)*A/sum(l^2)
 below this (1 = equilateral, 0 = degenerate) are slivers of the convex hull."""
 
-SLIVER_EDGE_FACTOR = 3.0
+SLIVER_EDGE_FACTOR = 2.5
 """Boundary triangles with an edge longer than this times the median edge are removed too."""
 
 SHALLOW_EDGE_STRAIN = 0.01
@@ -238,8 +238,9 @@ def _triangulate(uv: np.ndarray, pts: np.ndarray) -> np.ndarray:
     repeatedly, as long as their points stay in other triangles.
     """
     tri = Delaunay(uv).simplices.astype(np.int64)
-    tri = _wind_ccw(uv, tri)
-    tri = tri[_signed_areas_2d(uv, tri) > 0] if np.any(_signed_areas_2d(uv, tri) > 0) else tri
+    area_uv = _signed_areas_2d(uv, tri)
+    tri[area_uv < 0] = tri[area_uv < 0][:, ::-1]  # every triangle counter-clockwise
+    tri = tri[np.abs(area_uv) > 1e-12 * float(np.ptp(uv, axis=0).max()) ** 2]  # no flat ones
     while True:
         a, b, c = pts[tri[:, 0]], pts[tri[:, 1]], pts[tri[:, 2]]
         sq = np.column_stack([np.sum((b - a) ** 2, 1), np.sum((c - b) ** 2, 1), np.sum((a - c) ** 2, 1)])
@@ -252,8 +253,10 @@ def _triangulate(uv: np.ndarray, pts: np.ndarray) -> np.ndarray:
         candidates = np.flatnonzero(bad & on_boundary)
         if candidates.size == 0:
             return tri
+        # peel only triangles whose corners all stay in some other triangle
         uses = np.bincount(tri.ravel(), minlength=pts.shape[0])
-        removable = candidates[np.all(uses[tri[candidates]] > 1, axis=1)]
+        left = uses - np.bincount(tri[candidates].ravel(), minlength=pts.shape[0])
+        removable = candidates[np.all(left[tri[candidates]] > 0, axis=1)]
         if removable.size == 0:
             return tri
         tri = np.delete(tri, removable, axis=0)
@@ -558,6 +561,8 @@ def _rotation(angle: float) -> np.ndarray:
 def region_name(uv_mm: np.ndarray, point: int) -> str:
     """Name where ``point`` lies on the plate: a corner, an edge or the middle.
 
+    The outer quarters of the (u, v) bounding box are the edges, where two meet a corner.
+
     Parameters
     ----------
     uv_mm : (n, 2) float
@@ -573,9 +578,9 @@ def region_name(uv_mm: np.ndarray, point: int) -> str:
     where = (uv_mm[point] - lo) / np.maximum(hi - lo, 1e-300)
     parts = []
     for name, t in zip("uv", where):
-        if t < 1 / 3:
+        if t < 0.25:
             parts.append(f"-{name}")
-        elif t > 2 / 3:
+        elif t > 0.75:
             parts.append(f"+{name}")
     if len(parts) == 2:
         return f"the {parts[0]}/{parts[1]} corner"

@@ -46,6 +46,7 @@ from mppf.sim.serial_pty import PtyPair
 MATRICES = ("upper", "lower")
 _FC_READ = 3
 _FC_WRITE = 16
+_MAX_STEPS_PER_SCAN = 50  # coarser steps rather than a scan that falls further and further behind
 
 
 class SimulatedPlc:
@@ -369,7 +370,7 @@ class SimulatedPlc:
     def _scan(self, wall_dt_s: float) -> None:
         """One PLC scan: integrate motion, run timers and faults, publish."""
         sim_dt = wall_dt_s * self.time_scale
-        steps = max(1, int(np.ceil(sim_dt / self.tick_s)))
+        steps = min(max(1, int(np.ceil(sim_dt / self.tick_s))), _MAX_STEPS_PER_SCAN)
         for _ in range(steps):
             self._step(sim_dt / steps)
         self._check_watchdog()

@@ -142,3 +142,14 @@ def test_unreachable_plc_exits_3(job_path, capsys):
     assert main(["status", "--plc", "tcp://127.0.0.1:1?timeout=0.2"]) == 3
     assert main(["press", str(job_path), "--plc", "tcp://127.0.0.1:1?timeout=0.2", "--yes"]) == 3
     assert "cannot connect" in capsys.readouterr().err
+
+
+def test_ctrl_c_during_motion_exits_130_after_stop(job_path, tmp_path, monkeypatch, capsys):
+    def operator_presses_ctrl_c(self, completed):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("mppf.cli.press_cmd.RichReporter.update", operator_presses_ctrl_c)
+    audit = tmp_path / "audit.sqlite"
+    assert main(["press", str(job_path), "--audit", str(audit), "--time-scale", "2"]) == 130
+    assert "STOP was sent" in " ".join(capsys.readouterr().err.split())
+    assert [a[:2] for a in audit_actions(audit)][-2:] == [("go", "ok"), ("stop", "ok")]

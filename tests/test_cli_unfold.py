@@ -100,7 +100,7 @@ def test_unfold_folded_plate_exits_2(tmp_path, capsys):
     design = _write(tmp_path / "folded.csv", folded)
     assert main(["unfold", str(design), "-o", str(tmp_path / "flat.csv")]) == 2
     err = " ".join(capsys.readouterr().err.split())
-    assert "folds over in its own frame" in err and "what to do:" in err
+    assert "the plate folds over" in err and "what to do:" in err
 
 
 @pytest.mark.parametrize(

@@ -176,6 +176,25 @@ def test_plc_restart_during_motion_is_detected(start_sim, press, audit):
     assert ("stop", "ok") in actions(audit)
 
 
+def test_link_lost_during_motion_stop_after_reconnect(start_sim, press, audit):
+    sim = start_sim(time_scale=5.0, watchdog_s=None)
+    upper, lower = step_setpoints(press)
+
+    def drop(task):
+        if task.startswith("motion"):
+            sim.drop_connections(0.4)
+
+    with ModbusPress(sim.url, press, audit=audit, timeout_s=0.3) as plc:
+        with pytest.raises(LinkError) as info:
+            plc.run_step(upper, lower, reporter=HookReporter(on_start=drop))
+    message = str(info.value)
+    assert "after GO" in message and "STOP was sent after reconnecting" in message
+    assert "restarted" not in message
+    assert [e.detail.startswith("link lost") for e in audit.entries() if e.action == "stop"] == [True]
+    flags = sim.wait_idle(3.0)
+    assert not flags["busy"] and not flags["in_position"]  # stopped short of the targets
+
+
 def test_estop_during_motion_stops_and_reports(start_sim, press, audit):
     sim = start_sim(time_scale=10.0)
     upper, lower = step_setpoints(press)

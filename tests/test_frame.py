@@ -108,7 +108,7 @@ def test_hull_plates_are_height_fields_in_their_frame(hull_dir):
             check_height_field(LocalFrame(origin=np.zeros(3), axes=np.eye(3)), pts)
         except GeometryError:
             folded_in_hull_coordinates += 1
-    assert folded_in_hull_coordinates >= 2  # the saddles near the skeg are steep in hull coordinates
+    assert folded_in_hull_coordinates >= 5  # most stand at 45 degrees or steeper in hull coordinates
 
 
 def curled_plate(angle_deg=300.0, radius_mm=400.0, n_arc=80, n_len=15):
@@ -150,12 +150,13 @@ def test_noisy_dense_scan_is_still_a_height_field():
     check_height_field(fit_frame(pts), pts)
 
 
-def test_scan_with_isolated_outliers_is_still_a_height_field():
+@pytest.mark.parametrize("offset_mm", [(5.0, 50.0), (30.0, 300.0)])
+def test_scan_with_isolated_outliers_is_still_a_height_field(offset_mm):
     rng = np.random.default_rng(8)
     uv = rng.uniform([-1500, -1000], [1500, 1000], size=(30000, 2))
     w = (uv**2).sum(axis=1) / 16000.0 + rng.normal(scale=0.5, size=len(uv))
     outliers = rng.random(len(uv)) < 0.02
-    w[outliers] += rng.uniform(-300.0, 300.0, size=outliers.sum())
+    w[outliers] += rng.choice([-1.0, 1.0], size=outliers.sum()) * rng.uniform(*offset_mm, size=outliers.sum())
     pts = np.column_stack([uv, w]) @ Rotation.random(random_state=9).as_matrix() + OFFSET_MM
     check_height_field(fit_frame(pts), pts)
 

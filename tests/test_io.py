@@ -178,6 +178,14 @@ def test_ply_nan_vertex(tmp_path):
         read_points(path)
 
 
+def test_ply_face_with_missing_vertex(tmp_path):
+    path = write(tmp_path, "m.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                 "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                 "0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n")
+    with pytest.raises(FileFormatError, match="vertex 7, but there are 3"):
+        read_points(path)
+
+
 # ----------------------------------------------------------------- round trips
 
 

@@ -21,16 +21,19 @@ from mppf.press import example_press_path
 from mppf.scanners import DirectoryScanner, ScanContext
 from mppf.unfold import unfold
 
-PLATE = "K2_fwd_bilge_convex"  # a weakly doubly curved KCS bilge plate: plans and forms fast
+PLATE = "K2_fwd_bilge_convex"  # a weakly doubly curved KCS bilge plate: plans fast
+CONVERGING_PLATE = "P1_midbody_bilge_smooth"  # the DTC midship bilge, the demo's plate
+
+
+def _design_and_flat(folder: Path, hull_dir: Path, name: str) -> tuple[Path, Path]:
+    design = hull_dir / f"{name}.csv"
+    return design, write_points(folder / f"{name}.flat.csv", unfold(read_points(design).points).flat)
 
 
 @pytest.fixture(scope="module")
 def plate_files(tmp_path_factory, hull_dir):
     """The design of a real hull plate and its unfolded flat, as files."""
-    folder = tmp_path_factory.mktemp("plate")
-    design = hull_dir / f"{PLATE}.csv"
-    flat = write_points(folder / f"{PLATE}.flat.csv", unfold(read_points(design).points).flat)
-    return design, flat
+    return _design_and_flat(tmp_path_factory.mktemp("plate"), hull_dir, PLATE)
 
 
 def loop_args(design, flat, home: Path, *extra) -> list[str]:
@@ -113,9 +116,9 @@ def test_directory_scanner_needs_a_folder(tmp_path):
 # -- the loop on the simulated press -----------------------------------------------------------
 
 
-def test_loop_converges_on_the_simulated_press(plate_files, tmp_path, capsys):
-    design, flat = plate_files
-    code = main(loop_args(design, flat, tmp_path, "--plate-id", "K2-A", "--seed", "2", "--json"))
+def test_loop_converges_on_the_simulated_press(hull_dir, tmp_path, capsys):
+    design, flat = _design_and_flat(tmp_path, hull_dir, CONVERGING_PLATE)
+    code = main(loop_args(design, flat, tmp_path, "--plate-id", "P1-A", "--seed", "1", "--json"))
     out = capsys.readouterr().out
     assert code == 0, out
     doc = json.loads(out)
@@ -124,10 +127,10 @@ def test_loop_converges_on_the_simulated_press(plate_files, tmp_path, capsys):
     assert last["max_abs_mm"] <= 2.5 and last["rms_mm"] <= 1.0 and last["state"] == "done"
     assert len(doc["cycles"]) <= 3
     with History(tmp_path / "history.sqlite") as history:
-        cycles = history.cycles("K2-A")
+        cycles = history.cycles("P1-A")
         # every cycle went through every state; strokes, scan and deviations are recorded
         for c in cycles:
-            states = [e.state for e in history.events("K2-A") if e.cycle == c.cycle]
+            states = [e.state for e in history.events("P1-A") if e.cycle == c.cycle]
             assert states[:1] == ["planned"] and {"pressing", "pressed", "scanned", "compared"} <= set(states)
             assert c.steps_done == len(c.steps) and len(c.results) == len(c.steps)
             assert Path(c.scan_path).exists() and len(c.scan_sha256) == 64

@@ -140,7 +140,8 @@ def test_springback_over_bends_a_cylinder_exactly():
     loaded_radius = 1.0 / float(loaded_curvature(1.0 / radius, T, steel))
     assert loaded_radius < radius
     report = job.extra["springback"]
-    assert report["enabled"] and min(abs(r) for r in report["loaded_radii_mm"] if r) == pytest.approx(loaded_radius, rel=1e-3)
+    assert report["enabled"]
+    assert min(abs(r) for r in report["loaded_radii_mm"] if r) == pytest.approx(loaded_radius, rel=1e-3)
     final = job.steps[-1]
     act = final.active
     # the tips touch a cylinder of the loaded radius (axis along x, same lowest line)
@@ -235,3 +236,15 @@ def test_hull_patch_plans_within_the_example_press(hull_dir, name):
         assert (step.upper_mm - step.lower_mm)[act].min() >= T - 0.01
     assert job.extra["validation"]["contact_exact_fraction"] == 1.0
     assert job.extra["registration"]["neighbour_strain_p95_pct"] < 0.5
+
+
+def test_edge_contacts_use_the_trim_allowance():
+    # plate edge 15 mm outside the outermost punch rows: the upper balls there touch
+    # the (extended) surface past the edge
+    design = cylinder_points(2000.0, 2800.0, 1380.0)
+    flat = developed_cylinder(2000.0, 2800.0, 1380.0)
+    job = plan_job(design, flat, PRESS, T)
+    beyond = job.extra["validation"]["contact_beyond_edge_mm"]
+    assert 1.0 < beyond < PRESS.trim_allowance_mm
+    with pytest.raises(GeometryError, match="past the plate edge"):
+        plan_job(design, flat, _press(forming__trim_allowance_mm=beyond / 2), T)

@@ -243,6 +243,11 @@ def test_fit_plate_unknown_kind():
         fit_plate(np.random.default_rng(0).normal(size=(50, 3)), kind="nurbs")
 
 
+def test_fit_plate_smoothing_only_for_splines():
+    with pytest.raises(InputError, match="smoothing"):
+        fit_plate(np.random.default_rng(0).normal(size=(50, 3)), kind="poly", smoothing=1.0)
+
+
 def test_fit_plate_too_few_points():
     with pytest.raises(GeometryError, match="at least 16"):
         fit_plate(np.random.default_rng(0).normal(size=(10, 3)), degree=3)

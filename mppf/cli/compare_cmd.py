@@ -13,6 +13,9 @@ from mppf.errors import InputError
 SKIN_SIDE = {"top": 1.0, "mid": 0.0, "bottom": -1.0}
 """Offset of the measured skin from the design mid-surface, in half thicknesses."""
 
+PLOT_SUFFIXES = (".png", ".pdf", ".svg")
+"""Picture types of --plot."""
+
 HISTOGRAM_WIDTH = 40
 """Characters of the longest bar of the terminal histogram."""
 
@@ -48,8 +51,8 @@ def compare_command(design: str, measured: str, tolerance: float, thickness: flo
                     units: str, as_json: bool, plot: str | None, report: str | None) -> None:
     """Compare the scan MEASURED with the design plate DESIGN.
 
-    Registers the scan onto the design (robust point-to-plane ICP from the principal
-    axes), measures the signed normal deviation of every scanned point (positive =
+    Registers the scan onto the design (ICP from the principal axes: point-to-point,
+    then robust point-to-plane), measures the signed normal deviation of every scanned point (positive =
     on the design's +normal side) and prints the statistics: RMS, largest absolute
     deviation, percent within the tolerance, and a histogram. Outliers are flagged and
     left out. Both files are point or mesh files (.csv .txt .xyz .ply .stl .obj).
@@ -61,6 +64,13 @@ def compare_command(design: str, measured: str, tolerance: float, thickness: flo
     if not (np.isfinite(tolerance) and tolerance > 0):
         raise InputError(f"--tolerance must be a positive length in mm, got {tolerance}")
     offset = skin_offset_mm(skin, thickness)
+    if plot and Path(plot).suffix.lower() not in PLOT_SUFFIXES:
+        raise InputError(f"--plot {plot}: unknown picture type {Path(plot).suffix or '(no suffix)'!r}",
+                         hint=f"use one of {', '.join(PLOT_SUFFIXES)}")
+    for option, path in (("--plot", plot), ("--report", report)):
+        if path and not Path(path).resolve().parent.is_dir():
+            raise InputError(f"cannot write {option} {path}: the folder {Path(path).parent} does not exist",
+                             hint="create the folder first or give another path")
     design_cloud = read_points(design, units=units)
     measured_cloud = read_points(measured, units=units)
     result = compare(design_cloud.points, measured_cloud.points, tolerance_mm=tolerance, offset_mm=offset,

@@ -53,8 +53,9 @@ def _print_summary(summary: dict, output) -> None:
     table.add_row("smallest tip gap", f"{_fmt(summary['min_gap_mm'], 2)} mm")
     if summary["springback"].get("enabled"):
         radii = summary["springback"]
-        table.add_row("springback: target radii", ", ".join(_fmt(r and r / 1000, 2) + " m" for r in radii["target_radii_mm"]))
-        table.add_row("springback: loaded radii", ", ".join(_fmt(r and r / 1000, 2) + " m" for r in radii["loaded_radii_mm"]))
+        for what in ("target", "loaded"):
+            text = ", ".join(_fmt(r and r / 1000, 2) + " m" for r in radii[f"{what}_radii_mm"])
+            table.add_row(f"springback: {what} radii", text)
     console.print(table)
 
     strokes = Table(title="final strokes (tip heights, mm)")

@@ -27,8 +27,8 @@ def unfold_command(design: str, output: str, units: str, strain_limit_pct: float
     DESIGN is a point or mesh file (.csv .txt .xyz .ply .stl .obj) in any coordinates.
     The flat plate lies at z = 0, centred at the origin, its longer side along x, seen
     from the design's +n side (never mirrored). Point k of the flat file is point k of
-    DESIGN, so the pair serves as known correspondences (``mppf register --method
-    paired``, ``mppf plan``). Prints the in-plane strain (RMS, max), the area and outline
+    DESIGN, so the pair serves as known correspondences ('mppf register --method
+    paired', the planner). Prints the in-plane strain (RMS, max), the area and outline
     length changes and a warning when the strain exceeds --strain-limit.
     """
     from mppf.io import read_points, write_points
@@ -44,7 +44,7 @@ def unfold_command(design: str, output: str, units: str, strain_limit_pct: float
     if plot_path is not None:
         from mppf.viz.unfold import plot_strain
 
-        plot_strain(result, plot_path, title=None)
+        plot_strain(result, plot_path)
     report = {
         **result.to_dict(),
         "design": str(design),

@@ -25,7 +25,7 @@ CMAP = "RdBu_r"
 
 def _colour_limit(comparison: Comparison) -> float:
     d = comparison.deviation_mm[comparison.inlier]
-    big = float(np.percentile(np.abs(d), 99.5)) if d.size else 0.0
+    big = float(np.max(np.abs(d))) if d.size else 0.0
     return max(big, 1.2 * comparison.tolerance_mm, 0.1)
 
 

@@ -3,7 +3,8 @@
 The flat plate is drawn as it will be cut (x along its longer side, mm, seen from the
 design's +n side), each point coloured by its in-plane strain in percent (smooth
 shading over the triangles), with the outline in black, the strain limit as a red
-contour where it is exceeded and the worst point marked and labelled.
+contour where it is exceeded, the worst point marked and labelled, and arrows showing
+where the design frame's +u and +v lie on the flat plate.
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from matplotlib.tri import Triangulation
 
@@ -34,12 +36,12 @@ def strain_figure(unfolding: Unfolding, title: str | None = None) -> Figure:
         ax.tricontour(tri, u.strain_pct, levels=[u.strain_limit_pct], colors="red", linewidths=1.2)
     outline = boundary_edges(u.faces)
     segments = np.stack([u.flat[outline[:, 0], :2], u.flat[outline[:, 1], :2]], axis=1)
-    for start, end in segments:
-        ax.plot([start[0], end[0]], [start[1], end[1]], color="black", linewidth=1.0)
+    ax.add_collection(LineCollection(segments, colors="black", linewidths=1.0))
     wx, wy = x[u.worst_point], y[u.worst_point]
     ax.plot(wx, wy, marker="o", markersize=11, markerfacecolor="none", markeredgecolor="#00a0ff",
             markeredgewidth=2.2, linestyle="none",
             label=f"worst: {u.max_strain_pct:.3f} % at point {u.worst_point} ({u.worst_region})")
+    _design_axes(ax, u)
     bar = fig.colorbar(shading, ax=ax, shrink=0.9)
     bar.set_label("in-plane strain (%)")
     if u.strain_limit_pct <= top:
@@ -57,6 +59,20 @@ def strain_figure(unfolding: Unfolding, title: str | None = None) -> Figure:
     ax.set_xlim(x.min() - margin, x.max() + margin)
     ax.set_ylim(y.min() - margin, y.max() + 3 * margin)
     return fig
+
+
+def _design_axes(ax, u: Unfolding) -> None:
+    """Arrows showing where the design frame's +u and +v lie on the flat plate."""
+    rotation = u.tf_flat_design[:3, :3]
+    size = 0.12 * float(np.ptp(u.flat[:, :2], axis=0).min())
+    corner = u.flat[:, :2].min(axis=0) + 0.3 * size
+    for name, axis in zip(("+u", "+v"), u.frame.axes[:2]):
+        direction = (rotation @ axis)[:2]
+        direction = direction / max(float(np.linalg.norm(direction)), 1e-12) * size
+        ax.annotate("", xy=corner + direction, xytext=corner,
+                    arrowprops={"arrowstyle": "->", "color": "#0060c0", "linewidth": 1.5})
+        ax.text(*(corner + 1.6 * direction), f"design {name}", color="#0060c0", fontsize=8,
+                ha="center", va="center")
 
 
 def plot_strain(unfolding: Unfolding, path, title: str | None = None) -> Path:

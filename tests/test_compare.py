@@ -1,0 +1,207 @@
+"""Compare: registration of scans, signed deviations, outliers, statistics, punch deviations."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from mppf.compare import compare
+from mppf.errors import GeometryError, InputError
+from mppf.io import read_points
+from mppf.press import example_press_path, load_press
+from mppf.sim.forming import PlateSample, form_plate
+from mppf.sim.scanner import SimulatedScanner
+from mppf.springback import Material
+from mppf.transform import apply_tf, invert_tf, make_tf, rotation_angle_deg
+
+BUMP_UV = (400.0, 200.0)
+BUMP_SIGMA_MM = 150.0
+
+
+def _height(u, v):
+    """An asymmetric, doubly curved analytic plate (mm)."""
+    return u**2 / (2 * 6000.0) - v**2 / (2 * 15000.0) + u**3 / 3e7 + u * v / 20000.0
+
+
+def _normals(u, v):
+    zu = u / 6000.0 + u**2 / 1e7 + v / 20000.0
+    zv = -v / 15000.0 + u / 20000.0
+    n = np.column_stack([-zu, -zv, np.ones_like(u)])
+    return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+
+def _design():
+    uu, vv = np.meshgrid(np.linspace(-1500, 1500, 61), np.linspace(-1000, 1000, 41))
+    return np.column_stack([uu.ravel(), vv.ravel(), _height(uu, vv).ravel()])
+
+
+def _pose():
+    return make_tf(Rotation.from_euler("xyz", [20, -40, 70], degrees=True).as_matrix(), [500.0, -2000.0, 300.0])
+
+
+def _bump(u, v):
+    return 5.0 * np.exp(-((u - BUMP_UV[0]) ** 2 + (v - BUMP_UV[1]) ** 2) / (2 * BUMP_SIGMA_MM**2))
+
+
+def _measured(n=8000, bump=True, noise_mm=0.3, seed=1):
+    """Measured points: the design + a 5 mm Gaussian bump along the normal, noisy, moved."""
+    rng = np.random.default_rng(seed)
+    u = rng.uniform(-1480, 1480, n)
+    v = rng.uniform(-980, 980, n)
+    rise = _bump(u, v) if bump else np.zeros(n)
+    pts = np.column_stack([u, v, _height(u, v)]) + rise[:, None] * _normals(u, v)
+    pts += rng.normal(0.0, noise_mm, pts.shape)
+    return u, v, apply_tf(_pose(), pts)
+
+
+@pytest.fixture(scope="module")
+def bump_result():
+    u, v, measured = _measured()
+    return u, v, compare(_design(), measured, tolerance_mm=2.5)
+
+
+def test_compare_recovers_a_5_mm_bump(bump_result):
+    u, v, c = bump_result
+    shape = _bump(u, v) / 5.0
+    near = shape > 0.6
+    # amplitude of the bump by least squares on its known shape (about 60 points)
+    amplitude = np.sum(c.deviation_mm[near] * shape[near]) / np.sum(shape[near] ** 2)
+    assert amplitude == pytest.approx(5.0, abs=0.2)
+    # and the plain median of the points within 20 mm of its centre
+    centre = np.hypot(u - BUMP_UV[0], v - BUMP_UV[1]) < 20.0
+    assert np.median(c.deviation_mm[centre]) == pytest.approx(5.0, abs=0.4)
+    far = shape < 1e-3
+    assert abs(np.median(c.deviation_mm[far])) < 0.1
+    assert np.percentile(np.abs(c.deviation_mm[far]), 95) < 0.8
+    # the bump is a shape error, not outliers; it puts the largest deviation near 5 mm
+    assert not c.is_outlier[near].any()
+    assert c.max_abs_mm == pytest.approx(5.0, abs=1.3)
+    assert c.max_abs_mm > c.tolerance_mm and not c.in_tolerance
+    # the registration found the pose (measured -> design undoes the scan pose)
+    assert rotation_angle_deg(c.transform @ _pose()) < 0.05
+    assert np.linalg.norm((c.transform @ _pose())[:3, 3]) < 10.0
+
+
+def test_statistics_and_histogram_are_consistent(bump_result):
+    _, _, c = bump_result
+    d = c.deviation_mm[c.inlier]
+    assert c.rms_mm == pytest.approx(np.sqrt(np.mean(d**2)))
+    assert c.max_abs_mm == pytest.approx(np.max(np.abs(d)))
+    assert c.mean_mm == pytest.approx(np.mean(d))
+    assert c.within_tolerance_pct == pytest.approx(100.0 * np.mean(np.abs(d) <= 2.5))
+    assert 90.0 < c.within_tolerance_pct < 100.0
+    assert c.histogram_counts.sum() == c.n_inliers
+    assert len(c.histogram_edges_mm) == len(c.histogram_counts) + 1
+    assert c.histogram_edges_mm[0] <= -c.max_abs_mm and c.histogram_edges_mm[-1] >= c.max_abs_mm
+    doc = c.to_dict()
+    json.dumps(doc)
+    for key in ("rms_mm", "max_abs_mm", "within_tolerance_pct", "transform", "histogram", "registration"):
+        assert key in doc
+    assert np.allclose(np.array(doc["transform"]), c.transform)
+
+
+def test_perfect_scan_gives_the_noise_as_rms():
+    _, _, measured = _measured(n=5000, bump=False, noise_mm=0.3, seed=4)
+    c = compare(_design(), measured)
+    # the normal component of isotropic noise of 0.3 mm per axis
+    assert c.rms_mm == pytest.approx(0.3, abs=0.03)
+    assert abs(c.mean_mm) < 0.03
+    assert c.within_tolerance_pct == 100.0
+    assert c.in_tolerance
+    assert c.is_outlier.sum() < 5
+    assert rotation_angle_deg(c.transform @ _pose()) < 0.1
+
+
+def test_design_normal_up_in_the_press_decides_the_sign(bump_result):
+    u, v, measured = _measured(n=5000, seed=2)
+    # the design lies upside down in the press: "above" is now the frame's -n side
+    flip = make_tf(Rotation.from_euler("x", 180, degrees=True).as_matrix())
+    c = compare(_design(), measured, tf_press_design=flip)
+    assert c.normal_sign == -1.0
+    shape = _bump(u, v) / 5.0
+    near = shape > 0.6
+    amplitude = np.sum(c.deviation_mm[near] * shape[near]) / np.sum(shape[near] ** 2)
+    assert amplitude == pytest.approx(-5.0, abs=0.3)
+    _, _, upright = bump_result
+    assert upright.normal_sign == 1.0
+
+
+@pytest.fixture(scope="module")
+def press():
+    return load_press(example_press_path())
+
+
+@pytest.fixture(scope="module")
+def formed_and_scan(press):
+    """A plate formed on the simulated press, its simulated scan (occlusion + outliers)."""
+    t = 20.0
+    px, py = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    mid = px**2 / (2 * 4000.0) - py**2 / (2 * 9000.0) + px**3 / 3e7 + px * py / 20000.0
+    active = (np.abs(px) <= 1600) & (np.abs(py) <= 1100)
+    outline = [[-1500.0, -1000.0], [1500.0, -1000.0], [1500.0, 1000.0], [-1500.0, 1000.0]]
+    formed = form_plate(press, mid + t / 2, mid - t / 2, active, PlateSample(t, Material()), outline)
+    sample = SimulatedScanner(seed=2).sample(formed)
+    design = formed.mid_surface_points(50.0)  # the design = what was formed: deviations ~ 0
+    c = compare(design, sample.points, offset_mm=t / 2, tf_press_design=np.eye(4),
+                punch_xy_mm=np.stack([px, py], axis=-1))
+    return formed, sample, c
+
+
+def test_occluded_scan_with_outliers_still_registers(formed_and_scan):
+    formed, sample, c = formed_and_scan
+    error = c.transform @ sample.tf_scan_press  # press -> design (= press here): identity
+    assert rotation_angle_deg(error) < 0.05
+    assert np.linalg.norm(error[:3, 3]) < 10.0
+    assert c.rms_mm == pytest.approx(0.3, abs=0.05)
+    assert c.in_tolerance
+    # outliers found: nearly all true ones, almost no false ones
+    true = sample.is_outlier
+    assert (c.is_outlier & true).sum() >= 0.95 * true.sum()
+    assert (c.is_outlier & ~true).sum() <= 0.005 * len(true)
+    assert c.to_dict()["n_outliers"] == int(c.is_outlier.sum())
+
+
+def test_punch_deviations_with_gaps_interpolated(formed_and_scan, press):
+    formed, sample, c = formed_and_scan
+    px, py = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    on_plate = (np.abs(px) < 1500) & (np.abs(py) < 1000)
+    assert c.punch_deviation_mm.shape == press.shape
+    assert np.all(np.isfinite(c.punch_deviation_mm[on_plate]))
+    assert np.all(np.isnan(c.punch_deviation_mm[(np.abs(px) > 1600) | (np.abs(py) > 1100)]))
+    assert np.nanmax(np.abs(c.punch_deviation_mm)) < 1.0
+    # the occlusion blobs hide some punches: those are interpolated, the rest measured
+    hidden = sample.hidden_xy_mm
+    from scipy.spatial import cKDTree
+
+    dist, _ = cKDTree(hidden).query(np.column_stack([px[on_plate], py[on_plate]]))
+    deep_inside = np.zeros(press.shape, bool)
+    deep_inside[on_plate] = dist < 5.0
+    assert c.punch_interpolated.any()
+    assert not c.punch_interpolated[~on_plate].any()
+    assert c.punch_interpolated[deep_inside].mean() > 0.5
+
+
+def test_a_different_plate_is_refused(hull_dir):
+    design = read_points(hull_dir / "K3_stern_saddle.csv").points
+    other = read_points(hull_dir / "K1_midbody_bilge.csv").points  # same size, other shape
+    with pytest.raises(GeometryError, match="does not match"):
+        compare(design, other)
+    # a scan in metres read as millimetres
+    with pytest.raises(GeometryError, match="units"):
+        compare(design, design / 1000.0)
+
+
+def test_bad_inputs_are_refused():
+    design = _design()
+    _, _, measured = _measured(n=200, bump=False)
+    with pytest.raises(InputError, match="tolerance"):
+        compare(design, measured, tolerance_mm=0.0)
+    with pytest.raises(GeometryError, match="at least"):
+        compare(design, measured[:10])
+    with pytest.raises(InputError, match="shape"):
+        compare(design, measured[:, :2])
+    with pytest.raises(InputError, match="tf_press_design"):
+        compare(design, measured, punch_xy_mm=np.zeros((2, 2, 2)))

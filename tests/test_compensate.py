@@ -1,0 +1,149 @@
+"""Stroke compensation: sign convention, secant gain, dimpling and stroke limits."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mppf.compensate import GAIN_RANGE, PreviousCycle, compensate
+from mppf.errors import InputError
+from mppf.press import example_press_path, load_press
+
+THICKNESS_MM = 20.0
+
+
+@pytest.fixture(scope="module")
+def press():
+    return load_press(example_press_path())
+
+
+@pytest.fixture(scope="module")
+def grid(press):
+    px, py = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    active = (np.abs(px) <= 1500) & (np.abs(py) <= 1000)
+    lower = np.where(active, px**2 / 8000.0 - 30.0, np.nan)
+    return px, py, active, lower
+
+
+def test_positive_error_lowers_both_matrices_by_gain_times_error(press, grid):
+    px, py, active, lower = grid
+    upper = lower + THICKNESS_MM
+    error = np.where(active, 2.0, np.nan)  # the plate lies 2 mm above the design everywhere
+    corr = compensate(upper, lower, error, press=press, thickness_mm=THICKNESS_MM, gain=1.5)
+    assert np.allclose(corr.applied_mm[active], -3.0)
+    assert np.allclose(corr.lower_mm[active], lower[active] - 3.0)
+    assert np.allclose((corr.upper_mm - corr.lower_mm)[active], THICKNESS_MM)
+    assert np.all(np.isnan(corr.lower_mm[~active])) and np.all(corr.applied_mm[~active] == 0)
+    assert not corr.clipped.any()
+    assert np.allclose(corr.gain[active], 1.5)
+    # negative error (plate below the design) raises the punches
+    corr = compensate(upper, lower, -error, press=press, thickness_mm=THICKNESS_MM)
+    assert np.allclose(corr.applied_mm[active], 2.0)
+
+
+def test_unknown_error_gives_no_correction(press, grid):
+    px, py, active, lower = grid
+    error = np.where(active, 1.0, np.nan)
+    error[active & (px > 0)] = np.nan
+    corr = compensate(lower + THICKNESS_MM, lower, error, press=press, thickness_mm=THICKNESS_MM, smoothing=0.0)
+    assert np.all(corr.applied_mm[active & (px > 0)] == 0.0)
+    assert np.allclose(corr.applied_mm[active & (px < 0)], -1.0)
+
+
+def test_secant_gain_converges_on_a_linear_plant(press, grid):
+    """Plant e = g (h - h*) with an unknown gain g per punch (0.4..0.8): DA + secant converges."""
+    px, py, active, target = grid
+    g = np.where(active, 0.6 + 0.2 * np.sin(px / 700.0) * np.cos(py / 500.0), np.nan)
+    lower = target + np.where(active, 8.0 + 0.001 * px + 2e-6 * py**2, np.nan)  # first strokes: off
+
+    def plant(h):
+        return g * (h - target)
+
+    previous = None
+    history, gains = [], []
+    for _ in range(5):
+        error = plant(lower)
+        history.append(np.nanmax(np.abs(error)))
+        corr = compensate(lower + THICKNESS_MM, lower, error, press=press, thickness_mm=THICKNESS_MM,
+                          previous=previous)
+        previous = PreviousCycle(lower_mm=lower, punch_error_mm=error)
+        gains.append(corr.gain)
+        lower = corr.lower_mm
+    history.append(np.nanmax(np.abs(plant(lower))))
+    assert history[0] > 3.0
+    assert history[-1] < 0.05 * history[0]
+    assert all(b < a for a, b in zip(history, history[1:]))
+    # cycle 2: the secant recovered the inverse plant gain 1/g (the smoothing blurs it a little)
+    assert np.allclose(gains[0][active], 1.0)
+    assert np.median(np.abs(gains[1][active] * g[active] - 1.0)) < 0.05
+    # default gain 1 alone (no secant) converges more slowly
+    lower_da = target + np.where(active, 8.0 + 0.001 * px + 2e-6 * py**2, np.nan)
+    for _ in range(5):
+        lower_da = compensate(lower_da + THICKNESS_MM, lower_da, plant(lower_da), press=press,
+                              thickness_mm=THICKNESS_MM).lower_mm
+    assert np.nanmax(np.abs(plant(lower_da))) > history[-1]
+
+
+def test_secant_falls_back_and_clips(press, grid):
+    px, py, active, lower = grid
+    error = np.where(active, 1.0, np.nan)
+    # no stroke change since the last cycle: the secant is undefined, the default gain is used
+    corr = compensate(lower + THICKNESS_MM, lower, error, press=press, thickness_mm=THICKNESS_MM, gain=1.2,
+                      previous={"lower_mm": lower, "punch_error_mm": error + 0.5})
+    assert np.allclose(corr.gain[active], 1.2)
+    # a huge apparent gain is clipped to the range
+    corr = compensate(lower + THICKNESS_MM, lower, error, press=press, thickness_mm=THICKNESS_MM,
+                      previous=PreviousCycle(lower_mm=lower - 10.0, punch_error_mm=error - 0.2))
+    assert np.allclose(corr.gain[active], GAIN_RANGE[1])
+    # a wrong-signed secant (the plate moved against the punch) falls back to the default
+    corr = compensate(lower + THICKNESS_MM, lower, error, press=press, thickness_mm=THICKNESS_MM,
+                      previous=PreviousCycle(lower_mm=lower - 1.0, punch_error_mm=error + 1.0))
+    assert np.allclose(corr.gain[active], 1.0)
+
+
+def _neighbour_diffs(values, active):
+    out = []
+    for axis in (0, 1):
+        a = np.moveaxis(values, axis, 0)
+        m = np.moveaxis(active, axis, 0)
+        both = m[1:] & m[:-1]
+        out.append(np.abs(a[1:] - a[:-1])[both])
+    return np.concatenate(out)
+
+
+def test_corrections_respect_the_dimpling_limit(press, grid):
+    px, py, active, lower = grid
+    error = np.where(active, 0.0, np.nan)
+    spike = np.argwhere(active)[len(np.argwhere(active)) // 2]
+    error[tuple(spike)] = 100.0  # one punch wildly off
+    corr = compensate(lower + THICKNESS_MM, lower, error, press=press, thickness_mm=THICKNESS_MM, gain=1.0)
+    diffs = _neighbour_diffs(corr.applied_mm, active)
+    assert diffs.max() <= press.max_neighbour_diff_mm + 1e-6
+    assert corr.applied_mm[tuple(spike)] < -press.max_neighbour_diff_mm * 0.5  # still corrected, less
+    assert corr.clipped[tuple(spike)]
+    assert any("limited" in note for note in corr.notes)
+
+
+def test_corrections_respect_the_stroke_limits(press, grid):
+    px, py, active, _ = grid
+    lower = np.where(active, press.lower.max_mm - 2.0, np.nan)  # lower tips near their top
+    upper = np.where(active, press.upper.min_mm + 3.0, np.nan)  # (an odd gap, only to test limits)
+    error = np.where(active, -10.0, np.nan)  # wants to raise by 10 mm
+    corr = compensate(upper, lower, error, press=press, thickness_mm=THICKNESS_MM)
+    assert np.all(corr.lower_mm[active] <= press.lower.max_mm + 1e-9)
+    assert np.allclose(corr.applied_mm[active], 2.0)
+    assert corr.clipped[active].all()
+    error = np.where(active, 10.0, np.nan)  # wants to lower by 10 mm: the upper matrix stops it
+    corr = compensate(upper, lower, error, press=press, thickness_mm=THICKNESS_MM)
+    assert np.all(corr.upper_mm[active] >= press.upper.min_mm - 1e-9)
+    assert np.allclose(corr.applied_mm[active], -3.0)
+
+
+def test_bad_inputs_are_refused(press, grid):
+    px, py, active, lower = grid
+    with pytest.raises(InputError, match="shape"):
+        compensate(lower[:, :3], lower, lower, press=press, thickness_mm=20.0)
+    with pytest.raises(InputError, match="gain"):
+        compensate(lower, lower, lower, press=press, thickness_mm=20.0, gain=0.0)
+    with pytest.raises(InputError, match="previous"):
+        compensate(lower, lower, lower, press=press, thickness_mm=20.0, previous={"lower_mm": lower})
