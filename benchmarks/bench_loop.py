@@ -90,7 +90,7 @@ def main(argv=None) -> int:
                     row = {"plate": name, "seed": seed, "status": "error", "cycles": 0, "ok_at": None,
                            "max_abs": [], "rms": [], "true_yield_mpa": float("nan"), "true_t_mm": float("nan"),
                            "seconds": float("nan"), "error": str(exc)}
-                    print(f"{name:26s} seed {seed}: ERROR {exc}", flush=True)
+                    print(f"{name:26s} seed {seed}: ERROR {type(exc).__name__}: {exc.message[:150]}", flush=True)
                     rows.append(row)
                     continue
                 rows.append(row)

@@ -411,6 +411,27 @@ class History:
                     self._refuse(plate_id, cycle, f"start step {step}")
             self._event(plate_id, cycle, "pressing", f"step {step} started")
 
+    def mark_step_not_started(self, plate_id: str, cycle: int, step: int, reason: str) -> None:
+        """Undo :meth:`mark_step_started` for a step the press provably never started.
+
+        Only for refusals that guarantee nothing moved (the PLC or the driver refused the
+        upload or GO): the step may then be pressed later. The first step takes the cycle
+        back to "planned".
+        """
+        with self._transaction():
+            if step == 1:
+                self._move(plate_id, cycle, ("pressing",), "planned", step_started=0,
+                           detail=f"step 1 not started: {reason}")
+                return
+            cur = self._db.execute(
+                "UPDATE cycles SET step_started = ?, updated_utc = ? WHERE plate_id = ? AND cycle = ? "
+                "AND state = 'pressing' AND step_started = ? AND steps_done = ?",
+                (step - 1, _now_utc(), plate_id, cycle, step, step - 1),
+            )
+            if cur.rowcount != 1:
+                self._refuse(plate_id, cycle, f"undo the start of step {step}")
+            self._event(plate_id, cycle, "pressing", f"step {step} not started: {reason}")
+
     def mark_step_done(self, plate_id: str, cycle: int, step: int, result: dict) -> None:
         """Record the read-back of a finished step (``result`` is JSON-ready)."""
         with self._transaction():

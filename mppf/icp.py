@@ -19,6 +19,9 @@ from mppf.errors import GeometryError
 from mppf.progress import NULL_REPORTER, Reporter
 from mppf.transform import apply_tf, make_tf, quaternion_to_matrix
 
+PARALLEL_QUERY = 20000
+"""Closest-point queries of at least this many points run on all cores."""
+
 NORMAL_NEIGHBOURS = 10
 """Target points used for each local PCA normal."""
 
@@ -55,6 +58,11 @@ ISOLATED = 4.0
 PIN_TURN_DEG = 0.05
 """The outline also pins the turn about the normal when the surface fixes it worse than this
 (one sigma, in degrees, for 1 mm noise on the source points)."""
+
+
+def query(tree, points: np.ndarray, k: int = 1):
+    """``tree.query`` on all cores for large batches (threads cost more than they save on small ones)."""
+    return tree.query(points, k=k, workers=-1 if points.shape[0] >= PARALLEL_QUERY else 1)
 
 
 def horn_fit(source: np.ndarray, target: np.ndarray, weights=None) -> np.ndarray:
@@ -123,7 +131,7 @@ class Problem:
         missing = missing[np.isnan(self._normals[missing, 0])]
         if missing.size:
             k = min(NORMAL_NEIGHBOURS, self.target.shape[0])
-            _, nb = self.tree.query(self.target[missing], k=k, workers=-1)
+            _, nb = query(self.tree, self.target[missing], k=k)
             hood = self.target[nb]
             hood = hood - hood.mean(axis=1, keepdims=True)
             cov = np.einsum("mki,mkj->mij", hood, hood)
@@ -194,7 +202,7 @@ def match(problem: Problem, source: np.ndarray, tf: np.ndarray, metric: str | No
     """Closest target points of the moved source, residuals and weights."""
     metric = metric or problem.method
     moved = apply_tf(tf, source)
-    dist, idx = problem.tree.query(moved, workers=-1)
+    dist, idx = query(problem.tree, moved)
     matched = problem.target[idx]
     normal = None
     if metric == "plane":
@@ -203,10 +211,12 @@ def match(problem: Problem, source: np.ndarray, tf: np.ndarray, metric: str | No
     else:
         residual = dist
     weight = pair_weights(residual, problem.trim_fraction, problem.robust)
-    if np.count_nonzero(weight) < 6:
+    needed = 6 if metric == "plane" else 3
+    if np.count_nonzero(weight) < needed:
         raise GeometryError(
-            f"only {np.count_nonzero(weight)} source points are matched to the target",
-            hint="the clouds do not overlap; give a better start or fewer outliers",
+            f"only {np.count_nonzero(weight)} of {weight.size} source point pairs keep a weight, "
+            f"the {metric} step needs {needed}",
+            hint="give more points, a better start, or a milder trim / robust option",
         )
     return Pairs(moved, matched, idx, dist, residual, weight, normal)
 
@@ -371,7 +381,7 @@ def evaluate(problem: Problem, source: np.ndarray, tf: np.ndarray) -> Pairs:
 
 def trimmed_rms(problem: Problem, source: np.ndarray, tf: np.ndarray) -> float:
     """RMS of the best ``SCORE_KEEP`` fraction of closest-point distances, mm."""
-    dist, _ = problem.tree.query(apply_tf(tf, source), workers=-1)
+    dist, _ = query(problem.tree, apply_tf(tf, source))
     keep = max(3, int(SCORE_KEEP * dist.size))
     return float(np.sqrt(np.mean(np.partition(dist, keep - 1)[:keep] ** 2)))
 
@@ -485,24 +495,34 @@ class OutlinePin:
         return self.frame.tf_world_local @ correction @ self.frame.tf_local_world @ tf
 
 
-def outline_candidates(frame, points: np.ndarray) -> np.ndarray:
+def outline_candidates(frame, points: np.ndarray, sample: np.ndarray) -> np.ndarray:
     """Points of a cloud that may form its outline: a band along its convex outline.
 
-    Isolated points (stray returns, outliers: their ``OUTLINE_NEIGHBOURS``-th
-    neighbour farther than ``ISOLATED`` times the median such distance) are dropped
-    first. The band is ``PIN_BAND_FRACTION`` of the plate size wide, in the cloud's
-    own plate plane (``frame``), so the outline can be recomputed cheaply in any pose.
+    The convex outline is first taken from ``sample`` (a subsample of ``points``)
+    without its isolated points (stray returns, outliers: their
+    ``OUTLINE_NEIGHBOURS``-th neighbour farther than ``ISOLATED`` times the median
+    such distance). The points of the whole cloud within ``PIN_BAND_FRACTION`` of the
+    plate size of that outline, and not isolated themselves, are returned; they lie in
+    the cloud's own plate plane (``frame``), so the outline can be recomputed cheaply in
+    any pose.
     """
-    k = min(OUTLINE_NEIGHBOURS + 1, points.shape[0])
-    spacing = cKDTree(points).query(points, k=k, workers=-1)[0][:, -1]
-    points = points[spacing <= ISOLATED * np.median(spacing)]
-    local = frame.to_local(points)[:, :2]
+
+    def not_isolated(tree, pts):
+        spacing = query(tree, pts, k=min(OUTLINE_NEIGHBOURS + 1, tree.n))[0][:, -1]
+        return spacing <= ISOLATED * np.median(spacing)
+
+    sample = sample[not_isolated(cKDTree(sample), sample)]
     try:
-        hull = ConvexHull(local)
+        hull = ConvexHull(frame.to_local(sample)[:, :2])
     except QhullError:
-        return points
+        return sample
+    local = frame.to_local(points)[:, :2]
     depth = -(local @ hull.equations[:, :2].T + hull.equations[:, 2]).max(axis=1)
-    return points[depth <= PIN_BAND_FRACTION * np.sqrt(hull.volume)]
+    band = points[np.abs(depth) <= PIN_BAND_FRACTION * np.sqrt(hull.volume)]
+    if band.shape[0] < 3:
+        return band
+    tree = cKDTree(points) if points.shape[0] > sample.shape[0] else cKDTree(sample)
+    return band[not_isolated(tree, band)]
 
 
 def outline_pin(problem: Problem, candidates: np.ndarray, tf: np.ndarray, *,

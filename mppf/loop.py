@@ -33,7 +33,7 @@ import numpy as np
 
 from mppf.compare import compare
 from mppf.compensate import PreviousCycle, compensate
-from mppf.errors import ConfigError, InputError
+from mppf.errors import ConfigError, InputError, PressRefused
 from mppf.history import CycleRecord, History, PlateRecord, grid_from_json, grid_to_json
 from mppf.io import PointCloud, read_points
 from mppf.job import Job, StepStrokes, load_job, save_job
@@ -118,7 +118,7 @@ class LoopResult:
         Every cycle of the plate, as stored in the history.
     resumed_state : str or None
         State of the cycle the run started from when it continued an earlier run
-        (None for a fresh plate).
+        (None for a plate that no run had touched since planning).
     """
 
     plate_id: str
@@ -272,16 +272,20 @@ def run_loop(
     InputError
         The design file changed since the plate was planned, a scan is unreadable or
         does not match the design, or the history refuses a state change.
+    PressRefused, LimitError
+        The press refused the step before any motion; the step is recorded as not
+        started and is pressed when the loop is resumed.
     LinkError, PressFault, Cancelled
-        From the press; the cycle stays "pressing" and is measured, not pressed again,
-        on resume.
+        From the press during a step; the cycle stays "pressing" and is measured, not
+        pressed again, on resume.
     """
     plate = history.plate(plate_id)
     settings = LoopSettings.from_dict(plate.settings["loop"])
     press = press_from_dict(plate.press, source=f"history of plate {plate_id}")
     design = _read_checked(plate.design_path, plate.design_sha256, "design")
     cycles = history.cycles(plate_id)
-    resumed = cycles[-1].state if len(cycles) > 1 or cycles[-1].state != "planned" else None
+    ran_before = any(e.state != "planned" for e in history.events(plate_id) if e.cycle is not None)
+    resumed = cycles[-1].state if ran_before else None
     number = cycles[-1].cycle
     comparison = None
     while True:
@@ -349,7 +353,12 @@ def _press(history: History, record: CycleRecord, press: PressConfig, link: Pres
         # committed before anything is sent: a crash from here on never presses this step again
         history.mark_step_started(record.plate_id, record.cycle, index)
         upper_mm, lower_mm = step.setpoints_mm(press)
-        result = link.run_step(upper_mm, lower_mm, reporter=reporter)
+        try:
+            result = link.run_step(upper_mm, lower_mm, reporter=reporter)
+        except (InputError, PressRefused) as exc:
+            # refused before any motion (limits, verification, GO refused): the step may run later
+            history.mark_step_not_started(record.plate_id, record.cycle, index, exc.message)
+            raise
         history.mark_step_done(record.plate_id, record.cycle, index, _result_to_dict(result))
     history.mark_pressed(record.plate_id, record.cycle)
 
@@ -376,7 +385,7 @@ def _scan_context(history, plate, record, press, reporter) -> ScanContext:
         lower_mm = grid_from_json(record.results[-1]["actual_lower_mm"])
     else:  # read-back lost in a crash: the setpoints of the interrupted step
         upper_mm, lower_mm = step.setpoints_mm(press)
-    since = datetime.fromisoformat(record.created_utc).timestamp()
+    since = datetime.fromisoformat(record.created_utc).timestamp()  # when the cycle was planned
     used = tuple(c.scan_path for c in history.cycles(plate.plate_id) if c.scan_path and c.cycle != record.cycle)
     return ScanContext(
         plate_id=plate.plate_id, work_dir=Path(plate.settings["work_dir"]), since_s=since,

@@ -393,7 +393,7 @@ def register_icp(
     if pin_outline is not False:
         turn_sigma = icp.uncertainty(problem, icp.evaluate(problem, fine_src, tf), sigma_mm=1.0)["r_n_deg"]
         pin_turn = flat_vs_curved or turn_sigma is None or turn_sigma > icp.PIN_TURN_DEG
-        candidates = icp.outline_candidates(frame_s, src)
+        candidates = icp.outline_candidates(frame_s, src, fine_src)
         pin, coverage = icp.outline_pin(problem, candidates, tf, require_coverage=pin_outline == "auto",
                                         pin_turn=pin_turn)
         if pin is None:

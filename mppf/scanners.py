@@ -31,7 +31,7 @@ class ScanContext:
     work_dir : Path
         The plate's work folder (job files, simulated scans).
     since_s : float
-        Unix time (s) when pressing of this cycle began: a scan file must be newer.
+        Unix time (s) when the cycle was planned: a scan file must be newer.
     used_paths : tuple of str
         Scan files already used by earlier cycles of this plate (never taken again).
     upper_mm, lower_mm : (rows, cols) float
@@ -71,8 +71,8 @@ class DirectoryScanner:
     """Waits for the operator's scan file in a folder.
 
     A file counts as the scan of the cycle when its suffix is a point format
-    (``.ply .csv .txt .xyz .stl .obj``), it was modified after pressing of the cycle
-    began (``context.since_s``), no earlier cycle of the plate used it, and its size
+    (``.ply .csv .txt .xyz .stl .obj``), it was modified after the cycle was planned
+    (``context.since_s``), no earlier cycle of the plate used it, and its size
     stayed the same over two polls (the scanner software finished writing it). When
     several qualify, the newest is taken.
 

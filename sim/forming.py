@@ -1,6 +1,6 @@
 """Simulated plate forming: from the punch tips of a press step to the formed plate.
 
-The model, in three steps (see ``docs/compare.md``, section "Simulated forming"):
+The model, in three steps (see ``docs/compare.md``, section "The simulated plate"):
 
 1. **Contact.** At every active punch pair the plate's mid-surface passes midway between
    the lower ball (top at ``lower_mm``) and the upper ball (bottom at ``upper_mm``):
@@ -16,8 +16,10 @@ The model, in three steps (see ``docs/compare.md``, section "Simulated forming")
    TRUE material and thickness. The scaled tensor field is integrated back to heights by
    sparse least squares; the unloaded plate keeps the loaded plate's best-fit plane.
 
-Everything is deterministic; the plate's scatter of properties comes from
-:func:`sample_plate`, seeded.
+Each press step is modelled on its own: the plate takes the shape the punches of that
+step hold it in (all active punch pairs clamp the whole plate), so after a job the shape
+is that of its last step. Everything is deterministic; the plate's scatter of properties
+comes from :func:`sample_plate`, seeded.
 """
 
 from __future__ import annotations
@@ -270,12 +272,12 @@ def form_plate(
     """
     upper, lower, act = _check_step(press, upper_mm, lower_mm, active)
     t = plate.thickness_mm
-    r = press.tip_radius_mm
     gap = upper[act] - lower[act]
     if np.any(gap < t * 0.5):
         i = int(np.argmin(gap))
         raise InputError(
-            f"upper tip below lower tip + t/2 at an active punch: gap {gap[i]:.3f} mm, plate {t:.3f} mm",
+            f"the gap between upper and lower tips is {gap[i]:.3f} mm at an active punch, less than half "
+            f"the plate thickness {t:.3f} mm",
             hint="the step would crush the plate; check the strokes",
         )
     px, py = np.meshgrid(press.punch_x_mm, press.punch_y_mm)

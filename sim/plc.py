@@ -49,6 +49,32 @@ _FC_WRITE = 16
 _MAX_STEPS_PER_SCAN = 50  # coarser steps rather than a scan that falls further and further behind
 
 
+class _TcpServer(ModbusTcpServer):
+    """A TCP server that remembers every connection handler it made (to close them all)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.handlers = []
+
+    def callback_new_connection(self):
+        handler = super().callback_new_connection()
+        self.handlers.append(handler)
+        return handler
+
+
+class _SerialServer(ModbusSerialServer):
+    """A serial server with the same ``handlers`` record as :class:`_TcpServer`."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.handlers = []
+
+    def callback_new_connection(self):
+        handler = super().callback_new_connection()
+        self.handlers.append(handler)
+        return handler
+
+
 class SimulatedPlc:
     """The simulated press PLC (runs on an asyncio event loop).
 
@@ -541,8 +567,16 @@ class SimulatedPlc:
         if self._dropped:
             return
         self._dropped = True
-        await self._server.shutdown()
+        await self._shutdown_server()
         self._spawn(self._relisten(duration_s))
+
+    async def _shutdown_server(self) -> None:
+        """Stop listening and close every connection, also one accepted while closing."""
+        server = self._server
+        await server.shutdown()
+        await asyncio.sleep(0.02)  # an accept in flight completes
+        for connection in server.handlers:
+            connection.close()
 
     async def _relisten(self, after_s: float) -> None:
         try:
@@ -591,7 +625,7 @@ class SimulatedPlc:
     async def start_tcp(self, host: str = "127.0.0.1", port: int = 0) -> int:
         """Serve Modbus TCP on ``host:port`` (0: a free port); return the port."""
         address = [host, port]
-        self._server_factory = lambda: ModbusTcpServer(self._device(), address=tuple(address))
+        self._server_factory = lambda: _TcpServer(self._device(), address=tuple(address))
         await self._listen()
         address[1] = self._server.transport.sockets[0].getsockname()[1]  # the port bound
         self._ticker = asyncio.get_running_loop().create_task(self._run_scan())
@@ -599,7 +633,7 @@ class SimulatedPlc:
 
     async def start_rtu(self, port: str, *, baud: int = 115200, parity: str = "E", stopbits: int = 1) -> None:
         """Serve Modbus RTU on serial device ``port``."""
-        self._server_factory = lambda: ModbusSerialServer(
+        self._server_factory = lambda: _SerialServer(
             self._device(),
             framer=FramerType.RTU,
             port=port,
@@ -621,7 +655,7 @@ class SimulatedPlc:
                 with contextlib.suppress(asyncio.CancelledError):
                     await task
         if self._server is not None:
-            await self._server.shutdown()
+            await self._shutdown_server()
 
     # ---------------------------------------------------------------- reading ---
     def actual_positions_mm(self) -> tuple[np.ndarray, np.ndarray]:

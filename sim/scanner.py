@@ -1,6 +1,6 @@
 """Simulated 3D scanner: samples a formed plate's top skin as a real scan would.
 
-A scan (see ``docs/compare.md``, section "Simulated scanner") is
+A scan (see ``docs/compare.md``, section "The simulated scanner") is
 
 - the top skin of the unloaded plate sampled on a grid of ``spacing_mm`` with a small
   random jitter (a scanner does not hit the CAD grid),

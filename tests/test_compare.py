@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from mppf.compare import compare
@@ -15,7 +16,7 @@ from mppf.press import example_press_path, load_press
 from mppf.sim.forming import PlateSample, form_plate
 from mppf.sim.scanner import SimulatedScanner
 from mppf.springback import Material
-from mppf.transform import apply_tf, invert_tf, make_tf, rotation_angle_deg
+from mppf.transform import apply_tf, make_tf, rotation_angle_deg
 
 BUMP_UV = (400.0, 200.0)
 BUMP_SIGMA_MM = 150.0
@@ -174,8 +175,6 @@ def test_punch_deviations_with_gaps_interpolated(formed_and_scan, press):
     assert np.nanmax(np.abs(c.punch_deviation_mm)) < 1.0
     # the occlusion blobs hide some punches: those are interpolated, the rest measured
     hidden = sample.hidden_xy_mm
-    from scipy.spatial import cKDTree
-
     dist, _ = cKDTree(hidden).query(np.column_stack([px[on_plate], py[on_plate]]))
     deep_inside = np.zeros(press.shape, bool)
     deep_inside[on_plate] = dist < 5.0

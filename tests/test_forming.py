@@ -141,7 +141,7 @@ def test_bad_steps_are_refused(press):
         form_plate(press, upper[:, :-1], lower, act, plate)
     with pytest.raises(GeometryError, match="at least 3"):
         form_plate(press, upper, lower, np.zeros(press.shape, bool), plate)
-    with pytest.raises(InputError, match="crush"):
+    with pytest.raises(InputError, match="gap"):
         form_plate(press, lower, upper, act, plate)
     bad = upper.copy()
     bad[act] = np.nan

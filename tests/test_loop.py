@@ -202,3 +202,76 @@ def test_loop_with_a_bad_scan_file_exits_2_and_resumes(plate_files, tmp_path, ca
     audit = sqlite3.connect(tmp_path / "audit.sqlite")
     (gos,) = audit.execute("SELECT COUNT(*) FROM audit WHERE action = 'go'").fetchone()
     assert gos == len(record.steps)  # the resume pressed nothing
+
+
+# -- refusals and faults on the real simulated PLC (in-process, run_loop directly) -------------------
+
+
+def _start(tmp_path, plate_files, history, plate_id, max_cycles=1):
+    from mppf.loop import start_plate
+    from mppf.press import load_press
+
+    design, flat = plate_files
+    press = load_press(example_press_path())
+    start_plate(history, read_points(design), read_points(flat), press, 20.0, plate_id=plate_id,
+                work_dir=tmp_path / plate_id, settings=LoopSettings(max_cycles=max_cycles))
+    return press
+
+
+def _scanner(history, plate_id, press, flat_path):
+    from mppf.job import load_job
+    from mppf.sim.shop import SimulatedPlateScanner, plate_outline_xy
+
+    job = load_job(history.cycle(plate_id, 1).job_path)
+    return SimulatedPlateScanner(press, 20.0, plate_outline_xy(job, read_points(flat_path).points), seed=1)
+
+
+def test_a_refused_step_is_not_started_and_is_pressed_on_resume(plate_files, tmp_path):
+    from mppf.drivers.audit import AuditLog
+    from mppf.drivers.modbus import ModbusPress
+    from mppf.errors import PressRefused
+    from mppf.loop import run_loop
+    from mppf.sim.plc import run_simulated_plc
+
+    with History(tmp_path / "h.sqlite") as history, AuditLog(tmp_path / "audit.sqlite") as audit:
+        press = _start(tmp_path, plate_files, history, "R1")
+        scanner = _scanner(history, "R1", press, plate_files[1])
+        with run_simulated_plc(press, time_scale=200) as sim, \
+                ModbusPress(sim.url, press, audit=audit, timeout_s=5.0) as link:
+            sim.inject("estop")  # the e-stop is pressed: the PLC refuses the upload
+            with pytest.raises(PressRefused, match="e-stop"):
+                run_loop(history, "R1", link, scanner)
+            record = history.cycle("R1", 1)
+            assert record.state == "planned" and record.step_started == 0  # nothing moved: may press later
+            assert [e.action for e in audit.entries() if e.action == "go"] == []
+            # the operator releases the e-stop and resets; the resumed loop presses the cycle
+            sim.release_estop()
+            link.reset()
+            result = run_loop(history, "R1", link, scanner)
+        assert result.status in ("in_tolerance", "max_cycles") and result.resumed_state == "planned"
+        gos = [e for e in audit.entries() if e.action == "go" and e.outcome == "ok"]
+        assert len(gos) == len(result.cycles[0].steps)
+
+
+def test_a_fault_during_motion_leaves_the_cycle_pressing_and_resume_measures_it(plate_files, tmp_path):
+    from mppf.drivers.audit import AuditLog
+    from mppf.drivers.modbus import ModbusPress
+    from mppf.errors import PressFault
+    from mppf.loop import run_loop
+    from mppf.sim.plc import run_simulated_plc
+
+    with History(tmp_path / "h.sqlite") as history, AuditLog(tmp_path / "audit.sqlite") as audit:
+        press = _start(tmp_path, plate_files, history, "F1")
+        scanner = _scanner(history, "F1", press, plate_files[1])
+        with run_simulated_plc(press, time_scale=50) as sim, \
+                ModbusPress(sim.url, press, audit=audit, timeout_s=5.0) as link:
+            sim.inject("overpressure", after_s=2.0)  # hydraulic fault 2 s into the first motion
+            with pytest.raises(PressFault):
+                run_loop(history, "F1", link, scanner)
+            record = history.cycle("F1", 1)
+            assert record.state == "pressing" and (record.step_started, record.steps_done) == (1, 0)
+            gos_before = sum(1 for e in audit.entries() if e.action == "go")
+            result = run_loop(history, "F1", link, scanner)  # resume: measure, never press again
+        first = result.cycles[0]
+        assert result.resumed_state == "pressing" and first.interrupted and first.scan_sha256
+        assert sum(1 for e in audit.entries() if e.action == "go") == gos_before == 1

@@ -58,11 +58,13 @@ def test_kill_while_pressing_then_resume_loses_nothing_and_presses_nothing_twice
     # slow motion (4x real speed): the first press step takes seconds
     args = _mppf("loop", str(design), str(flat), "--press", str(example_press_path()), "--thickness", "20",
                  "--plate-id", "K2-crash", "--seed", "3", "--time-scale", "4", "--max-cycles", "2")
-    proc = subprocess.Popen(args, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    err = tmp_path / "loop.err"
+    with err.open("wb") as err_file:
+        proc = subprocess.Popen(args, env=env, stdout=subprocess.DEVNULL, stderr=err_file)
     try:
         deadline = time.monotonic() + 120
         while _state(db, "K2-crash") != ("pressing", 1):
-            assert proc.poll() is None, proc.stderr.read().decode()
+            assert proc.poll() is None, err.read_text()
             assert time.monotonic() < deadline, "the loop never started pressing"
             time.sleep(0.02)
         time.sleep(0.5)  # well inside the motion
