@@ -575,8 +575,10 @@ class SimulatedPlc:
         server = self._server
         await server.shutdown()
         await asyncio.sleep(0.02)  # an accept in flight completes
-        for connection in server.handlers:
-            connection.close()
+        for handler in server.handlers:
+            if handler.transport is not None:
+                handler.transport.close()
+        await asyncio.sleep(0.01)  # closing transports release their sockets on the next loop turns
 
     async def _relisten(self, after_s: float) -> None:
         try:

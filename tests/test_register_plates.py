@@ -103,6 +103,24 @@ def test_flat_plate_lands_centred_on_the_curved_one(hull_dir, name, method):
     assert result.outline_pinned
 
 
+@pytest.mark.parametrize("name", ["P2_bow_flare.csv", "K1_midbody_bilge.csv"])
+def test_curved_plate_lands_centred_on_the_flat_one(hull_dir, name):
+    # the planner's direction: the design (curved) is the source, the flat plate the target
+    curved = read_points(hull_dir / name).points
+    frame = fit_frame(curved)
+    local = frame.to_local(curved)
+    local[:, 2] = 0.0
+    tf_flat = make_tf(Rotation.random(random_state=8).as_matrix(), [-3000, 700, 200])
+    flat = apply_tf(tf_flat, frame.to_world(local))
+    result = register_icp(curved, flat, method="plane")
+    assert result.method == "point" and result.outline_pinned
+    back = frame.to_local(apply_tf(invert_tf(tf_flat) @ result.tf, curved))
+    assert np.hypot(*back[:, :2].mean(axis=0)) < 1.0
+    assert abs(back[:, 2].mean()) < 2.0
+    u_back = fit_frame(frame.to_world(back)).axes[0]
+    assert np.degrees(np.arccos(min(1.0, abs(u_back @ frame.axes[0])))) < 0.05
+
+
 # (cylinders such as P1 and K1 are not used: 70 % of a cylinder also fits it turned half round)
 @pytest.mark.parametrize("name", ["P2_bow_flare.csv", "K2_fwd_bilge_convex.csv"])
 @pytest.mark.parametrize("outliers", [0.1, 0.25])
