@@ -562,16 +562,17 @@ The mppf driver and the simulated PLC (`mppf sim`) both read that file.
 - Positions are **signed int32 in 0.01 mm** (`12345` = 123.45 mm), tip heights in press z.
 - 32-bit values use two registers in a **word order** configured on the PLC: `ABCD`
   (high word first) or `CDAB` (low word first); the bytes inside a register are always
-  high byte first. Registers 0-1 hold the **magic** 0x4D505046 ("MPPF"): the master reads
+  high byte first. Registers {magic_span} hold the **magic** 0x{magic:08X} ("MPPF"): the master reads
   them on connect and decodes them in both orders; the one that gives the magic is the
   PLC's order (ABCD: `0x4D50 0x5046`, CDAB: `0x5046 0x4D50`). Anything else: not an mppf PLC.
 - Setpoint, actual and fault-bit blocks are in **punch index** order,
   `index = row * cols + col` (row-major, packed), with `rows`/`cols` the press size in
-  registers 3 and 4. Punch `index` uses registers `block + 2*index` and `+1`; its fault bit
+  registers {rows} and {cols}. Punch `index` uses registers `block + 2*index` and `+1`; its fault bit
   is bit `index % 16` (bit 0 = least significant) of register `block + index // 16`.
   Registers past the matrix in use are ignored.
 - Registers marked **ro** may only be read by the master: a write that touches one is
-  refused with exception {read_only} (ILLEGAL DATA ADDRESS) and nothing of that write is applied.
+  refused with exception {read_only} (ILLEGAL DATA ADDRESS) and nothing of that write is applied;
+  so is a write to the unused registers between the fields (they read as 0).
 
 ## Handshake of a press step
 1. **Upload**: the master writes the upper and lower setpoint blocks (chunks of at most
@@ -579,12 +580,12 @@ The mppf driver and the simulated PLC (`mppf sim`) both read that file.
    the `data_valid` bit.
 2. **Verify**: the master reads every written register back and compares.
 3. **Validate**: the master writes `setpoint_crc` and `job_sequence` in one request
-   (registers 18-20, CRC first). On the write that contains `job_sequence` the PLC
+   (registers {job_first}-{job_last}, CRC first). On the write that contains `job_sequence` the PLC
    computes the CRC of its setpoint registers (below) and checks every setpoint against
    its own stroke limits (`upper_min`...`lower_max`). If both pass it stores the
    sequence in `acknowledged_sequence` and sets `data_valid`; otherwise it refuses the
    write with exception {refused} (ILLEGAL DATA VALUE) and puts the reason
-   (`CRC_MISMATCH`, `LIMIT`) in `refusal_code`.
+   (`CRC_MISMATCH`, `LIMIT`; `SEQUENCE_MISMATCH` for sequence 0) in `refusal_code`.
 4. **GO**: the master writes `command` = GO and `command_arg` = the job sequence in one
    request. The PLC accepts only if there is no e-stop, no latched fault, no motion in
    progress, the CRC still matches the setpoint registers (a foreign write since
@@ -605,7 +606,8 @@ reason until the next accepted command.
 ## Watchdog
 The master changes `master_heartbeat` (any new value) at least every half watchdog
 time. The PLC sets `remote` while the heartbeat changes within its watchdog time. If
-the heartbeat goes stale **during motion**, the PLC stops every punch and latches fault
+the heartbeat goes stale **during motion** (no change for the watchdog time, counted from
+the later of the last change and the GO), the PLC brakes every punch and latches fault
 `WATCHDOG`.
 
 ## Setpoint CRC
@@ -624,6 +626,12 @@ def _render_markdown(rmap: RegisterMap) -> str:
             read_only=rmap.exceptions["read_only"],
             refused=rmap.exceptions["refused"],
             max_write=rmap.max_write_registers,
+            magic_span=f"{rmap['magic'].address}-{rmap['magic'].end - 1}",
+            magic=rmap.magic,
+            rows=rmap["rows"].address,
+            cols=rmap["cols"].address,
+            job_first=min(rmap["setpoint_crc"].address, rmap["job_sequence"].address),
+            job_last=max(rmap["setpoint_crc"].end, rmap["job_sequence"].end) - 1,
         ),
         "## Registers",
         f"Map version {rmap.version}, magic 0x{rmap.magic:08X}, up to {rmap.max_rows} x "
@@ -656,7 +664,7 @@ def _render_markdown(rmap: RegisterMap) -> str:
         "",
         "| code | when |",
         "|---:|---|",
-        f"| {rmap.exceptions['read_only']} | a write touches a read-only register |",
+        f"| {rmap.exceptions['read_only']} | a write touches a read-only or unused register |",
         f"| {rmap.exceptions['refused']} | a command or the job block is refused (reason in `refusal_code`) |",
         "",
     ]

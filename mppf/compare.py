@@ -34,13 +34,14 @@ import numpy as np
 from scipy.interpolate import RBFInterpolator
 from matplotlib.path import Path as PolygonPath
 from scipy.spatial import ConvexHull, cKDTree
+from scipy.spatial.transform import Rotation
 
 from mppf.errors import GeometryError, InputError
 from mppf.frame import LocalFrame, fit_frame
 from mppf.localize import foot_points
-from mppf.register import Registration, register_icp
+from mppf.register import Registration, principal_candidates, register_icp
 from mppf.surface import fit_plate
-from mppf.transform import apply_rotation, apply_tf, as_points, tf_to_list
+from mppf.transform import apply_rotation, apply_tf, as_points, make_tf, rotation_angle_deg, tf_to_list
 
 OUTLIER_NEIGHBOURS = 16
 """Neighbours (in the design plane) whose median deviation a point is compared with."""
@@ -65,6 +66,15 @@ OVERHANG_FRACTION = 0.02
 
 DENSE_POINTS = 25000
 """Points of the dense design skin the scan is registered onto."""
+
+OUTLINE_ITERATIONS = 40
+"""Iterations of the 2-D outline fit."""
+
+OUTLINE_MAX_TURN_DEG = 15.0
+"""Largest turn the outline fit may apply (beyond it the fit is rejected)."""
+
+OUTLINE_MAX_SHIFT = 0.1
+"""Largest in-plane shift the outline fit may apply, as a fraction of the plate length."""
 
 POINT_STAGE_POINTS = 3000
 """Scan points used by the point-to-point stage (a seeded subsample)."""
@@ -209,6 +219,8 @@ def compare(
     tf_press_design=None,
     bins: int | np.ndarray = 30,
     punch_radius_mm: float | None = None,
+    rotation_hint=None,
+    fit_outline: bool | None = None,
 ) -> Comparison:
     """Register a scan onto its design and measure the deviation of every point.
 
@@ -235,6 +247,17 @@ def compare(
     punch_radius_mm : float, optional
         Radius around a punch axis whose points give its deviation (default: 0.45 of
         the punch pitch).
+    rotation_hint : (3, 3) or (4, 4) float, optional
+        Rough rotation from measured into design coordinates (within about 45 deg), e.g.
+        ``invert_tf(tf_press_design)`` when the scanner's axes are the press's. It picks
+        which of the four principal-axes starts to use, so that a nearly symmetric plate
+        is not registered turned by a half turn. Default: the best fitting start.
+    fit_outline : bool, optional
+        After the ICP, set the in-plane position and turn by the plate's outline (the
+        scan's edge against the design's) and then the out-of-plane position by the
+        deviations (see :func:`_outline_refit`). Default: on when ``punch_xy_mm`` is
+        given (on the press the outline places the plate, and the punch deviations must
+        be where the punches are), off otherwise (pure best fit).
 
     Returns
     -------
@@ -266,7 +289,16 @@ def compare(
 
     # 3. robust registration of the scan onto the design skin, and
     # 4. signed normal deviation of every point (foot points on the design surface)
-    reg, moved, feet, deviation, outside, reg_note = _register(measured, target, fitted, uv_d, sign, offset_mm)
+    init = "principal" if rotation_hint is None else _hinted_start(measured, target, rotation_hint)
+    reg, moved, feet, deviation, outside, reg_note = _register(measured, target, fitted, uv_d, sign, offset_mm,
+                                                               init)
+    transform = reg.tf
+    if fit_outline is None:
+        fit_outline = punch_xy_mm is not None
+    if fit_outline:
+        transform, note = _outline_refit(fitted, uv_d, measured, transform, sign, offset_mm)
+        reg_note = f"{reg_note}; {note}"
+        moved, feet, deviation, outside = _deviate(measured, transform, fitted, uv_d, sign, offset_mm)
     uv = np.asarray(feet.uv, dtype=float)
     _check_match(deviation, outside, tolerance_mm, reg, depth_mm=float(np.ptp(design_local[:, 2])))
 
@@ -306,7 +338,7 @@ def compare(
         offset_mm=float(offset_mm),
         histogram_edges_mm=edges,
         histogram_counts=counts,
-        transform=reg.tf,
+        transform=transform,
         registration=reg,
         deviation_mm=deviation,
         inlier=inlier,
@@ -342,7 +374,133 @@ def _dense_skin(fitted, uv_design: np.ndarray, sign: float, offset_mm: float) ->
     return fitted.frame.to_world(local)
 
 
-def _register(measured, target, fitted, uv_design, sign: float, offset_mm: float):
+def _deviate(measured, tf, fitted, uv_design, sign: float, offset_mm: float):
+    """Moved points, foot points, signed deviations and the outside mask for a transform."""
+    moved = apply_tf(tf, measured)
+    feet = foot_points(fitted.surface, fitted.frame.to_local(moved))
+    distance = np.asarray(feet.distance_mm, dtype=float)
+    deviation = np.where(np.isfinite(distance), sign * distance - offset_mm, np.nan)
+    outside = (~np.asarray(feet.converged, dtype=bool) | ~np.isfinite(deviation)
+               | _outside(uv_design, np.asarray(feet.uv, dtype=float)))
+    return moved, feet, deviation, outside
+
+
+def _outline_refit(fitted, uv_design, measured, tf, sign: float, offset_mm: float):
+    """Re-place a registered scan by its outline (in-plane) and its deviations (out of plane).
+
+    Best-fit registration trades shape errors against in-plane moves: a saddle formed with
+    a few mm of error can fit best turned by degrees, so that the deviations land beside
+    the punches that caused them. On the press the plate's outline fixes it in the plane;
+    so here:
+
+    1. in the design plane, the scan's edge points (those within 1.5 point spacings of the
+       scan's convex outline; gaps from occlusion are bridged and skipped) are fitted to the
+       design's convex outline by 2-D point-to-segment ICP (trimmed 10 %): a turn about
+       the normal and a shift in the plane;
+    2. then the deviations' best plane ``d ~ a + b u + c v`` (robust) is removed by a shift
+       ``a`` along the normal and small tilts about u and v (three passes).
+
+    Returns the new measured -> design transform and a note. Falls back to ``tf`` when the
+    scan shows too little edge or the outline fit wants an implausible move.
+    """
+    frame = fitted.frame
+    local = frame.to_local(apply_tf(tf, measured))
+    uv = local[:, :2]
+    hull = ConvexHull(uv_design)
+    corners = uv_design[hull.vertices]
+    seg_a, seg_b = corners, np.roll(corners, -1, axis=0)
+    spacing = float(np.median(cKDTree(uv).query(uv, k=2)[0][:, 1]))
+    scan_hull = ConvexHull(uv)
+    edge = _distance_to_polygon(uv, uv[scan_hull.vertices]) < 1.5 * spacing
+    if edge.sum() < 20:
+        return tf, "outline fit skipped: too few edge points in the scan"
+    points = uv[edge]
+    total = np.eye(3)
+    for _ in range(OUTLINE_ITERATIONS):
+        moved = points @ total[:2, :2].T + total[:2, 2]
+        target = _closest_on_segments(moved, seg_a, seg_b)
+        residual = np.linalg.norm(moved - target, axis=1)
+        keep = residual <= np.quantile(residual, 0.9)
+        step = _rigid_2d(moved[keep], target[keep])
+        total = step @ total
+        if np.hypot(*step[:2, 2]) < 1e-3 and abs(np.arctan2(step[1, 0], step[0, 0])) < 1e-7:
+            break
+    turn_deg = float(np.degrees(np.arctan2(total[1, 0], total[0, 0])))
+    shift_mm = float(np.hypot(*total[:2, 2]))
+    size_mm = float(np.ptp(uv_design, axis=0).max())
+    if abs(turn_deg) > OUTLINE_MAX_TURN_DEG or shift_mm > OUTLINE_MAX_SHIFT * size_mm:
+        return tf, f"outline fit skipped: it wanted a turn of {turn_deg:.1f} deg and a shift of {shift_mm:.0f} mm"
+    in_plane = np.eye(4)
+    in_plane[:2, :2] = total[:2, :2]
+    in_plane[:2, 3] = total[:2, 2]
+    tf = frame.tf_world_local @ in_plane @ frame.tf_local_world @ tf
+    # out of plane: remove the deviations' robust best plane by a shift and two tilts
+    for _ in range(3):
+        moved, feet, deviation, outside = _deviate(measured, tf, fitted, uv_design, sign, offset_mm)
+        fuv = np.asarray(feet.uv, dtype=float)
+        use = ~outside
+        coef = _robust_plane(fuv[use], deviation[use])
+        a, b, c = sign * coef  # the plane along the frame's +n
+        lift = make_tf(Rotation.from_rotvec([-c, b, 0.0]).as_matrix(), [0.0, 0.0, -a])
+        tf = frame.tf_world_local @ lift @ frame.tf_local_world @ tf
+    return tf, f"outline fit: turned {turn_deg:+.2f} deg and shifted {shift_mm:.1f} mm in the plane"
+
+
+def _distance_to_polygon(points: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """Distance (n,) of 2-D points to the boundary of a polygon given by its corners."""
+    closest = _closest_on_segments(points, corners, np.roll(corners, -1, axis=0))
+    return np.linalg.norm(points - closest, axis=1)
+
+
+def _closest_on_segments(points: np.ndarray, seg_a: np.ndarray, seg_b: np.ndarray) -> np.ndarray:
+    """Closest point (n, 2) on any of the segments a -> b (k, 2) for each 2-D point."""
+    ab = seg_b - seg_a
+    t = np.einsum("nkd,kd->nk", points[:, None, :] - seg_a[None], ab) / np.maximum(np.einsum("kd,kd->k", ab, ab),
+                                                                                       1e-12)
+    foot = seg_a[None] + np.clip(t, 0.0, 1.0)[..., None] * ab[None]
+    best = np.argmin(np.linalg.norm(points[:, None, :] - foot, axis=2), axis=1)
+    return foot[np.arange(len(points)), best]
+
+
+def _rigid_2d(source: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """(3, 3) homogeneous 2-D rigid transform best mapping source onto target (least squares)."""
+    mu_s, mu_t = source.mean(axis=0), target.mean(axis=0)
+    u, _, vt = np.linalg.svd((source - mu_s).T @ (target - mu_t))
+    rot = vt.T @ u.T
+    if np.linalg.det(rot) < 0:
+        vt[-1] *= -1
+        rot = vt.T @ u.T
+    out = np.eye(3)
+    out[:2, :2] = rot
+    out[:2, 2] = mu_t - rot @ mu_s
+    return out
+
+
+def _robust_plane(uv: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """(a, b, c) of values ~ a + b u + c v, refitted twice without the points beyond 3 MAD."""
+    design = np.column_stack([np.ones(len(uv)), uv])
+    keep = np.isfinite(values)
+    coef = np.zeros(3)
+    for _ in range(3):
+        coef, *_ = np.linalg.lstsq(design[keep], values[keep], rcond=None)
+        resid = values - design @ coef
+        mad = np.median(np.abs(resid[keep] - np.median(resid[keep])))
+        keep = np.isfinite(values) & (np.abs(resid) <= max(3.0 * 1.4826 * mad, 1e-6))
+    return coef
+
+
+def _hinted_start(measured: np.ndarray, target: np.ndarray, rotation_hint) -> np.ndarray:
+    """The principal-axes start (measured -> design) whose rotation is closest to the hint."""
+    hint = np.asarray(rotation_hint, dtype=float)
+    if hint.shape not in ((3, 3), (4, 4)) or not np.all(np.isfinite(hint)):
+        raise InputError(f"rotation_hint must be a (3, 3) rotation or a (4, 4) transform, got shape {hint.shape}")
+    hint = hint[:3, :3]
+    candidates = principal_candidates(fit_frame(measured), fit_frame(target))
+    turns = [rotation_angle_deg(c[:3, :3] @ hint.T) for c in candidates]
+    return candidates[int(np.argmin(turns))]
+
+
+def _register(measured, target, fitted, uv_design, sign: float, offset_mm: float, init="principal"):
     """Register in two stages, then deviate every point.
 
     1. Point-to-point ICP (principal-axes start, plain least squares) on the dense design
@@ -351,21 +509,17 @@ def _register(measured, target, fitted, uv_design, sign: float, offset_mm: float
     2. Point-to-plane ICP from there, trimmed and Huber-weighted: accurate along the
        normal, insensitive to outliers. It is kept unless it slid part of the scan off
        the design's edge (grossly different shapes), then stage 1 is used.
+
+    ``init`` is "principal" (the best of the four principal-axes starts) or a start
+    transform (:func:`_hinted_start`).
     """
     stages = []
-    init = "principal"
     for method, trim, robust, max_points, iterations in (("point", None, None, POINT_STAGE_POINTS, 40),
                                                          ("plane", TRIM_FRACTION, "huber", 30000, 100)):
         reg = register_icp(measured, target, method=method, init=init, trim_fraction=trim, robust=robust,
                            pin_outline=False, max_points=max_points, max_iterations=iterations)
         init = reg.tf
-        moved = apply_tf(reg.tf, measured)
-        feet = foot_points(fitted.surface, fitted.frame.to_local(moved))
-        distance = np.asarray(feet.distance_mm, dtype=float)
-        deviation = np.where(np.isfinite(distance), sign * distance - offset_mm, np.nan)
-        outside = (~np.asarray(feet.converged, dtype=bool) | ~np.isfinite(deviation)
-                   | _outside(uv_design, np.asarray(feet.uv, dtype=float)))
-        stages.append((reg, moved, feet, deviation, outside))
+        stages.append((reg, *_deviate(measured, reg.tf, fitted, uv_design, sign, offset_mm)))
     point, plane = stages
     if plane[4].mean() <= point[4].mean() + OVERHANG_FRACTION:
         return (*plane, "registration: point-to-point, then point-to-plane (trimmed, Huber)")

@@ -13,8 +13,10 @@ two cycles (the "modified DA"),
 
     lambda_ij = (h_k - h_{k-1}) / (e_k - e_{k-1}),
 
-and falls back to the default gain where that is unreliable (a stroke or deviation
-change below 0.1 mm, or a negative estimate), clipped to [0.5, 3] otherwise. The
+clipped to [0.5, 3] and averaged half and half with the plate-wide least-squares secant
+(the plate couples neighbouring punches, which makes a punch's own secant noisy). Where a
+punch's own secant is unreliable (a stroke or deviation change below 0.1 mm, or a negative
+estimate) the plate-wide one is used, and the default gain where that fails too. The
 corrections are smoothed on the punch grid, then limited so that neighbouring
 corrections differ by at most the press's dimpling limit (``max_neighbour_diff_mm``)
 and every corrected stroke stays within the matrices' tip-height limits. See
@@ -36,6 +38,9 @@ GAIN_RANGE = (0.5, 3.0)
 
 SECANT_MIN_MM = 0.1
 """Smallest stroke change and deviation change between cycles that gives a secant gain."""
+
+SECANT_BLEND = 0.5
+"""Weight of a punch's own secant gain against the plate-wide secant gain."""
 
 SMOOTHING = 0.25
 """Weight of the neighbour average in the smoothed correction (0 = none, 1 = only neighbours)."""
@@ -142,7 +147,7 @@ def compensate(
     if previous is not None:
         lam, fallback = _secant_gain(press, lower, error, previous, float(gain), known)
         lam = np.where(active, lam, np.nan)
-        notes.append(f"secant gain at {int((known & ~fallback).sum())} punches, default {gain:g} at "
+        notes.append(f"own secant gain at {int((known & ~fallback).sum())} punches, plate-wide or default at "
                      f"{int((known & fallback).sum())}; gain range {np.nanmin(lam[known]) if known.any() else gain:.2f}"
                      f"..{np.nanmax(lam[known]) if known.any() else gain:.2f}")
 
@@ -177,7 +182,13 @@ def _grid(press: PressConfig, values, name: str) -> np.ndarray:
 
 
 def _secant_gain(press, lower, error, previous, default: float, known) -> tuple[np.ndarray, np.ndarray]:
-    """Per-punch secant gain and the mask where it fell back to the default."""
+    """Per-punch secant gain, blended with the plate-wide one; and where the punch's own fell back.
+
+    The per-punch secant ``dh / de`` is noisy where neighbouring punches changed too (the
+    plate couples them), so it is averaged half and half with the plate-wide least-squares
+    secant ``sum(dh de) / sum(de^2)``. Punches without a usable secant of their own take the
+    plate-wide one (or the default when that is unusable too).
+    """
     if isinstance(previous, Mapping):
         try:
             previous = PreviousCycle(lower_mm=previous["lower_mm"], punch_error_mm=previous["punch_error_mm"])
@@ -190,7 +201,13 @@ def _secant_gain(press, lower, error, previous, default: float, known) -> tuple[
     with np.errstate(invalid="ignore", divide="ignore"):
         secant = dh / de
     ok = known & np.isfinite(secant) & (np.abs(dh) >= SECANT_MIN_MM) & (np.abs(de) >= SECANT_MIN_MM) & (secant > 0)
-    lam = np.where(ok, np.clip(np.where(ok, secant, default), *GAIN_RANGE), default)
+    plate_wide = default
+    if ok.sum() >= 3:
+        estimate = float(np.sum(dh[ok] * de[ok]) / np.sum(de[ok] ** 2))
+        if estimate > 0:
+            plate_wide = float(np.clip(estimate, *GAIN_RANGE))
+    own = np.clip(np.where(ok, secant, default), *GAIN_RANGE)
+    lam = np.where(ok, SECANT_BLEND * own + (1.0 - SECANT_BLEND) * plate_wide, plate_wide)
     return lam, ~ok
 
 

@@ -393,7 +393,9 @@ def uncertainty(problem: Problem, pairs: Pairs, sigma_mm: float | None = None) -
     about the axes in degrees; None where the surface shape does not fix the
     degree of freedom (e.g. sliding along a cylinder). ``observability`` lists the
     normalised eigenvalues of the information matrix (turns scaled by the plate's
-    RMS radius), ascending: values near 0 are nearly free directions. The noise is
+    RMS radius), ascending: values near 0 are nearly free directions. Directions below
+    ``UNOBSERVABLE`` are held at their start by the ICP step: a degree of freedom lying
+    mostly in them is reported as None, the others conditional on them. The noise is
     estimated from the normal residuals unless ``sigma_mm`` is given.
     """
     axes = problem.frame.axes
@@ -409,9 +411,11 @@ def uncertainty(problem: Problem, pairs: Pairs, sigma_mm: float | None = None) -
     dof = max(float(w.sum()) - 6.0, 1.0)
     sigma2 = float((w * residual**2).sum() / dof) if sigma_mm is None else sigma_mm**2
     eigval, eigvec = np.linalg.eigh(hess)
-    free = eigval <= 1e-9 * eigval[-1]
-    inv_diag = (eigvec[:, ~free] ** 2 / eigval[~free]) @ np.ones((~free).sum())
-    fixed = np.abs(eigvec[:, free]).max(axis=1) < 1e-3 if free.any() else np.ones(6, bool)
+    held = eigval <= UNOBSERVABLE * eigval[-1]  # directions the ICP step holds at their start
+    # covariance of what is estimated (conditional on the held directions); a degree of
+    # freedom that lies mostly in the held directions is not estimated at all
+    inv_diag = (eigvec[:, ~held] ** 2 / eigval[~held]) @ np.ones((~held).sum())
+    fixed = (eigvec[:, held] ** 2).sum(axis=1) < 0.5
     std = np.sqrt(sigma2 * inv_diag)
     std[3:] = np.degrees(std[3:] / radius)
     names = ("t_u_mm", "t_v_mm", "t_n_mm", "r_u_deg", "r_v_deg", "r_n_deg")

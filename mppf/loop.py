@@ -206,7 +206,8 @@ def start_plate(
     material : Material
         Nominal plate material (springback pre-compensation of the first cycle).
     setup : dict, optional
-        More to record with the plate (PLC URL, scanner, seed...), JSON-ready.
+        More to record with the plate (PLC URL, scanner, seed...), JSON-ready; a
+        ``"units"`` entry (the length unit of the design file) is used to re-read it.
 
     Raises
     ------
@@ -282,7 +283,7 @@ def run_loop(
     plate = history.plate(plate_id)
     settings = LoopSettings.from_dict(plate.settings["loop"])
     press = press_from_dict(plate.press, source=f"history of plate {plate_id}")
-    design = _read_checked(plate.design_path, plate.design_sha256, "design")
+    design = _read_checked(plate.design_path, plate.design_sha256, "design", plate.settings.get("units", "mm"))
     cycles = history.cycles(plate_id)
     ran_before = any(e.state != "planned" for e in history.events(plate_id) if e.cycle is not None)
     resumed = cycles[-1].state if ran_before else None
@@ -332,8 +333,8 @@ def _notify(on_cycle, record, comparison) -> None:
         on_cycle(record, comparison)
 
 
-def _read_checked(path, sha256: str, what: str) -> PointCloud:
-    cloud = read_points(path)
+def _read_checked(path, sha256: str, what: str, units: str = "mm") -> PointCloud:
+    cloud = read_points(path, units=units)
     if cloud.sha256 != sha256:
         raise InputError(
             f"the {what} file {path} changed since the plate was planned "

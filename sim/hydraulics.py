@@ -74,8 +74,11 @@ class Hydraulics:
         direction = np.sign(gap)
         distance = np.abs(gap)
         speed_toward = self.velocity * direction
-        # fastest speed from which the axis can still stop on the target
-        allowed = np.minimum(vmax, np.sqrt(2.0 * a * distance))
+        # fastest end-of-step speed v' from which the axis can still stop on the target
+        # after this step's travel (v + v') dt / 2:  v'^2 <= 2 a (distance - (v + v') dt / 2)
+        adt = a * dt_s
+        room = np.maximum(2.0 * a * distance - adt * speed_toward, 0.0)
+        allowed = np.minimum(vmax, 0.5 * (-adt + np.sqrt(adt * adt + 4.0 * room)))
         new_speed = np.clip(allowed, speed_toward - a * dt_s, speed_toward + a * dt_s)
         new_speed = np.maximum(new_speed, 0.0)
         travel = 0.5 * (np.maximum(speed_toward, 0.0) + new_speed) * dt_s

@@ -49,30 +49,21 @@ _FC_WRITE = 16
 _MAX_STEPS_PER_SCAN = 50  # coarser steps rather than a scan that falls further and further behind
 
 
-class _TcpServer(ModbusTcpServer):
-    """A TCP server that remembers every connection handler it made (to close them all)."""
-
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
-        self.handlers = []
+class _HandlerRecord:
+    """Server mixin remembering every connection handler it made (to close them all)."""
 
     def callback_new_connection(self):
         handler = super().callback_new_connection()
-        self.handlers.append(handler)
+        self.__dict__.setdefault("handlers", []).append(handler)
         return handler
 
 
-class _SerialServer(ModbusSerialServer):
-    """A serial server with the same ``handlers`` record as :class:`_TcpServer`."""
+class _TcpServer(_HandlerRecord, ModbusTcpServer):
+    pass
 
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
-        self.handlers = []
 
-    def callback_new_connection(self):
-        handler = super().callback_new_connection()
-        self.handlers.append(handler)
-        return handler
+class _SerialServer(_HandlerRecord, ModbusSerialServer):
+    pass
 
 
 class SimulatedPlc:
@@ -86,7 +77,7 @@ class SimulatedPlc:
     word_order : {"ABCD", "CDAB"}
         Word order of 32-bit registers.
     unit : int
-        Modbus unit (device) id; other ids get exception 0x0B from pymodbus.
+        Modbus unit (device) id; other ids get exception 4 from pymodbus.
     time_scale : float
         Simulated seconds per wall-clock second for motion (50 = 50x faster).
     watchdog_s : float or None
@@ -132,7 +123,6 @@ class SimulatedPlc:
         self.tick_s = float(tick_s)
         self.noise_mm = float(noise_mm)
         self._rng = np.random.default_rng(seed)
-        self._n = press.rows * press.cols
         self._words = self.map.words_in_use(press.rows, press.cols)
         park = np.stack(
             [np.full(press.shape, press.upper.park_mm), np.full(press.shape, press.lower.park_mm)]
@@ -189,14 +179,15 @@ class SimulatedPlc:
         put("cols", [p.cols])
         for side in MATRICES:
             limits = getattr(p, side)
-            put(f"{side}_min", encode_int32(mm_to_counts([limits.min_mm]), self.word_order))
-            put(f"{side}_max", encode_int32(mm_to_counts([limits.max_mm]), self.word_order))
+            put(f"{side}_min", encode_int32(mm_to_counts([limits.min_mm], m.count_mm), self.word_order))
+            put(f"{side}_max", encode_int32(mm_to_counts([limits.max_mm], m.count_mm), self.word_order))
         for k, side in enumerate(MATRICES):
-            put(f"{side}_setpoints", encode_int32(mm_to_counts(self.goal_mm[k].ravel()), self.word_order))
+            put(f"{side}_setpoints", encode_int32(mm_to_counts(self.goal_mm[k].ravel(), m.count_mm), self.word_order))
         return regs
 
     def _write_image(self) -> None:
-        self._regs[:] = self._image()
+        image = self._image()
+        self._regs[: len(image)] = image  # pymodbus keeps one guard register past the end
         self._publish()
 
     def _get(self, name: str) -> list[int]:
@@ -243,12 +234,17 @@ class SimulatedPlc:
         }
 
     def _publish(self) -> None:
-        """Write actual positions, status and heartbeat into the register image."""
+        """Write actual positions, fault bits and status into the register image."""
         actual = self.hydraulics.position
         if self.noise_mm > 0:
             actual = actual + self._rng.normal(0.0, self.noise_mm, actual.shape)
         for k, side in enumerate(MATRICES):
             self._set(f"{side}_actuals", encode_int32(mm_to_counts(actual[k].ravel(), self.map.count_mm), self.word_order))
+        self._publish_status()
+
+    def _publish_status(self) -> None:
+        """Write fault bits, status word, codes, sequences and heartbeat (cheap: after each write)."""
+        for k, side in enumerate(MATRICES):
             self._set(f"{side}_fault_bits", pack_bits(self.punch_faults[k].ravel()))
         self._set("status_word", [self.map.status_word(**self._status_flags())])
         self._set("fault_code", [self.fault_code])
@@ -308,9 +304,10 @@ class SimulatedPlc:
         m = self.map
         end = address + len(values)
         touched = {f.name: f for f in m.fields.values() if f.address < end and address < f.end}
-        if any(not f.writable for f in touched.values()):
+        covered = sum(min(end, f.end) - max(address, f.address) for f in touched.values())
+        if covered < len(values) or any(not f.writable for f in touched.values()):  # a gap or a read-only register
             self.refusal_code = m.fault("READ_ONLY")
-            self._publish()
+            self._publish_status()
             return ExcCodes(m.exceptions["read_only"])
         old = self._regs[address:end]
         old_hb = self._get("master_heartbeat")[0]
@@ -327,9 +324,9 @@ class SimulatedPlc:
         if refusal is not None:
             self._regs[address:end] = old
             self.refusal_code = m.fault(refusal)
-            self._publish()
+            self._publish_status()
             return ExcCodes(m.exceptions["refused"])
-        self._publish()
+        self._publish_status()
         return None
 
     def _validate(self) -> str | None:
@@ -573,9 +570,10 @@ class SimulatedPlc:
     async def _shutdown_server(self) -> None:
         """Stop listening and close every connection, also one accepted while closing."""
         server = self._server
+        await asyncio.sleep(0.02)  # connections in the listen backlog are accepted first
         await server.shutdown()
         await asyncio.sleep(0.02)  # an accept in flight completes
-        for handler in server.handlers:
+        for handler in server.__dict__.get("handlers", []):
             if handler.transport is not None:
                 handler.transport.close()
         await asyncio.sleep(0.01)  # closing transports release their sockets on the next loop turns
@@ -583,6 +581,12 @@ class SimulatedPlc:
     async def _relisten(self, after_s: float) -> None:
         try:
             await asyncio.sleep(after_s)
+            for _ in range(50):  # the port may take a moment to be free again
+                try:
+                    await self._listen()
+                    return
+                except (OSError, RuntimeError):
+                    await asyncio.sleep(0.1)
             await self._listen()
         finally:
             self._dropped = False

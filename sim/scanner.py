@@ -10,7 +10,8 @@ A scan (see ``docs/compare.md``, section "The simulated scanner") is
 - with ``outlier_fraction`` of the points thrown 5-50 mm off the surface along its normal
   (reflections, dust),
 - in an arbitrary rigid pose (a random rotation and a translation of up to 2 m): the
-  scanner knows nothing of the press coordinates.
+  scanner knows nothing of the press coordinates. With ``max_turn_deg`` the rotation is
+  a turn about the vertical only (a scanner mounted over the press table).
 
 The scanner owns one seeded random generator: successive scans differ, the sequence is
 reproducible. Build a new scanner with the same seed to repeat a scan.
@@ -79,6 +80,10 @@ class SimulatedScanner:
         Sampling distance on the plate.
     seed : int
         Seed of the scanner's random generator.
+    max_turn_deg : float, optional
+        None (default): the pose is an arbitrary rotation. A number: the scanner looks
+        down on the press table with its z axis up, and the pose is a turn about z of at
+        most this many degrees (plus the random shift).
     """
 
     def __init__(
@@ -88,6 +93,7 @@ class SimulatedScanner:
         outlier_fraction: float = 0.01,
         spacing_mm: float = 20.0,
         seed: int = 0,
+        max_turn_deg: float | None = None,
     ):
         checks = (
             ("noise_mm", noise_mm, 0.0, 50.0),
@@ -102,6 +108,9 @@ class SimulatedScanner:
         self.occlusion_fraction = float(occlusion_fraction)
         self.outlier_fraction = float(outlier_fraction)
         self.spacing_mm = float(spacing_mm)
+        if max_turn_deg is not None and not (np.isfinite(max_turn_deg) and 0.0 <= max_turn_deg <= 180.0):
+            raise InputError(f"scanner max_turn_deg must be within 0..180, got {max_turn_deg}")
+        self.max_turn_deg = max_turn_deg
         self.seed = seed
         self._rng = np.random.default_rng(seed)
 
@@ -138,7 +147,11 @@ class SimulatedScanner:
             points[idx] += offset[:, None] * normals[idx]
             is_outlier[idx] = True
         # 5. arbitrary pose; shuffle the order as a scanner would not keep the grid order
-        rotation = Rotation.random(random_state=rng).as_matrix()
+        if self.max_turn_deg is None:
+            rotation = Rotation.random(random_state=rng).as_matrix()
+        else:
+            turn = rng.uniform(-self.max_turn_deg, self.max_turn_deg)
+            rotation = Rotation.from_euler("z", turn, degrees=True).as_matrix()
         tf_scan_press = make_tf(rotation, rng.uniform(-MAX_TRANSLATION_MM, MAX_TRANSLATION_MM, 3))
         order = rng.permutation(len(points))
         return ScanSample(

@@ -204,3 +204,29 @@ def test_bad_inputs_are_refused():
         compare(design, measured[:, :2])
     with pytest.raises(InputError, match="tf_press_design"):
         compare(design, measured, punch_xy_mm=np.zeros((2, 2, 2)))
+
+
+def test_rotation_hint_picks_the_right_turn_of_a_symmetric_plate(press):
+    """A saddle symmetric under a half turn: the hint (scanner axes ~ press axes) decides."""
+    t = 20.0
+    px, py = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    mid = px**2 / (2 * 8000.0) - py**2 / (2 * 18000.0)
+    active = (np.abs(px) <= 1600) & (np.abs(py) <= 1100)
+    outline = [[-1500.0, -1000.0], [1500.0, -1000.0], [1500.0, 1000.0], [-1500.0, 1000.0]]
+    formed = form_plate(press, mid + t / 2, mid - t / 2, active, PlateSample(t, Material()), outline)
+    design = formed.mid_surface_points(50.0)
+    sample = SimulatedScanner(seed=0, max_turn_deg=20.0).sample(formed)
+    # the pose is a turn about the vertical within the bound
+    turn = rotation_angle_deg(sample.tf_scan_press)
+    assert turn <= 20.0 + 1e-9
+    assert np.allclose(sample.tf_scan_press[2, :3], [0.0, 0.0, 1.0])
+    c = compare(design, sample.points, offset_mm=t / 2, rotation_hint=np.eye(3))
+    error = c.transform @ sample.tf_scan_press
+    assert rotation_angle_deg(error) < 0.1
+    # the geometry alone cannot tell: a hint turned by a half turn gives the turned pose, as good a fit
+    half_turn = Rotation.from_euler("z", 180, degrees=True).as_matrix()
+    turned = compare(design, sample.points, offset_mm=t / 2, rotation_hint=half_turn)
+    assert rotation_angle_deg(turned.transform @ sample.tf_scan_press) > 179.0
+    assert turned.rms_mm == pytest.approx(c.rms_mm, abs=0.05)
+    with pytest.raises(InputError, match="rotation_hint"):
+        compare(design, sample.points, rotation_hint=np.eye(2))

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import dataclasses
+import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -16,9 +18,11 @@ from pymodbus.exceptions import ConnectionException, ModbusIOException
 
 from mppf.cli import main
 from mppf.drivers import regmap as rm
+from mppf.drivers.url import parse_plc_url
 from mppf.errors import InputError
 from mppf.press import example_press_path, load_press
 from mppf.sim.faults import parse_fault_spec
+from mppf.sim.hydraulics import Hydraulics
 from mppf.sim.plc import run_simulated_plc
 from mppf.sim.serial_pty import PtyPair
 
@@ -99,6 +103,43 @@ def refusal(master):
     return MAP.fault_codes[master.read("refusal_code")[0]].name
 
 
+# ---------------------------------------------------------------- hydraulics ------
+def run_until_rest(hyd, dt_s=0.001, limit_s=20.0):
+    t = 0.0
+    while hyd.moving:
+        hyd.step(dt_s)
+        t += dt_s
+        assert t < limit_s
+    return t
+
+
+@pytest.mark.parametrize(
+    "distance_mm, expected_s",
+    [
+        (100.0, 100.0 / 20.0 + 20.0 / 100.0),  # trapezoid: cruise at 20 mm/s, 0.2 s to accelerate
+        (1.0, 2.0 * np.sqrt(1.0 / 100.0)),  # triangle: never reaches full speed
+    ],
+)
+def test_trapezoidal_motion_time(distance_mm, expected_s):
+    hyd = Hydraulics(np.zeros((2, 1, 2)), speed_mm_s=20.0, accel_mm_s2=100.0)
+    target = np.array([[[distance_mm, -distance_mm]], [[0.0, distance_mm / 2]]])
+    hyd.move_to(target)
+    assert run_until_rest(hyd) == pytest.approx(expected_s, rel=0.02)
+    assert np.array_equal(hyd.position, target)
+
+
+def test_stop_brakes_within_the_braking_distance():
+    hyd = Hydraulics(np.zeros((2, 1, 1)), speed_mm_s=20.0, accel_mm_s2=100.0)
+    hyd.move_to(np.full((2, 1, 1), 100.0))
+    for _ in range(1000):  # 1 s: at full speed
+        hyd.step(0.001)
+    at_stop = hyd.position.copy()
+    hyd.stop()
+    run_until_rest(hyd)
+    braked = hyd.position - at_stop
+    assert np.allclose(braked, 20.0**2 / (2 * 100.0), atol=0.05)  # v^2 / 2a = 2 mm
+
+
 # ------------------------------------------------------------------ identity ------
 @pytest.mark.parametrize("word_order", ["ABCD", "CDAB"])
 def test_magic_and_identity_in_both_word_orders(word_order):
@@ -113,6 +154,8 @@ def test_magic_and_identity_in_both_word_orders(word_order):
         # power-on: punches parked, setpoints equal to the actual positions
         assert np.allclose(master.actuals_mm("lower"), PRESS.lower.park_mm)
         assert sim.url == f"tcp://127.0.0.1:{sim.port}?unit=1"
+        url = parse_plc_url(sim.url)  # the driver's URL grammar
+        assert (url.scheme, url.host, url.port, url.unit) == ("tcp", "127.0.0.1", sim.port, 1)
         master.close()
 
 
@@ -127,6 +170,8 @@ def test_writes_to_status_registers_are_refused(plc):
     hb = MAP["master_heartbeat"]
     assert master.write(hb.address, [7] * (MAP["status_word"].address - hb.address + 1)) == 2
     assert master.read("master_heartbeat") == [0]
+    # so is a write to the unused registers between the fields
+    assert master.write(MAP["master_heartbeat"].end, [1]) == 2
 
 
 # -------------------------------------------------------------------- motion ------
@@ -367,6 +412,8 @@ def test_rtu_over_a_pty_pair(word_order):
     with run_simulated_plc(PRESS, rtu=True, baud=115200, word_order=word_order) as sim:
         match = re.fullmatch(r"rtu://(/dev/pts/\d+)\?baud=115200&parity=([NEO])&unit=1", sim.url)
         assert match, sim.url
+        url = parse_plc_url(sim.url)  # the driver's URL grammar
+        assert (url.device, url.baud, url.parity) == (sim.serial_port, 115200, match.group(2))
         client = ModbusSerialClient(match.group(1), baudrate=115200, parity=match.group(2), timeout=1.0, retries=0)
         assert client.connect()
         try:
@@ -380,10 +427,42 @@ def test_rtu_over_a_pty_pair(word_order):
 
 
 @pytest.mark.rtu
+def test_rtu_on_a_serial_device_made_by_socat(tmp_path):
+    """The rtu_port= path (a real serial device), on a socat pty pair."""
+    socat = shutil.which("socat")
+    if socat is None:
+        if os.environ.get("CI") == "true":
+            pytest.fail("socat is not installed on CI")
+        pytest.skip("socat is not installed")
+    port_a, port_b = tmp_path / "ttyA", tmp_path / "ttyB"
+    proc = subprocess.Popen(
+        [socat, f"pty,raw,echo=0,link={port_a}", f"pty,raw,echo=0,link={port_b}"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        deadline = time.monotonic() + 5.0
+        while not (port_a.exists() and port_b.exists()):
+            assert time.monotonic() < deadline, "socat made no pty pair"
+            time.sleep(0.02)
+        with run_simulated_plc(PRESS, rtu_port=str(port_a), baud=38400, parity="N") as sim:
+            assert sim.url == f"rtu://{port_a}?baud=38400&parity=N&unit=1"
+            client = ModbusSerialClient(str(port_b), baudrate=38400, parity="N", timeout=1.0, retries=0)
+            assert client.connect()
+            try:
+                rr = client.read_holding_registers(MAP["rows"].address, count=2, device_id=1)
+                assert not rr.isError(), rr
+                assert rr.registers == [PRESS.rows, PRESS.cols]
+            finally:
+                client.close()
+    finally:
+        proc.terminate()
+        proc.wait(timeout=5)
+
+
+@pytest.mark.rtu
 def test_paced_pty_relay_takes_the_wire_time():
     with PtyPair(baud=9600) as link:
-        import os
-
         a = os.open(link.port_a, os.O_RDWR | os.O_NOCTTY)
         b = os.open(link.port_b, os.O_RDWR | os.O_NOCTTY)
         try:

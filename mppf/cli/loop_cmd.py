@@ -17,6 +17,7 @@ import click
 from rich.table import Table
 
 from mppf.cli._common import RichReporter, console, err_console, print_json, units_option
+from mppf.cli.plan_cmd import MATERIALS
 from mppf.errors import InputError
 
 DEFAULT_TIME_SCALE = 50.0
@@ -71,9 +72,10 @@ def _scanner(spec: str, press, plate, history_plate_cycle1_job, seed: int, scan_
     from mppf.io import read_points
     from mppf.sim.shop import SimulatedPlateScanner, plate_outline_xy
 
-    flat = read_points(plate.flat_path)
+    flat = read_points(plate.flat_path, units=plate.settings.get("units", "mm"))
     outline = plate_outline_xy(history_plate_cycle1_job, flat.points)
-    return SimulatedPlateScanner(press, plate.thickness_mm, outline, seed=seed)
+    material = MATERIALS[plate.settings.get("material", "steel")]
+    return SimulatedPlateScanner(press, plate.thickness_mm, outline, seed=seed, material=material)
 
 
 def _cycle_table(cycles, title: str) -> Table:
@@ -149,6 +151,8 @@ def run_plate(history, plate, *, plc_url, scanner_spec, time_scale, audit, repor
 @click.option("--max-cycles", type=int, default=5, show_default=True, help="Press cycles at most.")
 @click.option("--gain", type=float, default=1.0, show_default=True, help="Gain of the first correction.")
 @click.option("--no-springback", is_flag=True, help="Plan without springback pre-compensation.")
+@click.option("--material", type=click.Choice(["steel", "ah36"]), default="steel", show_default=True,
+              help="Nominal plate material (springback pre-compensation; the simulated plate).")
 @click.option("--history", "history_path", type=click.Path(dir_okay=False, path_type=Path),
               help="History database [default: $MPPF_HOME/history.sqlite or ~/.local/share/mppf/].")
 @click.option("--audit", "audit_path", type=click.Path(dir_okay=False, path_type=Path),
@@ -166,7 +170,7 @@ def run_plate(history, plate, *, plc_url, scanner_spec, time_scale, audit, repor
 @click.option("--yes", is_flag=True, help="Do not ask before driving a real press.")
 @units_option
 def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, rms_tolerance, max_cycles, gain,
-         no_springback, history_path, audit_path, plate_id, work_dir, seed, time_scale, scan_timeout, resume,
+         no_springback, material, history_path, audit_path, plate_id, work_dir, seed, time_scale, scan_timeout, resume,
          as_json, yes, units):
     """Plan, press, measure, compare, correct, press again, until the plate is in tolerance.
 
@@ -211,8 +215,8 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
             work = work_dir or history.path.parent / "plates" / plate_id
             plate = start_plate(
                 history, design_cloud, flat_cloud, press, thickness, plate_id=plate_id, work_dir=work,
-                settings=settings, setup={"plc": plc_url, "scanner": scanner_spec, "seed": seed, "units": units},
-                reporter=reporter,
+                settings=settings, material=MATERIALS[material], reporter=reporter,
+                setup={"plc": plc_url, "scanner": scanner_spec, "seed": seed, "units": units, "material": material},
             )
         if plc_url and not yes:
             click.confirm(f"Drive the press at {plc_url} for plate {plate.plate_id}?", abort=True, err=True)
