@@ -10,13 +10,16 @@ The steps of :func:`compare` (the math is in ``docs/compare.md``):
    surface (:func:`mppf.register.register_icp`): point-to-point ICP from the principal
    axes (keeps the scan centred on the plate), then point-to-plane ICP with trimmed,
    Huber-weighted pairs (accurate along the normal, ignores outliers); the point result
-   is kept if the plane stage slid part of the scan off the design's edge.
+   is kept if the plane stage slid part of the scan off the design's edge. With punch
+   positions (the loop) the outline then fixes the in-plane pose and the deviations'
+   best plane the out-of-plane pose (:func:`_outline_refit`).
 4. Signed normal deviation of EVERY measured point: its foot point on the design surface
    (:func:`mppf.localize.foot_points`), distance along the design normal minus the offset.
    Positive = the measured plate lies on the +normal side of the design ("above").
 5. Outliers: a point whose deviation differs from a robust local plane through its
    neighbours' deviations by more than a robust threshold (6 sigma of those differences,
-   at least 0.5 mm) is flagged and left out of the statistics; so are points whose foot point falls outside the design.
+   at least 0.5 mm) is flagged and left out of the statistics; so are points whose foot
+   point falls outside the design.
    Smooth shape errors (a bump, springback) are NOT outliers: their neighbours agree.
 6. Statistics of the inliers (RMS, largest absolute, mean, percent within tolerance,
    histogram) and, given the punch positions, the deviation at each punch.

@@ -5,7 +5,7 @@ status) and one row per press cycle. A cycle moves through the states
 
     planned -> pressing -> pressed -> scanned -> compared -> corrected | done
 
-and each move is committed at once (WAL journal, ``synchronous=FULL``), so a crash or a
+(a rejected scan takes "scanned" back to "pressed"), and each move is committed at once (WAL journal, ``synchronous=FULL``), so a crash or a
 power cut loses at most the step that was running. Moves are conditional
 (``UPDATE ... WHERE state = <expected>``): a cycle can enter "pressing" only once, which
 is what keeps ``mppf loop --resume`` from ever pressing a cycle twice, even when two
@@ -81,6 +81,7 @@ CREATE TABLE IF NOT EXISTS cycles (
     gain           REAL,               -- gain of the correction that made these strokes
     correction_json TEXT,              -- that correction (applied mm, clipped, notes)
     decision       TEXT,               -- continue, in_tolerance, max_cycles, diverged
+    rejected_json  TEXT NOT NULL DEFAULT '[]',  -- scans refused for this cycle: [{path, sha256, reason}]
     PRIMARY KEY (plate_id, cycle)
 );
 CREATE TABLE IF NOT EXISTS events (
@@ -201,6 +202,7 @@ class CycleRecord:
     gain: float | None
     correction: dict | None
     decision: str | None
+    rejected_scans: list = field(default_factory=list)
 
     def to_dict(self, *, grids: bool = True) -> dict:
         """JSON-ready dict (strokes and deviation grid included when ``grids``)."""
@@ -461,6 +463,19 @@ class History:
             self._move(plate_id, cycle, ("pressed",), "scanned", scan_path=str(scan_path), scan_sha256=scan_sha256,
                        detail=f"scan {scan_path} sha256 {scan_sha256[:12]}")
 
+    def reject_scan(self, plate_id: str, cycle: int, scan_path, scan_sha256: str, reason: str) -> None:
+        """Refuse a scan of the cycle (unreadable, or not matching the design).
+
+        The scan is added to the cycle's rejected scans (never taken again) and a cycle in
+        "scanned" goes back to "pressed", so the next run waits for a new scan.
+        """
+        with self._transaction():
+            record = self.cycle(plate_id, cycle)
+            rejected = list(record.rejected_scans) + [
+                {"path": str(scan_path), "sha256": scan_sha256, "reason": reason}]
+            self._move(plate_id, cycle, ("pressed", "scanned"), "pressed", scan_path=None, scan_sha256=None,
+                       rejected_json=_dumps(rejected), detail=f"scan {scan_path} rejected: {reason}")
+
     def mark_compared(
         self,
         plate_id: str,
@@ -569,7 +584,7 @@ class History:
     def _cycle(row) -> CycleRecord:
         (plate_id, cycle, state, created, updated, job_path, job_sha, steps_json, step_started, steps_done,
          results_json, interrupted, scan_path, scan_sha, rms, max_abs, within, deviation_json, compare_json,
-         gain, correction_json, decision) = row
+         gain, correction_json, decision, rejected_json) = row
         return CycleRecord(
             plate_id=plate_id, cycle=int(cycle), state=state, created_utc=created, updated_utc=updated,
             job_path=job_path, job_sha256=job_sha, steps=steps_from_json(json.loads(steps_json)),
@@ -577,13 +592,14 @@ class History:
             interrupted=bool(interrupted), scan_path=scan_path, scan_sha256=scan_sha, rms_mm=rms,
             max_abs_mm=max_abs, within_pct=within, punch_deviation_mm=grid_from_json(_loads(deviation_json)),
             comparison=_loads(compare_json), gain=gain, correction=_loads(correction_json), decision=decision,
+            rejected_scans=json.loads(rejected_json),
         )
 
 
 _CYCLE_COLUMNS = (
     "plate_id, cycle, state, created_utc, updated_utc, job_path, job_sha256, steps_json, step_started, "
     "steps_done, results_json, interrupted, scan_path, scan_sha256, rms_mm, max_abs_mm, within_pct, "
-    "deviation_json, compare_json, gain, correction_json, decision"
+    "deviation_json, compare_json, gain, correction_json, decision, rejected_json"
 )
 
 

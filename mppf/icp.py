@@ -56,8 +56,9 @@ ISOLATED = 4.0
 """Points whose neighbour distance exceeds this many times the median are not outline."""
 
 PIN_TURN_DEG = 0.05
-"""The outline also pins the turn about the normal when the surface fixes it worse than this
-(one sigma, in degrees, for 1 mm noise on the source points)."""
+"""Point-to-plane: the outline also pins the turn about the normal when the surface fixes it
+worse than this (one sigma, in degrees, for 1 mm noise on the source points). Point-to-point
+always has it pinned (it sees the turn only through in-plane closest-point offsets)."""
 
 
 def query(tree, points: np.ndarray, k: int = 1):

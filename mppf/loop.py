@@ -33,7 +33,7 @@ import numpy as np
 
 from mppf.compare import compare
 from mppf.compensate import PreviousCycle, compensate
-from mppf.errors import ConfigError, InputError, PressRefused
+from mppf.errors import ConfigError, GeometryError, InputError, PressRefused
 from mppf.history import CycleRecord, History, PlateRecord, grid_from_json, grid_to_json
 from mppf.io import PointCloud, read_points
 from mppf.job import Job, StepStrokes, load_job, save_job
@@ -271,8 +271,10 @@ def run_loop(
     Raises
     ------
     InputError
-        The design file changed since the plate was planned, a scan is unreadable or
-        does not match the design, or the history refuses a state change.
+        The design file changed since the plate was planned, or the history refuses a
+        state change; or a scan is unreadable (FileFormatError) or does not match the
+        design (GeometryError): that scan is recorded as rejected, the cycle waits in
+        "pressed" for another one.
     PressRefused, LimitError
         The press refused the step before any motion; the step is recorded as not
         started and is pressed when the loop is resumed.
@@ -288,7 +290,6 @@ def run_loop(
     ran_before = any(e.state != "planned" for e in history.events(plate_id) if e.cycle is not None)
     resumed = cycles[-1].state if ran_before else None
     number = cycles[-1].cycle
-    comparison = None
     while True:
         record = history.cycle(plate_id, number)
         if record.state == "planned":
@@ -301,12 +302,20 @@ def run_loop(
             history.mark_pressed(plate_id, number, interrupted=True, detail="resumed after an interruption")
         elif record.state == "pressed":
             # measure: the scanner delivers a file of the formed plate
-            path = scanner.acquire(number, _scan_context(history, plate, record, press, reporter))
-            scan = read_points(path)
-            history.mark_scanned(plate_id, number, Path(path).resolve(), scan.sha256)
+            path = Path(scanner.acquire(number, _scan_context(history, plate, record, press, reporter))).resolve()
+            try:
+                scan = read_points(path)
+            except InputError as exc:  # unreadable: never taken again, wait for another
+                history.reject_scan(plate_id, number, path, "", exc.message)
+                raise
+            history.mark_scanned(plate_id, number, path, scan.sha256)
         elif record.state == "scanned":
             # compare the scan with the design, decide
-            comparison = _compare(plate, record, design, settings, press)
+            try:
+                comparison = _compare(plate, record, design, settings)
+            except GeometryError as exc:  # not this plate (or units): back to "pressed", wait for another
+                history.reject_scan(plate_id, number, record.scan_path, record.scan_sha256, exc.message)
+                raise
             rms = [c.rms_mm for c in history.cycles(plate_id)[: number - 1]] + [comparison.rms_mm]
             decision = decide(rms, comparison.max_abs_mm, number, settings)
             history.mark_compared(
@@ -387,7 +396,9 @@ def _scan_context(history, plate, record, press, reporter) -> ScanContext:
     else:  # read-back lost in a crash: the setpoints of the interrupted step
         upper_mm, lower_mm = step.setpoints_mm(press)
     since = datetime.fromisoformat(record.created_utc).timestamp()  # when the cycle was planned
-    used = tuple(c.scan_path for c in history.cycles(plate.plate_id) if c.scan_path and c.cycle != record.cycle)
+    cycles = history.cycles(plate.plate_id)
+    used = tuple([c.scan_path for c in cycles if c.scan_path and c.cycle != record.cycle]
+                 + [r["path"] for c in cycles for r in c.rejected_scans])
     return ScanContext(
         plate_id=plate.plate_id, work_dir=Path(plate.settings["work_dir"]), since_s=since,
         upper_mm=upper_mm, lower_mm=lower_mm, active=step.active, used_paths=used, reporter=reporter,
@@ -409,7 +420,7 @@ def _load_cycle_job(record: CycleRecord) -> Job:
     return job
 
 
-def _compare(plate: PlateRecord, record: CycleRecord, design: PointCloud, settings: LoopSettings, press):
+def _compare(plate: PlateRecord, record: CycleRecord, design: PointCloud, settings: LoopSettings):
     scan = _read_checked(record.scan_path, record.scan_sha256, "scan")
     job = _load_cycle_job(record)
     offset_mm = plate.thickness_mm / 2.0 if settings.offset_mm is None else settings.offset_mm

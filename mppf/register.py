@@ -317,9 +317,10 @@ def register_icp(
         ``COARSE_POINTS`` of clouds above twice that. The target is always used whole.
     pin_outline : {"auto", True, False}
         Pin the in-plane position (and the turn about the normal for elongated
-        plates) with the outline: the area centroid and principal axes of the convex
-        outline in the target's plate plane. "auto" pins when both clouds cover the
-        same plate (outline areas and extents within 12 %).
+        plates: always with ``method="point"``, with "plane" where the surface fixes
+        it worse than ``mppf.icp.PIN_TURN_DEG``) with the outline: the area centroid
+        and principal axes of the convex outline in the target's plate plane. "auto"
+        pins when both clouds cover the same plate (outline areas and extents within 12 %).
     tol_translation_mm, tol_rotation_rad : float
         Converged when one iteration moves the source centroid less than this and
         turns it less than this.
@@ -388,11 +389,17 @@ def register_icp(
     tf, total_iter, history = stage.tf, stage.iterations, list(stage.rms_history)
 
     # 5. outline pin: when both clouds cover the same plate, the outline fixes the in-plane
-    #    position (and the turn about the normal where the surface leaves it loose)
+    #    position (and the turn about the normal where the metric leaves it loose)
     pin = None
     if pin_outline is not False:
-        turn_sigma = icp.uncertainty(problem, icp.evaluate(problem, fine_src, tf), sigma_mm=1.0)["r_n_deg"]
-        pin_turn = flat_vs_curved or turn_sigma is None or turn_sigma > icp.PIN_TURN_DEG
+        # point-to-point sees the turn about the normal only through the in-plane offsets to the
+        # closest target points: on a differently sampled target these follow the sampling
+        # pattern (about the point spacing) rather than the shape, so the outline fixes the turn
+        # better; point-to-plane fixes it from the normals where the surface is curved enough
+        pin_turn = flat_vs_curved or method == "point"
+        if not pin_turn:
+            turn_sigma = icp.uncertainty(problem, icp.evaluate(problem, fine_src, tf), sigma_mm=1.0)["r_n_deg"]
+            pin_turn = turn_sigma is None or turn_sigma > icp.PIN_TURN_DEG
         candidates = icp.outline_candidates(frame_s, src, fine_src)
         pin, coverage = icp.outline_pin(problem, candidates, tf, require_coverage=pin_outline == "auto",
                                         pin_turn=pin_turn)

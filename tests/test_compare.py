@@ -135,15 +135,27 @@ def press():
     return load_press(example_press_path())
 
 
+THICKNESS_MM = 20.0
+OUTLINE = [[-1500.0, -1000.0], [1500.0, -1000.0], [1500.0, 1000.0], [-1500.0, 1000.0]]
+
+
+def _form(press, r_x_mm, r_y_mm, asymmetric=True):
+    """A plate formed on the simulated press to mid-surface x^2/2Rx - y^2/2Ry (+ cubic, twist)."""
+    px, py = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    mid = px**2 / (2 * r_x_mm) - py**2 / (2 * r_y_mm)
+    if asymmetric:
+        mid = mid + px**3 / 3e7 + px * py / 20000.0
+    active = (np.abs(px) <= 1600) & (np.abs(py) <= 1100)
+    t = THICKNESS_MM
+    return form_plate(press, mid + t / 2, mid - t / 2, active, PlateSample(t, Material()), OUTLINE)
+
+
 @pytest.fixture(scope="module")
 def formed_and_scan(press):
     """A plate formed on the simulated press, its simulated scan (occlusion + outliers)."""
-    t = 20.0
+    t = THICKNESS_MM
     px, py = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
-    mid = px**2 / (2 * 4000.0) - py**2 / (2 * 9000.0) + px**3 / 3e7 + px * py / 20000.0
-    active = (np.abs(px) <= 1600) & (np.abs(py) <= 1100)
-    outline = [[-1500.0, -1000.0], [1500.0, -1000.0], [1500.0, 1000.0], [-1500.0, 1000.0]]
-    formed = form_plate(press, mid + t / 2, mid - t / 2, active, PlateSample(t, Material()), outline)
+    formed = _form(press, 4000.0, 9000.0)
     sample = SimulatedScanner(seed=2).sample(formed)
     design = formed.mid_surface_points(50.0)  # the design = what was formed: deviations ~ 0
     c = compare(design, sample.points, offset_mm=t / 2, tf_press_design=np.eye(4),
@@ -208,12 +220,8 @@ def test_bad_inputs_are_refused():
 
 def test_rotation_hint_picks_the_right_turn_of_a_symmetric_plate(press):
     """A saddle symmetric under a half turn: the hint (scanner axes ~ press axes) decides."""
-    t = 20.0
-    px, py = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
-    mid = px**2 / (2 * 8000.0) - py**2 / (2 * 18000.0)
-    active = (np.abs(px) <= 1600) & (np.abs(py) <= 1100)
-    outline = [[-1500.0, -1000.0], [1500.0, -1000.0], [1500.0, 1000.0], [-1500.0, 1000.0]]
-    formed = form_plate(press, mid + t / 2, mid - t / 2, active, PlateSample(t, Material()), outline)
+    t = THICKNESS_MM
+    formed = _form(press, 8000.0, 18000.0, asymmetric=False)
     design = formed.mid_surface_points(50.0)
     sample = SimulatedScanner(seed=0, max_turn_deg=20.0).sample(formed)
     # the pose is a turn about the vertical within the bound
@@ -230,3 +238,18 @@ def test_rotation_hint_picks_the_right_turn_of_a_symmetric_plate(press):
     assert turned.rms_mm == pytest.approx(c.rms_mm, abs=0.05)
     with pytest.raises(InputError, match="rotation_hint"):
         compare(design, sample.points, rotation_hint=np.eye(2))
+
+
+def test_outline_fit_places_a_badly_formed_plate(press):
+    """Springback left the plate half as curved as designed: the outline still places it."""
+    t = THICKNESS_MM
+    formed = _form(press, 2500.0, 6000.0)
+    design = formed.mid_surface_points(50.0, loaded=True)  # the plate as held, before springback
+    sample = SimulatedScanner(seed=0, max_turn_deg=20.0).sample(formed)
+    c = compare(design, sample.points, offset_mm=t / 2, tf_press_design=np.eye(4), rotation_hint=np.eye(3),
+                fit_outline=True)
+    error = c.transform @ sample.tf_scan_press  # press -> design (= press): identity when placed right
+    assert np.linalg.norm(error[:2, 3]) < 20.0
+    assert abs(np.degrees(np.arctan2(error[1, 0], error[0, 0]))) < 0.5  # turn about the vertical
+    assert "outline fit" in c.notes[0]
+    assert c.rms_mm > 20.0  # and the deviations are large, as they should be

@@ -25,7 +25,7 @@ def test_demo_runs_end_to_end_with_pictures_and_summary(tmp_path, capsys):
         cycles = history.cycles(plate.plate_id)
     assert plate.status == "in_tolerance" and cycles[-1].max_abs_mm <= 2.5 and cycles[-1].rms_mm <= 1.0
     for c in cycles:
-        assert (out / f"deviation-cycle-{c.cycle}.png").exists()
+        assert (out / f"deviation-cycle-{c.cycle}.png").exists() and (out / f"punch-deviation-cycle-{c.cycle}.png").exists()
     # the press was driven over Modbus: one GO per step in the audit log
     (gos,) = sqlite3.connect(out / "audit.sqlite").execute(
         "SELECT COUNT(*) FROM audit WHERE action = 'go' AND outcome = 'ok'").fetchone()

@@ -17,7 +17,7 @@ from mppf.errors import InputError
 from mppf.history import History
 from mppf.io import read_points, write_points
 from mppf.loop import LoopSettings, decide
-from mppf.press import example_press_path
+from mppf.press import example_press_path, load_press
 from mppf.scanners import DirectoryScanner, ScanContext
 from mppf.unfold import unfold
 
@@ -176,6 +176,12 @@ def test_loop_option_errors_exit_2(plate_files, tmp_path, capsys):
     assert "needs DESIGN, FLAT" in capsys.readouterr().err
     assert main(["loop", "--resume", "--history", str(tmp_path / "h.sqlite")]) == 2
     assert "no unfinished plate" in capsys.readouterr().err
+    assert main(loop_args(design, flat, tmp_path, "--plc", "http://press:80")) == 2
+    assert "http://press:80" in capsys.readouterr().err
+    assert main(loop_args(design, flat, tmp_path, "--scanner", str(tmp_path / "no-such-folder"))) == 2
+    assert "no-such-folder" in capsys.readouterr().err
+    with History(tmp_path / "history.sqlite") as history:
+        assert history.plates() == []  # refused before planning: nothing recorded
 
 
 def test_loop_with_a_bad_scan_file_exits_2_and_resumes(plate_files, tmp_path, capsys):
@@ -183,25 +189,39 @@ def test_loop_with_a_bad_scan_file_exits_2_and_resumes(plate_files, tmp_path, ca
     scans = tmp_path / "scans"
     scans.mkdir()
     (scans / "scan1.csv").write_text("this is not a point file\n")
-    args = loop_args(design, flat, tmp_path, "--plate-id", "K2-B", "--scanner", str(scans), "--scan-timeout", "5")
+    args = loop_args(design, flat, tmp_path, "--plate-id", "K2-B", "--scanner", str(scans), "--scan-timeout", "5",
+                     "--max-cycles", "1")
     assert main(args) == 2
     err = capsys.readouterr().err
     assert "scan1.csv" in err and "Traceback" not in err
     with History(tmp_path / "history.sqlite") as history:
         assert history.cycle("K2-B", 1).state == "pressed"  # pressed, waiting for a usable scan
-    # a scan of another plate is refused by the comparison
+    # a scan saved in metres (the plate 1000 times too small) is refused by the comparison
     (scans / "scan1.csv").unlink()
-    other = read_points(Path(design).parent / "P1_midbody_bilge_smooth.csv").points
-    write_points(scans / "scan2.csv", other + [0.0, 0.0, 10.0])
+    write_points(scans / "scan2.csv", read_points(design).points / 1000.0)
     assert main(["loop", "--resume", "--plate-id", "K2-B", "--history", str(tmp_path / "history.sqlite"),
                  "--scan-timeout", "5"]) == 2
-    assert "does not match the design" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "not the same plate" in err and "--units" in err
     with History(tmp_path / "history.sqlite") as history:
         record = history.cycle("K2-B", 1)
-        assert record.state == "scanned" and record.steps_done == len(record.steps)
+        # both scans rejected, never taken again; the cycle waits for a new scan
+        assert record.state == "pressed" and record.steps_done == len(record.steps)
+        assert [Path(r["path"]).name for r in record.rejected_scans] == ["scan1.csv", "scan2.csv"]
+        # the operator scans again: here the simulated scan of the plate as pressed
+        press = load_press(example_press_path())
+        scanner = _scanner(history, "K2-B", press, flat)
+        upper, lower = record.steps[-1].setpoints_mm(press)
+        scanner.acquire(1, ScanContext(plate_id="K2-B", work_dir=scans, since_s=time.time(), upper_mm=upper,
+                                       lower_mm=lower, active=record.steps[-1].active))
+    assert main(["loop", "--resume", "--plate-id", "K2-B", "--history", str(tmp_path / "history.sqlite"),
+                 "--scan-timeout", "5"]) == 0
+    with History(tmp_path / "history.sqlite") as history:
+        record = history.cycle("K2-B", 1)
+    assert record.state == "done" and Path(record.scan_path).name == "scan-cycle-01.ply"
     audit = sqlite3.connect(tmp_path / "audit.sqlite")
     (gos,) = audit.execute("SELECT COUNT(*) FROM audit WHERE action = 'go'").fetchone()
-    assert gos == len(record.steps)  # the resume pressed nothing
+    assert gos == len(record.steps)  # the resumes pressed nothing
 
 
 # -- refusals and faults on the real simulated PLC (in-process, run_loop directly) -------------------

@@ -78,6 +78,18 @@ def _scanner(spec: str, press, plate, history_plate_cycle1_job, seed: int, scan_
     return SimulatedPlateScanner(press, plate.thickness_mm, outline, seed=seed, material=material)
 
 
+def _check_link_and_scanner(plc_url: str | None, scanner_spec: str) -> None:
+    """Refuse a malformed PLC URL or a missing scan folder (InputError)."""
+    if plc_url:
+        from mppf.drivers.url import parse_plc_url
+
+        parse_plc_url(plc_url)
+    if scanner_spec != SCAN_SIM:
+        from mppf.scanners import DirectoryScanner
+
+        DirectoryScanner(scanner_spec)
+
+
 def _cycle_table(cycles, title: str) -> Table:
     table = Table(title=title, title_justify="left", caption="deviations in mm; within% = share of the scan "
                   "within the tolerance; gain = mean correction gain of the strokes", caption_justify="left")
@@ -204,6 +216,7 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
                 raise InputError("mppf loop needs DESIGN, FLAT, --press and --thickness (or --resume)",
                                  hint="e.g. mppf loop design.csv flat.csv --press press.toml --thickness 20")
             scanner_spec = scanner_spec or SCAN_SIM
+            _check_link_and_scanner(plc_url, scanner_spec)  # before planning and recording anything
             if plc_url and scanner_spec == SCAN_SIM:
                 err_console.print("[yellow]note:[/] real PLC with the simulated scanner: the scans are simulated")
             press = load_press(press_path)
@@ -255,15 +268,17 @@ def history(history_path, plate_id, as_json):
         if not plates:
             console.print(f"no plates in {hist.path}")
             return
-        table = Table(title=f"plates in {hist.path}", title_justify="left")
-        for name in ("plate", "status", "cycles", "last max |dev| mm", "last RMS mm", "thickness mm", "updated (UTC)"):
-            table.add_column(name)
+        table = Table(title=f"plates in {hist.path}", title_justify="left",
+                      caption="max|dev|, RMS: deviations (mm) of the last measured cycle; t: thickness (mm)",
+                      caption_justify="left")
+        for name in ("plate", "status", "cycles", "max|dev|", "RMS", "t", "updated (UTC)"):
+            table.add_column(name, no_wrap=name == "status", overflow="fold", min_width=5 if name != "t" else 2)
         for p in plates:
             cycles = hist.cycles(p.plate_id)
             done = [c for c in cycles if c.max_abs_mm is not None]
             table.add_row(p.plate_id, p.status, str(len(cycles)),
                           f"{done[-1].max_abs_mm:.2f}" if done else "-", f"{done[-1].rms_mm:.2f}" if done else "-",
-                          f"{p.thickness_mm:g}", p.updated_utc[:19])
+                          f"{p.thickness_mm:g}", p.updated_utc[:16].replace("T", " "))
         console.print(table)
         if plate_id:
             console.print(_cycle_table(hist.cycles(plate_id), f"cycles of {plate_id}"))
@@ -280,12 +295,12 @@ def _run_demo(out: Path, plate_name: str, seed: int, thickness_mm: float, time_s
     import mppf
     from mppf.io import read_points, write_points
     from mppf.job import load_job
-    from mppf.loop import LoopSettings, new_plate_id, run_loop, start_plate
+    from mppf.loop import LoopSettings, run_loop, start_plate
     from mppf.press import example_press_path, load_press
     from mppf.sim.shop import SimulatedPlateScanner, plate_outline_xy
     from mppf.unfold import unfold
     from mppf.viz.compare import plot_deviation
-    from mppf.viz.loop import loop_report, plot_convergence
+    from mppf.viz.loop import loop_report, plot_convergence, plot_punch_deviation
     from mppf.viz.plan import plot_strokes
     from mppf.viz.unfold import plot_strain
 
@@ -309,7 +324,7 @@ def _run_demo(out: Path, plate_name: str, seed: int, thickness_mm: float, time_s
     press = load_press(example_press_path())
     settings = LoopSettings()
     with _history(out / "history.sqlite") as history:
-        plate_id = f"demo-{new_plate_id(design_path)}-s{seed}"
+        plate_id = f"demo-{plate_name.split('_')[0]}-s{seed}-{time.strftime('%Y%m%d-%H%M%S')}"
         plate = start_plate(history, design, flat, press, thickness_mm, plate_id=plate_id,
                             work_dir=out / "plates" / plate_id, settings=settings,
                             setup={"plc": None, "scanner": SCAN_SIM, "seed": seed}, reporter=reporter)
@@ -317,14 +332,20 @@ def _run_demo(out: Path, plate_name: str, seed: int, thickness_mm: float, time_s
         files.append(plot_strokes(job, out / "strokes.png"))
         # 3. the loop on the simulated press, plate and scanner; a deviation map per cycle
         scanner = SimulatedPlateScanner(press, thickness_mm, plate_outline_xy(job, flat.points), seed=seed)
-        comparisons = {}
+        cycle_pictures = {}
 
         def on_cycle(record, comparison):
             _print_cycle(record, comparison)
             if comparison is not None:
-                comparisons[record.cycle] = comparison
-                files.append(plot_deviation(comparison, out / f"deviation-cycle-{record.cycle}.png",
-                                            f"cycle {record.cycle}: deviation of the scan from the design"))
+                n = record.cycle
+                shots = [(f"cycle {n}: deviation of the scan from the design",
+                          plot_deviation(comparison, out / f"deviation-cycle-{n}.png",
+                                         f"cycle {n}: deviation of the scan from the design")),
+                         (f"cycle {n}: deviation at the punches",
+                          plot_punch_deviation(comparison, job.punch_x_mm, job.punch_y_mm,
+                                               out / f"punch-deviation-cycle-{n}.png"))]
+                files.extend(path for _, path in shots)
+                cycle_pictures[n] = [(caption, path.read_bytes()) for caption, path in shots]
 
         with _audit(out / "audit.sqlite") as audit, _press_link(press, None, audit, time_scale, reporter) as link:
             result = run_loop(history, plate_id, link, scanner, reporter=reporter, on_cycle=on_cycle)
@@ -332,8 +353,8 @@ def _run_demo(out: Path, plate_name: str, seed: int, thickness_mm: float, time_s
         files.append(plot_convergence(result.cycles, out / "convergence.png", settings.tolerance_mm,
                                       settings.rms_tolerance_mm))
         html = loop_report(
-            history.plate(plate_id), result.cycles, comparisons, punch_x_mm=job.punch_x_mm, punch_y_mm=job.punch_y_mm,
-            tolerance_mm=settings.tolerance_mm, rms_tolerance_mm=settings.rms_tolerance_mm,
+            history.plate(plate_id), result.cycles, tolerance_mm=settings.tolerance_mm,
+            rms_tolerance_mm=settings.rms_tolerance_mm, cycle_pictures=cycle_pictures,
             pictures=[("strain of the unfolding", (out / "strain.png").read_bytes()),
                       ("strokes of the first cycle's last step", (out / "strokes.png").read_bytes())],
             intro=f"Dry run of mppf demo on the bundled hull plate {plate_name}, {thickness_mm:g} mm, seed {seed}: "
@@ -372,10 +393,11 @@ def demo(out_dir, plate_name, seed, thickness, time_scale):
     result = summary["result"]
     console.print(_cycle_table(result.cycles, f"demo plate {plate_name} ({thickness:g} mm, seed {seed}): "
                                               f"{result.status}"))
-    console.print(f"dry run: simulated PLC over loopback Modbus, motion {time_scale:g}x faster than the real press")
-    console.print(f"pictures and report in {out_dir}{os.sep}:")
+    console.print(f"dry run: simulated PLC over loopback Modbus, motion {time_scale:g}x faster than the real press",
+                  soft_wrap=True)
+    console.print(f"pictures and report in {out_dir}{os.sep}:", soft_wrap=True)
     for path in summary["files"]:
-        console.print(f"  {path}")
+        console.print(f"  {path}", soft_wrap=True)
     console.print(f"done in {time.monotonic() - started:.1f} s")
 
 

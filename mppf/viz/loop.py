@@ -2,12 +2,13 @@
 
 :func:`convergence_figure` plots the largest absolute and the RMS deviation of every
 cycle against the two limits; :func:`loop_report` is one self-contained HTML page with
-the cycle table, the convergence chart and, per cycle, the deviation map and the
-deviation at the punches (built from :mod:`mppf.report`'s building blocks).
+the cycle table, the convergence chart, pictures of the plate and of each cycle (built
+from :mod:`mppf.report`'s building blocks).
 """
 
 from __future__ import annotations
 
+import html
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -16,7 +17,7 @@ from matplotlib.figure import Figure
 
 from mppf.history import CycleRecord, PlateRecord
 from mppf.report import image_html, render_page, table_html
-from mppf.viz.compare import deviation_map_figure, figure_png, punch_map_figure
+from mppf.viz.compare import figure_png, punch_map_figure
 
 
 def convergence_figure(cycles: Sequence[CycleRecord], tolerance_mm: float, rms_tolerance_mm: float) -> Figure:
@@ -47,6 +48,13 @@ def plot_convergence(cycles: Sequence[CycleRecord], path, tolerance_mm: float, r
     return path
 
 
+def plot_punch_deviation(comparison, punch_x_mm, punch_y_mm, path) -> Path:
+    """Draw the deviation at the punches of a comparison and save it; return the path."""
+    path = Path(path)
+    punch_map_figure(comparison, punch_x_mm, punch_y_mm).savefig(path, dpi=110)
+    return path
+
+
 def cycle_rows(cycles: Sequence[CycleRecord]) -> list[tuple]:
     """One row per cycle: cycle, steps, max |dev|, RMS, within %, gain, decision, scan SHA-256."""
     return [
@@ -65,13 +73,11 @@ CYCLE_HEADER = ("cycle", "steps", "max |dev| (mm)", "RMS (mm)", "within toleranc
 def loop_report(
     plate: PlateRecord,
     cycles: Sequence[CycleRecord],
-    comparisons: Mapping[int, object],
     *,
-    punch_x_mm,
-    punch_y_mm,
     tolerance_mm: float,
     rms_tolerance_mm: float,
     pictures: Sequence[tuple[str, bytes]] = (),
+    cycle_pictures: Mapping[int, Sequence[tuple[str, bytes]]] | None = None,
     intro: str = "",
 ) -> str:
     """The HTML report of a plate's loop.
@@ -80,12 +86,11 @@ def loop_report(
     ----------
     plate : PlateRecord
     cycles : sequence of CycleRecord
-    comparisons : mapping cycle -> Comparison
-        The comparisons computed in this run (their maps are drawn).
-    punch_x_mm, punch_y_mm : (cols,), (rows,) float
     tolerance_mm, rms_tolerance_mm : float
     pictures : sequence of (caption, png bytes)
-        More pictures for the first section (strain, strokes...).
+        Pictures of the plate (strain, strokes...).
+    cycle_pictures : mapping cycle -> sequence of (caption, png bytes)
+        Pictures of each cycle (deviation map, deviation at the punches).
     intro : str
 
     Returns
@@ -103,14 +108,11 @@ def loop_report(
                 ("Convergence", image_html(figure_png(convergence_figure(cycles, tolerance_mm, rms_tolerance_mm)),
                                            "convergence"))]
     if pictures:
-        sections.append(("Plate and strokes", "\n".join(image_html(png, caption) + f"<p>{caption}</p>"
-                                                        for caption, png in pictures)))
-    for number in sorted(comparisons):
-        c = comparisons[number]
-        body = image_html(figure_png(deviation_map_figure(c, f"cycle {number}: deviation of the scan")),
-                          f"deviation map, cycle {number}")
-        if c.punch_deviation_mm is not None:
-            body += image_html(figure_png(punch_map_figure(c, punch_x_mm, punch_y_mm)),
-                               f"deviation at the punches, cycle {number}")
-        sections.append((f"Cycle {number}", body))
+        sections.append(("Plate and strokes", _figures(pictures)))
+    for number, shots in sorted((cycle_pictures or {}).items()):
+        sections.append((f"Cycle {number}", _figures(shots)))
     return render_page(f"Bend - measure - compare: plate {plate.plate_id}", sections, intro)
+
+
+def _figures(pictures: Sequence[tuple[str, bytes]]) -> str:
+    return "\n".join(image_html(png, caption) + f"<p>{html.escape(caption)}</p>" for caption, png in pictures)
