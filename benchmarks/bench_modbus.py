@@ -120,7 +120,7 @@ def timed(fn, repeat: int) -> list[float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--repeat", type=int, default=15, help="uploads per measurement (TCP)")
-    parser.add_argument("--rtu-repeat", type=int, default=3,
+    parser.add_argument("--rtu-repeat", type=int, default=6,
                         help="timed RTU uploads for the driver and for the bare loop (each about 2 s)")
     args = parser.parse_args()
     logging.disable(logging.CRITICAL)
