@@ -53,3 +53,41 @@ def test_stuck_punch_over_rtu():
         sim.inject("stuck", matrix="upper", row=3, col=0, percent=20)
         with ModbusPress(sim.url, press) as plc, pytest.raises(PressFault, match=r"upper \(row 3, col 0\)"):
             plc.run_step(upper, lower)
+
+
+def test_exception_reply_over_rtu_is_a_plc_error():
+    """A write to a read-only status register is answered with a Modbus exception frame
+    (5 bytes), which the exact-length RTU reader must decode into PlcError, not a timeout."""
+    from mppf.drivers.modbus_adapter import ModbusAdapter
+    from mppf.drivers.regmap import load_register_map
+    from mppf.errors import PlcError
+
+    status = load_register_map()["status_word"]
+    with run_simulated_plc(small_press(), rtu=True, time_scale=50.0) as sim:
+        with ModbusAdapter(parse_plc_url(sim.url)) as link:
+            with pytest.raises(PlcError):
+                link.write_registers(status.address, [0xFFFF], retries=0)
+            # the link is still in step: the next request gets its own answer
+            assert link.read_holding(status.address, 1) is not None
+
+
+def test_silent_rtu_line_is_a_link_error_within_the_timeout():
+    """Nothing answers on the other end of the pty: a read fails with LinkError after the
+    reply timeout (and its retries), not later and not with a hang."""
+    import time
+
+    from mppf.drivers.modbus_adapter import ModbusAdapter
+    from mppf.errors import LinkError
+    from mppf.sim.serial_pty import PtyPair
+
+    pair = PtyPair()
+    try:
+        url = parse_plc_url(f"rtu://{pair.port_b}?baud=115200&parity=N&unit=1&timeout=0.2&retries=1")
+        with ModbusAdapter(url) as link:
+            start = time.monotonic()
+            with pytest.raises(LinkError):
+                link.read_holding(0, 2)
+            elapsed = time.monotonic() - start
+    finally:
+        pair.close()
+    assert 0.35 <= elapsed < 2.0  # two attempts of 0.2 s each, plus the pause between them

@@ -10,10 +10,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
+from scipy.spatial import cKDTree
+
+from mppf import icp
 from mppf.errors import GeometryError, InputError
+from mppf.frame import fit_frame
 from mppf.icp import horn_fit
 from mppf.io import read_points
-from mppf.register import register_icp, register_paired
+from mppf.register import principal_candidates, register_icp, register_paired
 from mppf.transform import apply_tf, invert_tf, make_tf, quaternion_to_matrix, rotation_angle_deg
 
 HULL_FILES = [
@@ -176,20 +180,44 @@ def random_plate(n: int, rng: np.random.Generator) -> np.ndarray:
     return np.column_stack([u, v, u * u / 16000 - v * v / 24000 + u**3 / 3e8])
 
 
+PLATE_POSE = make_tf(Rotation.from_euler("xyz", [12.0, -8.0, 20.0], degrees=True).as_matrix(),
+                    [250.0, -150.0, 400.0])
+"""Pose of the scanner frame relative to the design in the differently-sampled cases."""
+
+
+def sampled_scan(n_design: int, n_scan: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """(design, scan in the scanner frame with 0.5 mm noise), sampled independently."""
+    rng = np.random.default_rng(seed)
+    design = random_plate(n_design, rng)
+    scan = random_plate(n_scan, rng) + rng.normal(scale=0.5, size=(n_scan, 3))
+    return design, apply_tf(invert_tf(PLATE_POSE), scan)
+
+
 def test_point_to_point_turn_on_a_differently_sampled_100k_scan():
     # design and scan sampled independently: the closest-point offsets in the plane are about
     # the point spacing and follow the sampling, not the shape; point-to-point left the turn
     # about the normal to them and ended 0.097 degree off here (0.24 - 0.40 at 10k points)
-    rng = np.random.default_rng(2)
-    design = random_plate(100_000, rng)
-    tf_true = make_tf(Rotation.from_euler("xyz", [12.0, -8.0, 20.0], degrees=True).as_matrix(),
-                      [250.0, -150.0, 400.0])
-    scan = apply_tf(invert_tf(tf_true), random_plate(100_000, rng) + rng.normal(scale=0.5, size=(100_000, 3)))
+    design, scan = sampled_scan(100_000, 100_000, seed=2)
     result = register_icp(scan, design, method="point")
-    rot_err, shift_err = motion_error(result.tf, tf_true, scan.mean(axis=0))
+    rot_err, shift_err = motion_error(result.tf, PLATE_POSE, scan.mean(axis=0))
     assert result.outline_pinned and result.converged
     assert rot_err < 0.025, result.stop_reason
     assert shift_err < 0.5
+
+
+def test_icp_stage_stops_when_the_closest_points_cycle():
+    # point-to-plane on 4,000 scan points swings between a few closest-point sets here and
+    # ran to the iteration limit (150) before the stall test
+    design, scan = sampled_scan(20_000, 4000, seed=0)
+    problem = icp.Problem(target=design, tree=cKDTree(design), frame=fit_frame(design), method="plane")
+    start = min(principal_candidates(fit_frame(scan), fit_frame(design)),
+                key=lambda tf: rotation_angle_deg(tf @ invert_tf(PLATE_POSE)))
+    stage = icp.run(problem, scan, start, max_iterations=150, tol=(1e-2, 1e-4, 1e-8))
+    assert stage.converged and stage.iterations <= 3 * icp.STALL_ITERATIONS
+    assert "cycle" in stage.stop_reason
+    # the lowest-MSE transform comes back, and it is the right one
+    assert icp.match(problem, scan, stage.tf).rms_mm <= min(stage.rms_history) * (1 + 1e-6)
+    assert motion_error(stage.tf, PLATE_POSE, scan.mean(axis=0))[0] < 0.05
 
 
 def test_icp_reports_iteration_limit_and_history():
