@@ -85,6 +85,19 @@ POINT_STAGE_POINTS = 3000
 TRIM_FRACTION = 0.05
 """Worst pairs dropped in each ICP iteration (outliers, the scan's edge beyond the design)."""
 
+START_POINTS = 2000
+"""Scan points used to score each principal-axes start by a converged ICP (a seeded subsample)."""
+
+START_ITERATIONS = 40
+"""ICP iterations (per stage) run from each principal-axes start before it is scored."""
+
+TIE_RATIO = 1.25
+"""Two starts whose converged RMS are within this factor are a tie (a nearly symmetric plate)."""
+
+MARK_RADIUS_FRACTION = 0.25
+"""A start agrees with the reference mark when it puts the mark within this fraction of the
+design's length of the mark's place on the design."""
+
 
 @dataclass(frozen=True, eq=False)
 class Comparison:
@@ -223,6 +236,7 @@ def compare(
     bins: int | np.ndarray = 30,
     punch_radius_mm: float | None = None,
     rotation_hint=None,
+    reference_mark=None,
     fit_outline: bool | None = None,
 ) -> Comparison:
     """Register a scan onto its design and measure the deviation of every point.
@@ -254,7 +268,15 @@ def compare(
         Rough rotation from measured into design coordinates (within about 45 deg), e.g.
         ``invert_tf(tf_press_design)`` when the scanner's axes are the press's. It picks
         which of the four principal-axes starts to use, so that a nearly symmetric plate
-        is not registered turned by a half turn. Default: the best fitting start.
+        is not registered turned by a half turn. Used only to break a tie: when the
+        best two of the four starts, each scored by a converged robust ICP, fit within
+        ``TIE_RATIO`` of each other. Default: the best fitting start.
+    reference_mark : pair of (3,) float, optional
+        ``(measured_xyz, design_xyz)``: where the plate's reference-corner mark is in the
+        scan, and where that corner is on the design. Of the four starts, only those that
+        put the mark within ``MARK_RADIUS_FRACTION`` of the design's length of its place
+        are used (the best fitting of them); this settles the half turns of nearly
+        symmetric plates (see ``docs/compare.md``, "Which way round").
     fit_outline : bool, optional
         After the ICP, set the in-plane position and turn by the plate's outline (the
         scan's edge against the design's) and then the out-of-plane position by the
@@ -292,9 +314,10 @@ def compare(
 
     # 3. robust registration of the scan onto the design skin, and
     # 4. signed normal deviation of every point (foot points on the design surface)
-    init = "principal" if rotation_hint is None else _hinted_start(measured, target, rotation_hint)
+    init, start_note = _choose_start(measured, target, rotation_hint, reference_mark, float(np.ptp(uv_d, axis=0).max()))
     reg, moved, feet, deviation, outside, reg_note = _register(measured, target, fitted, uv_d, sign, offset_mm,
                                                                init)
+    reg_note = f"{start_note}; {reg_note}"
     transform = reg.tf
     if fit_outline is None:
         fit_outline = punch_xy_mm is not None
@@ -492,15 +515,67 @@ def _robust_plane(uv: np.ndarray, values: np.ndarray) -> np.ndarray:
     return coef
 
 
-def _hinted_start(measured: np.ndarray, target: np.ndarray, rotation_hint) -> np.ndarray:
-    """The principal-axes start (measured -> design) whose rotation is closest to the hint."""
+def _as_rotation(rotation_hint) -> np.ndarray:
     hint = np.asarray(rotation_hint, dtype=float)
     if hint.shape not in ((3, 3), (4, 4)) or not np.all(np.isfinite(hint)):
         raise InputError(f"rotation_hint must be a (3, 3) rotation or a (4, 4) transform, got shape {hint.shape}")
-    hint = hint[:3, :3]
+    return hint[:3, :3]
+
+
+def _as_mark(reference_mark) -> tuple[np.ndarray, np.ndarray]:
+    try:
+        measured, design = (np.asarray(p, dtype=float).reshape(3) for p in reference_mark)
+    except (TypeError, ValueError):
+        raise InputError("reference_mark must be a pair (measured_xyz, design_xyz) of 3 coordinates each",
+                         hint="give the mark's position in the scan and the corner's on the design, mm") from None
+    if not (np.all(np.isfinite(measured)) and np.all(np.isfinite(design))):
+        raise InputError(f"reference_mark has NaN or infinite coordinates: {measured}, {design}")
+    return measured, design
+
+
+def _choose_start(measured, target, rotation_hint, reference_mark, length_mm: float):
+    """The start of the registration (measured -> design) and a note saying how it was chosen.
+
+    Each of the four principal-axes starts (:func:`mppf.register.principal_candidates`) is
+    run to convergence by a trimmed, Huber-weighted point-to-plane ICP on a subsample of
+    the scan and scored by its RMS. A few ICP iterations do not tell a nearly symmetric
+    plate from its half turn when the plate is still some mm off its design; the
+    converged fits usually do. Then:
+
+    - with ``reference_mark``, the best start among those that agree with the mark;
+    - else the best start, unless the second best is within ``TIE_RATIO`` of it and a
+      ``rotation_hint`` is given: then the one of the two nearest to the hint.
+    """
+    hint = None if rotation_hint is None else _as_rotation(rotation_hint)
+    mark = None if reference_mark is None else _as_mark(reference_mark)
     candidates = principal_candidates(fit_frame(measured), fit_frame(target))
-    turns = [rotation_angle_deg(c[:3, :3] @ hint.T) for c in candidates]
-    return candidates[int(np.argmin(turns))]
+    fits, scores = [], []
+    for start in candidates:
+        reg = register_icp(measured, target, method="plane", init=start, trim_fraction=TRIM_FRACTION,
+                           robust="huber", pin_outline=False, max_points=START_POINTS,
+                           max_iterations=START_ITERATIONS)
+        fits.append(reg.tf)
+        scores.append(reg.rms_mm)
+    order = [int(i) for i in np.argsort(scores)]
+    best, second = order[0], order[1]
+    scored = ", ".join(f"{s:.2f}" for s in scores)
+    if mark is not None:
+        miss = [float(np.linalg.norm(apply_tf(tf, mark[0][None])[0] - mark[1])) for tf in fits]
+        agree = [i for i in order if miss[i] <= MARK_RADIUS_FRACTION * length_mm]
+        if agree:
+            chosen = agree[0]
+            how = "the reference mark" + (" (it overruled the best fit)" if chosen != best else "")
+            return fits[chosen], (f"start: {how}; converged RMS of the four principal-axes starts {scored} mm, "
+                                  f"mark {miss[chosen]:.0f} mm from its place")
+        note = (f"start: no start puts the reference mark near its place (nearest {min(miss):.0f} mm): "
+                "the best fit is used; check the mark")
+        return fits[best], f"{note}; converged RMS {scored} mm"
+    if hint is not None and scores[second] <= TIE_RATIO * scores[best] + 1e-9:
+        turns = {i: rotation_angle_deg(fits[i][:3, :3] @ hint.T) for i in (best, second)}
+        chosen = min(turns, key=turns.get)
+        return fits[chosen], f"start: tie of the best two starts broken by the rotation hint; converged RMS {scored} mm"
+    tie = " (a tie of the best two: nearly symmetric plate, no hint)" if scores[second] <= TIE_RATIO * scores[best] else ""
+    return fits[best], f"start: best converged fit{tie}; converged RMS {scored} mm"
 
 
 def _register(measured, target, fitted, uv_design, sign: float, offset_mm: float, init="principal"):
@@ -514,7 +589,7 @@ def _register(measured, target, fitted, uv_design, sign: float, offset_mm: float
        the design's edge (grossly different shapes), then stage 1 is used.
 
     ``init`` is "principal" (the best of the four principal-axes starts) or a start
-    transform (:func:`_hinted_start`).
+    transform (:func:`_choose_start`).
     """
     stages = []
     for method, trim, robust, max_points, iterations in (("point", None, None, POINT_STAGE_POINTS, 40),

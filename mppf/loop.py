@@ -24,6 +24,7 @@ The loop takes the press (:class:`mppf.presslink.PressLink`) and the scanner
 from __future__ import annotations
 
 import dataclasses
+import json
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
@@ -43,9 +44,14 @@ from mppf.presslink import PressLink, StepResult
 from mppf.progress import NULL_REPORTER, Reporter
 from mppf.scanners import ScanContext, Scanner
 from mppf.springback import Material
+from mppf.transform import apply_tf
 
 GROWTH_MARGIN_MM = 0.1
 """An RMS increase below this is scan noise, not growth (for the divergence rule)."""
+
+MARK_SUFFIX = ".mark.json"
+"""The reference-corner mark of a scan ``S`` is read from ``S`` + this suffix, when present:
+``{"reference_mark_mm": [x, y, z]}`` in the scan's coordinates (see ``docs/compare.md``)."""
 
 #: Decisions recorded for a compared cycle; all but "continue" end the loop.
 DECISIONS = ("continue", "in_tolerance", "max_cycles", "diverged")
@@ -420,6 +426,58 @@ def _load_cycle_job(record: CycleRecord) -> Job:
     return job
 
 
+def reference_corner_xy(outline_xy_mm) -> np.ndarray:
+    """The plate's reference corner on the press: the outline corner with the smallest x + y.
+
+    The flat plate is cut with a mark on one corner; the operator lays it in the press
+    by the corner positions of the plan with the mark on the corner nearest the press's
+    first punch (row 0, column 0), so this is where the mark is.
+
+    Parameters
+    ----------
+    outline_xy_mm : (k, 2) float
+        The plate's outline on the press (``job.extra["plate_outline_mm"]``).
+
+    Returns
+    -------
+    (2,) float, press x, y in mm
+    """
+    outline = np.asarray(outline_xy_mm, dtype=float).reshape(-1, 2)
+    return outline[int(np.argmin(outline[:, 0] + outline[:, 1]))]
+
+
+def reference_mark(scan_path, design_points: np.ndarray, job: Job):
+    """``(measured_xyz, design_xyz)`` of the reference mark for :func:`mppf.compare.compare`, or None.
+
+    The measured side comes from ``<scan>.mark.json`` (:data:`MARK_SUFFIX`), written by the
+    scanner software or the operator; the design side is the design point under the
+    reference corner (:func:`reference_corner_xy`) as the job placed the design on the press.
+    None when there is no mark file or the job has no outline.
+
+    Raises
+    ------
+    InputError
+        The mark file is unreadable or lacks three finite coordinates.
+    """
+    path = Path(str(scan_path) + MARK_SUFFIX)
+    outline = job.extra.get("plate_outline_mm")
+    if not path.is_file() or not outline:
+        return None
+    try:
+        measured = np.asarray(json.loads(path.read_text())["reference_mark_mm"], dtype=float).reshape(3)
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise InputError(f"cannot read the reference mark {path}: {exc}",
+                         hint='it must hold {"reference_mark_mm": [x, y, z]} in the scan\'s coordinates, '
+                              "or delete it to register without the mark") from None
+    if not np.all(np.isfinite(measured)):
+        raise InputError(f"the reference mark in {path} is not finite: {measured.tolist()}",
+                         hint="pick the mark again, or delete the file to register without it")
+    corner = reference_corner_xy(outline)
+    design_press = apply_tf(job.tf_press_design, design_points)
+    nearest = int(np.argmin(np.linalg.norm(design_press[:, :2] - corner, axis=1)))
+    return measured, np.asarray(design_points, dtype=float)[nearest]
+
+
 def _compare(plate: PlateRecord, record: CycleRecord, design: PointCloud, settings: LoopSettings):
     scan = _read_checked(record.scan_path, record.scan_sha256, "scan")
     job = _load_cycle_job(record)
@@ -427,6 +485,7 @@ def _compare(plate: PlateRecord, record: CycleRecord, design: PointCloud, settin
     return compare(
         design.points, scan.points, tolerance_mm=settings.tolerance_mm, offset_mm=offset_mm,
         punch_xy_mm=_punch_xy(job), tf_press_design=job.tf_press_design,
+        reference_mark=reference_mark(record.scan_path, design.points, job),
     )
 
 

@@ -11,7 +11,11 @@ A scan (see ``docs/compare.md``, section "The simulated scanner") is
   (reflections, dust),
 - in an arbitrary rigid pose (a random rotation and a translation of up to 2 m): the
   scanner knows nothing of the press coordinates. With ``max_turn_deg`` the rotation is
-  a turn about the vertical only (a scanner mounted over the press table).
+  a turn about the vertical only (a scanner mounted over the press table),
+- optionally with the plate's reference-corner mark picked in the scan (``mark_xy_mm``):
+  its position in the scanner's coordinates, as the operator would click it in the
+  scanner software (within a few mm), written next to the scan as
+  ``<scan file>.mark.json`` (:data:`mppf.loop.MARK_SUFFIX`). The pose stays arbitrary.
 
 The scanner owns one seeded random generator: successive scans differ, the sequence is
 reproducible. Build a new scanner with the same seed to repeat a scan.
@@ -19,6 +23,7 @@ reproducible. Build a new scanner with the same seed to repeat a scan.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,6 +32,7 @@ from scipy.spatial.transform import Rotation
 
 from mppf.errors import InputError
 from mppf.io import write_points
+from mppf.loop import MARK_SUFFIX
 from mppf.sim.forming import FormedPlate
 from mppf.transform import apply_tf, make_tf
 
@@ -35,6 +41,9 @@ OUTLIER_OFFSET_MM = (5.0, 50.0)
 
 MAX_TRANSLATION_MM = 2000.0
 """Largest component of the random translation of the scan pose."""
+
+MARK_PICK_MM = 5.0
+"""Standard deviation (per coordinate) of picking the reference mark in the scan."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -55,6 +64,8 @@ class ScanSample:
         Number of occlusion blobs (1 or 2; 0 without occlusion).
     hidden_xy_mm : (m, 2) float
         Press (x, y) of the sample positions hidden by the blobs.
+    mark_mm : (3,) float or None
+        The reference mark as picked in the scan (scanner coordinates), when asked for.
     """
 
     points: np.ndarray
@@ -63,6 +74,7 @@ class ScanSample:
     occluded_fraction: float
     n_blobs: int
     hidden_xy_mm: np.ndarray
+    mark_mm: np.ndarray | None = None
 
 
 class SimulatedScanner:
@@ -114,12 +126,15 @@ class SimulatedScanner:
         self.seed = seed
         self._rng = np.random.default_rng(seed)
 
-    def sample(self, formed: FormedPlate) -> ScanSample:
+    def sample(self, formed: FormedPlate, mark_xy_mm=None) -> ScanSample:
         """Scan ``formed`` and return the points with their ground truth.
 
         Parameters
         ----------
         formed : FormedPlate
+        mark_xy_mm : (2,) float, optional
+            Press (x, y) of the plate's reference-corner mark: its top-skin point is
+            returned in the scanner's coordinates (picked within ``MARK_PICK_MM``).
 
         Returns
         -------
@@ -154,6 +169,11 @@ class SimulatedScanner:
             rotation = Rotation.from_euler("z", turn, degrees=True).as_matrix()
         tf_scan_press = make_tf(rotation, rng.uniform(-MAX_TRANSLATION_MM, MAX_TRANSLATION_MM, 3))
         order = rng.permutation(len(points))
+        mark = None
+        if mark_xy_mm is not None:  # drawn last: the scan itself is the same with or without
+            on_skin = formed.offset_points(np.asarray(mark_xy_mm, dtype=float).reshape(1, 2),
+                                           0.5 * formed.thickness_mm)
+            mark = apply_tf(tf_scan_press, on_skin)[0] + rng.normal(0.0, MARK_PICK_MM, 3)
         return ScanSample(
             points=apply_tf(tf_scan_press, points[order]),
             tf_scan_press=tf_scan_press,
@@ -161,6 +181,7 @@ class SimulatedScanner:
             occluded_fraction=float(occluded),
             n_blobs=n_blobs,
             hidden_xy_mm=hidden,
+            mark_mm=mark,
         )
 
     def _occlusion_mask(self, xy: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, int]:
@@ -188,15 +209,24 @@ class SimulatedScanner:
         """Scan ``formed``; (n, 3) float points in the scanner's coordinates, mm."""
         return self.sample(formed).points
 
-    def scan(self, formed: FormedPlate, path) -> Path:
+    def scan(self, formed: FormedPlate, path, mark_xy_mm=None) -> Path:
         """Scan ``formed`` and write the points to ``path`` (.ply binary, .csv, .txt, .xyz).
+
+        With ``mark_xy_mm`` (press x, y of the reference-corner mark) the mark picked in
+        the scan is also written to ``<path>.mark.json`` as ``{"reference_mark_mm": [x, y, z]}``
+        in the scan's coordinates.
 
         Returns
         -------
         Path
             The file written.
         """
-        sample = self.sample(formed)
+        sample = self.sample(formed, mark_xy_mm)
         header = (f"simulated scan: noise {self.noise_mm} mm, occlusion {sample.occluded_fraction:.3f}, "
                   f"outliers {int(sample.is_outlier.sum())}, seed {self.seed}")
-        return write_points(path, sample.points, header=header)
+        written = write_points(path, sample.points, header=header)
+        if sample.mark_mm is not None:
+            mark_doc = {"reference_mark_mm": [float(v) for v in sample.mark_mm],
+                        "frame": "scan coordinates, mm (the reference-corner mark as picked in the scan)"}
+            Path(str(written) + MARK_SUFFIX).write_text(json.dumps(mark_doc, indent=2) + "\n")
+        return written

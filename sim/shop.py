@@ -23,6 +23,7 @@ from scipy.spatial import ConvexHull
 
 from mppf.errors import GeometryError
 from mppf.job import Job
+from mppf.loop import reference_corner_xy
 from mppf.scanners import ScanContext
 from mppf.sim.forming import form_plate, sample_plate
 from mppf.sim.scanner import SimulatedScanner
@@ -76,11 +77,15 @@ class SimulatedPlateScanner:
         Scanner imperfections (see :class:`mppf.sim.scanner.SimulatedScanner`).
     suffix : str
         Scan file format (".ply" or ".csv").
+    reference_mark : bool
+        Pick the plate's reference-corner mark (:func:`mppf.loop.reference_corner_xy` of the
+        outline) in every scan and write it next to the scan (``<scan>.mark.json``), as the
+        operator does on the shop floor; the scan's pose stays arbitrary.
     """
 
     def __init__(self, press, thickness_mm: float, outline_xy_mm, *, seed: int = 0,
                  material: Material = Material(), noise_mm: float = 0.3, occlusion_fraction: float = 0.2,
-                 outlier_fraction: float = 0.01, suffix: str = ".ply"):
+                 outlier_fraction: float = 0.01, suffix: str = ".ply", reference_mark: bool = True):
         self.press = press
         self.plate = sample_plate(thickness_mm, material, seed)
         self.outline_xy_mm = np.asarray(outline_xy_mm, dtype=float)
@@ -89,6 +94,7 @@ class SimulatedPlateScanner:
         self.occlusion_fraction = occlusion_fraction
         self.outlier_fraction = outlier_fraction
         self.suffix = suffix
+        self.mark_xy_mm = reference_corner_xy(self.outline_xy_mm) if reference_mark else None
         self.last_formed = None
 
     def acquire(self, cycle: int, context: ScanContext) -> Path:
@@ -100,4 +106,4 @@ class SimulatedPlateScanner:
         scanner = SimulatedScanner(noise_mm=self.noise_mm, occlusion_fraction=self.occlusion_fraction,
                                    outlier_fraction=self.outlier_fraction, seed=self.seed * 1000 + cycle)
         context.work_dir.mkdir(parents=True, exist_ok=True)
-        return scanner.scan(formed, context.work_dir / f"scan-cycle-{cycle:02d}{self.suffix}")
+        return scanner.scan(formed, context.work_dir / f"scan-cycle-{cycle:02d}{self.suffix}", self.mark_xy_mm)
