@@ -7,7 +7,9 @@ pose. For each size both files are written as CSV; mppf is timed on the whole jo
 arrays handed over in memory, so its file reading is not counted). Both start from the
 same principal-axes start (the sign candidate nearest the truth), then from the identity.
 
-Run:  python benchmarks/bench_register.py [--sizes 10000,50000,100000,200000] [--quick]
+Run:  python benchmarks/bench_register.py [--sizes 10000,50000,100000,200000]
+      [--identity-sizes 50000] [--no-open3d]
+(quick look, under a minute without load: ``--sizes 10000 --identity-sizes ""``).
 Open3D is optional (``pip install open3d``; on Debian it needs ``apt-get install
 libusb-1.0-0`` to import); without it only the mppf rows are printed.
 """

@@ -6,8 +6,8 @@ is in WAL mode with a busy timeout, so several ``mppf`` processes (and threads) 
 append at the same time. Default location: ``$MPPF_HOME/audit.sqlite`` when
 ``MPPF_HOME`` is set, else ``~/.local/share/mppf/audit.sqlite``.
 
-Master heartbeat writes are not recorded (four a second would drown the log); the
-start and end of each connection are.
+Master heartbeat writes are not recorded (four a second would drown the log); each
+connection (or failed attempt to connect) is.
 """
 
 from __future__ import annotations

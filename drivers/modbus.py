@@ -35,7 +35,8 @@ from mppf.drivers import regmap as rm
 from mppf.drivers.audit import NULL_AUDIT
 from mppf.drivers.modbus_adapter import ModbusAdapter
 from mppf.drivers.url import PlcUrl, parse_plc_url
-from mppf.errors import Cancelled, ConfigError, InputError, LimitError, LinkError, PlcError, PressFault, PressRefused
+from mppf.errors import (Cancelled, ConfigError, InputError, LimitError, LinkError, MppfError, PlcError,
+                         PressFault, PressRefused)
 from mppf.press import PressConfig
 from mppf.presslink import PressStatus, StepResult
 from mppf.progress import NULL_REPORTER, Reporter
@@ -43,6 +44,7 @@ from mppf.progress import NULL_REPORTER, Reporter
 SIDES = ("upper", "lower")
 MAX_LISTED = 8  # punches named in one error message
 RECONNECT_S = 2.0  # how long to try reconnecting after a lost link before sending STOP
+STOP_ATTEMPTS_AFTER_CTRL_C = 3  # a STOP interrupted by another Ctrl-C is sent again, this often at most
 
 
 @dataclass(frozen=True)
@@ -167,7 +169,14 @@ class ModbusPress:
         """Read and check magic, map version, size and limits."""
         first = self._field("magic").address
         last = max(self._field(n).end for n in ("map_version", "rows", "cols", "lower_max"))
-        words = self._io.read_holding(first, last - first, max_chunk=self.map.max_read_registers)
+        try:
+            words = self._io.read_holding(first, last - first, max_chunk=self.map.max_read_registers)
+        except PlcError as exc:
+            raise LinkError(
+                f"the device at {self.url} is not an mppf press PLC with unit id {self.url.unit}: reading its "
+                f"identity (registers {first}-{last - 1}) was refused: {exc.message}",
+                hint="check the unit id (unit=N in the URL), the host and the port: another Modbus device answered",
+            ) from None
 
         def get(name: str) -> list[int]:
             f = self._field(name)
@@ -489,6 +498,9 @@ class ModbusPress:
         Cancelled
             Ctrl-C; STOP was sent.
         """
+        if timeout_s is not None and not (math.isfinite(timeout_s) and timeout_s > 0):
+            raise InputError(f"the motion timeout must be a positive number of seconds, got {timeout_s}",
+                             hint="give --timeout in s, or leave it out for the default")
         go_sent = False
         seq = None
         try:
@@ -507,6 +519,13 @@ class ModbusPress:
                 raise
             reporter.finish()
             raise self._lost_link(exc, seq, go_sent) from None
+        except Exception as exc:
+            # the driver's own failures (PressFault, PressRefused, ...) have already done what is
+            # safe; anything else after GO (a bug, a failing progress display) must not leave
+            # the press moving until the watchdog notices
+            if go_sent and not isinstance(exc, MppfError):
+                self._stop_after_trouble(f"unexpected error: {type(exc).__name__}: {exc}")
+            raise
 
     def upload(self, upper_mm: np.ndarray, lower_mm: np.ndarray, *, reporter: Reporter = NULL_REPORTER) -> int:
         """Check, upload, verify and have the PLC validate one step, without starting it.
@@ -744,12 +763,21 @@ class ModbusPress:
         ``fresh`` is for an interrupted request (Ctrl-C): its reply may still be on the way
         and must not be taken for the reply to STOP.
         """
-        try:
-            if fresh:
-                self._reconnect()
-            self.stop(reason)
-        except LinkError:
-            pass  # recorded by stop(); the caller raises the original trouble
+        for _ in range(STOP_ATTEMPTS_AFTER_CTRL_C):
+            try:
+                if fresh:
+                    self._reconnect()
+                self.stop(reason)
+                return
+            except LinkError:
+                return  # recorded by stop(); the caller raises the original trouble
+            except KeyboardInterrupt:
+                # Ctrl-C again while STOP was on its way: the operator wants the press stopped,
+                # so STOP again (harmless to repeat) on a fresh connection
+                fresh = True
+                reason = f"{reason} (Ctrl-C again: STOP repeated)"
+        self._record("stop", "failed", sequence=self._last_sequence or None,
+                     detail=f"{reason}: interrupted by Ctrl-C {STOP_ATTEMPTS_AFTER_CTRL_C} times")
 
     def _lost_link(self, exc: LinkError, seq: int | None, go_sent: bool) -> LinkError:
         """The link failed during a step: STOP once after reconnecting (if GO was sent)."""

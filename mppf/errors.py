@@ -2,7 +2,7 @@
 
 Every error a user can meet is an :class:`MppfError`. Each class also derives from
 the built-in exception it resembles, so library users can catch either. The command
-line maps the classes to exit codes (see ``docs/cli.md``):
+line maps the classes to exit codes (see ``docs/architecture.md``):
 
 ====  =======================================================
 code  meaning

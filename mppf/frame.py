@@ -166,7 +166,7 @@ def fit_frame(points) -> LocalFrame:
     return LocalFrame(origin=origin, axes=axes)
 
 
-def check_height_field(frame: LocalFrame, points, faces=None) -> None:
+def check_height_field(frame: LocalFrame, points, faces=None, *, source: str | None = None) -> None:
     """Raise GeometryError when the plate folds over in ``frame`` (not z = D(u, v)).
 
     With ``faces`` (a mesh, consistently wound): any triangle whose projection on the
@@ -185,11 +185,14 @@ def check_height_field(frame: LocalFrame, points, faces=None) -> None:
     frame : LocalFrame
     points : (n, 3) float, mm, world coordinates
     faces : (m, 3) int, optional
+    source : str, optional
+        Name of the plate (a file name) that starts the message.
 
     Raises
     ------
     GeometryError
     """
+    where = f"{source}: " if source else ""
     local = frame.to_local(points)
     uv, w = local[:, :2], local[:, 2]
     size_mm = float(np.ptp(uv, axis=0).max())
@@ -203,7 +206,7 @@ def check_height_field(frame: LocalFrame, points, faces=None) -> None:
         flipped = min(positive, negative)
         if flipped:
             raise GeometryError(
-                f"the plate folds over in its own frame: {flipped} of {len(tri)} triangles "
+                f"{where}the plate folds over in its own frame: {flipped} of {len(tri)} triangles "
                 "are flipped when projected on its best-fit plane",
                 hint="it is not a height field z = D(u, v); split the plate into parts that are",
             )
@@ -220,7 +223,7 @@ def check_height_field(frame: LocalFrame, points, faces=None) -> None:
     layered = keep & ((conflict & keep[idx]).sum(axis=1) >= 2)
     if layered.sum() >= max(FOLD_MIN_POINTS, FOLD_MIN_FRACTION * len(w)):
         raise GeometryError(
-            f"the plate folds over (or stands steeper than {np.degrees(np.arctan(FOLD_SLOPE_MAX)):.0f} degrees) "
+            f"{where}the plate folds over (or stands steeper than {np.degrees(np.arctan(FOLD_SLOPE_MAX)):.0f} degrees) "
             f"in its frame: {int(layered.sum())} points have neighbours in the plate plane at a height "
             f"differing by more than {FOLD_SLOPE_MAX:g} x their distance + {tolerance_mm:.3g} mm "
             f"(e.g. point {int(np.argmax(layered))})",

@@ -41,6 +41,9 @@ WRITE_SUFFIXES = TEXT_SUFFIXES + PLY_SUFFIXES
 
 UNIT_SCALE_MM = {"mm": 1.0, "m": 1000.0}
 
+MAX_COORDINATE_MM = 1e9
+"""Largest coordinate magnitude (1000 km) a plate may have; beyond it the unit or export is wrong."""
+
 _SUPPORTED = ", ".join(READ_SUFFIXES)
 
 
@@ -334,7 +337,8 @@ def _read_mesh(path: Path, suffix: str) -> tuple[np.ndarray, np.ndarray | None]:
     import trimesh
 
     try:
-        loaded = trimesh.load(str(path), file_type=suffix[1:], process=True)
+        # unprocessed first: processing silently drops NaN vertices, which must be reported
+        loaded = trimesh.load(str(path), file_type=suffix[1:], process=False)
     except Exception as exc:  # trimesh raises many types for broken files
         raise FileFormatError(path, f"is not a readable {suffix[1:].upper()} file: {exc}",
                               hint="re-export it from the CAD program") from None
@@ -348,6 +352,9 @@ def _read_mesh(path: Path, suffix: str) -> tuple[np.ndarray, np.ndarray | None]:
         loaded = trimesh.util.concatenate(meshes) if len(meshes) > 1 else meshes[0]
         loaded.merge_vertices()
     if isinstance(loaded, trimesh.Trimesh):
+        if not np.all(np.isfinite(loaded.vertices)):
+            return np.asarray(loaded.vertices, dtype=float), None  # read_points names the vertex
+        loaded.process()  # merge duplicate vertices (an STL repeats them per triangle)
         faces = np.asarray(loaded.faces, dtype=np.int64)
         return np.asarray(loaded.vertices, dtype=float), (faces if faces.size else None)
     vertices = getattr(loaded, "vertices", None)
@@ -447,12 +454,18 @@ def check_plate(points, min_points: int, source: str = "points") -> np.ndarray:
     Raises
     ------
     GeometryError
-        Too few points; all points coincident (spread below 1e-9 of the coordinate
-        magnitude, at least 1e-9 mm); collinear (second principal spread below 1e-6 of
-        the first).
+        A coordinate beyond ``MAX_COORDINATE_MM``; too few points; all points
+        coincident (spread below 1e-9 of the coordinate magnitude, at least 1e-9 mm);
+        collinear (second principal spread below 1e-6 of the first).
     """
     pts = as_points(points, name=source)
     n = pts.shape[0]
+    magnitude = float(np.abs(pts).max()) if pts.size else 0.0
+    if magnitude > MAX_COORDINATE_MM:
+        raise GeometryError(
+            f"{source}: a coordinate of {magnitude:.3g} mm, beyond {MAX_COORDINATE_MM:.0e} mm",
+            hint="check the file's unit (--units) and the export; plate coordinates are mm",
+        )
     if n < min_points:
         raise GeometryError(
             f"{source}: {n} point(s), the fit needs at least {min_points}",
@@ -462,7 +475,6 @@ def check_plate(points, min_points: int, source: str = "points") -> np.ndarray:
         raise GeometryError(f"{source}: NaN or infinite coordinates", hint="repair the input")
     centred = pts - pts.mean(axis=0)
     spread = np.linalg.svd(centred, compute_uv=False) / math.sqrt(n)
-    magnitude = float(np.abs(pts).max())
     if spread[0] <= 1e-9 * max(magnitude, 1.0):
         raise GeometryError(
             f"{source}: all {n} points coincide (spread {spread[0]:.3g} mm)",

@@ -175,16 +175,33 @@ def job_from_dict(doc: dict, source: str = "job") -> Job:
         steps.append(StepStrokes(upper_mm=upper, lower_mm=lower, active=active))
     known = {"format", "version", "press", "thickness_mm", "steps", "tf_press_design", "tf_press_flat",
              "punch_x_mm", "punch_y_mm"}
+    transforms = {}
+    for key in ("tf_press_design", "tf_press_flat"):
+        try:
+            transforms[key] = tf_from_list(doc.get(key, np.eye(4).tolist()), key)
+        except InputError as exc:
+            raise ConfigError(f"{source}: {exc.message}", hint="re-plan the plate with 'mppf plan'") from None
     return Job(
         press=press,
         thickness_mm=float(thickness),
         steps=steps,
-        tf_press_design=tf_from_list(doc.get("tf_press_design", np.eye(4).tolist()), "tf_press_design"),
-        tf_press_flat=tf_from_list(doc.get("tf_press_flat", np.eye(4).tolist()), "tf_press_flat"),
-        punch_x_mm=np.asarray(doc.get("punch_x_mm", press.punch_x_mm), dtype=float),
-        punch_y_mm=np.asarray(doc.get("punch_y_mm", press.punch_y_mm), dtype=float),
+        punch_x_mm=_axis_from_json(doc.get("punch_x_mm", press.punch_x_mm), press.cols, "punch_x_mm", source),
+        punch_y_mm=_axis_from_json(doc.get("punch_y_mm", press.punch_y_mm), press.rows, "punch_y_mm", source),
         extra={k: v for k, v in doc.items() if k not in known},
+        **transforms,
     )
+
+
+def _axis_from_json(values, count: int, name: str, source: str) -> np.ndarray:
+    """Punch axis positions (count,) mm from the job document, checked."""
+    try:
+        arr = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{source}: {name} must be a list of numbers (mm), got {values!r:.60}") from None
+    if arr.shape != (count,) or not np.all(np.isfinite(arr)):
+        raise ConfigError(f"{source}: {name} must hold {count} finite numbers (one per punch), got shape "
+                          f"{arr.shape}", hint="re-plan the plate with 'mppf plan'")
+    return arr
 
 
 def load_job(path) -> Job:

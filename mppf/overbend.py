@@ -11,7 +11,17 @@ the target curvature for the arc of the over-bent curvature:
 
 so a cylinder of radius R becomes exactly a cylinder of radius R_i, and the plate's
 local deviations from its principal arcs are kept as they are. Directions flatter than
-``FLAT_RADIUS_MM`` are left alone. See ``docs/planning.md``.
+``FLAT_RADIUS_MM`` are left alone.
+
+Hull plates whose curvature changes over the plate (saddles, bilges running into the
+flat) are over-bent point by point on top of that: on a grid over the plate the target's
+curvature tensor ``K = k1 d1 d1' + k2 d2 d2'`` is mapped to the loaded one
+``K' = k1' d1 d1' + k2' d2 d2'`` (each principal curvature over-bent as above, nominal
+material), the arcs' surface's own curvature tensor is subtracted, and the remaining
+field ``K' - K_arcs`` is integrated to a height correction by least squares (its best
+plane removed; the planner chooses the plate's offset and tilt). A plate of uniform
+curvature (a cylinder) gets no correction: the arcs are exact there. See
+``docs/planning.md``.
 """
 
 from __future__ import annotations
@@ -19,6 +29,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import sparse
+from scipy.interpolate import RectBivariateSpline
+from scipy.sparse.linalg import spsolve
 
 from mppf.errors import GeometryError
 from mppf.springback import Material, loaded_curvature
@@ -29,6 +42,15 @@ FLAT_RADIUS_MM = 1.0e6
 
 MAX_ARC_FRACTION = 0.95
 """|k a| must stay below this over the plate (the over-bent arc must stay a graph)."""
+
+FIELD_SPACING_MM = 40.0
+"""Grid spacing of the point-by-point over-bend field."""
+
+FIELD_MARGIN_MM = 200.0
+"""The field grid covers the surface's bounds grown by this (ball contacts past the edge)."""
+
+UNIFORM_CURVATURE = 1.0e-9
+"""Curvature variation (1/mm) below which the plate counts as uniformly curved (no field)."""
 
 
 def _arc(kappa, a):
@@ -60,11 +82,21 @@ class OverbentSurface:
     target_k: np.ndarray
     loaded_k: np.ndarray
     directions: np.ndarray
+    field: object = None
 
     def derivatives(self, u, v):
         """(z, zu, zv, zuu, zuv, zvv) of the over-bent surface at local (u, v), mm."""
         u = np.asarray(u, dtype=float)
         v = np.asarray(v, dtype=float)
+        z, zu, zv, zuu, zuv, zvv = self._arc_derivatives(u, v)
+        if self.field is not None:
+            uu, vv = np.broadcast_arrays(u, v)
+            extra = [self.field.ev(uu, vv, dx=dx, dy=dy) for dx, dy in ((0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2))]
+            z, zu, zv, zuu, zuv, zvv = (a + b for a, b in zip((z, zu, zv, zuu, zuv, zvv), extra))
+        return z, zu, zv, zuu, zuv, zvv
+
+    def _arc_derivatives(self, u, v):
+        """Derivatives of the base with the principal arcs at the centre over-bent (no field)."""
         z, zu, zv, zuu, zuv, zvv = (np.array(x, dtype=float) for x in self.base.derivatives(u, v))
         for (du, dv), k_t, k_l in zip(self.directions, self.target_k, self.loaded_k):
             if k_t == k_l:
@@ -112,4 +144,110 @@ def overbend(surface, thickness_mm: float, material: Material, half_size_mm: flo
             f"{half_size_mm:.0f} mm from its centre",
             hint="form this plate without --springback, or in parts",
         )
-    return OverbentSurface(base=surface, target_k=target, loaded_k=loaded, directions=directions)
+    arcs = OverbentSurface(base=surface, target_k=target, loaded_k=loaded, directions=directions)
+    return OverbentSurface(base=surface, target_k=target, loaded_k=loaded, directions=directions,
+                           field=_field(surface, arcs, thickness_mm, material))
+
+
+class _Arcs:
+    """The arcs-only over-bent surface as a Surface (for :func:`mppf.surface.curvatures`)."""
+
+    def __init__(self, arcs: OverbentSurface):
+        self.arcs = arcs
+
+    def derivatives(self, u, v):
+        return self.arcs._arc_derivatives(u, v)
+
+
+def _loaded_map(values, thickness_mm: float, material: Material) -> np.ndarray:
+    """Over-bent curvatures of ``values`` (1/mm), tabulated (the exact solve is per value)."""
+    values = np.asarray(values, dtype=float)
+    mag = np.abs(values)
+    top = float(mag.max())
+    if top < 1.0 / FLAT_RADIUS_MM:
+        return values.copy()
+    table = np.geomspace(1.0 / FLAT_RADIUS_MM, top * 1.001, 400)
+    loaded = loaded_curvature(table, thickness_mm, material)
+    out = np.sign(values) * np.interp(mag, table, loaded)
+    return np.where(mag < 1.0 / FLAT_RADIUS_MM, values, out)
+
+
+def _tensor(k1, k2, d1, d2) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(Kuu, Kuv, Kvv) of k1 d1 d1' + k2 d2 d2' (directions as unit (du, dv))."""
+    return (k1 * d1[:, 0] ** 2 + k2 * d2[:, 0] ** 2, k1 * d1[:, 0] * d1[:, 1] + k2 * d2[:, 0] * d2[:, 1],
+            k1 * d1[:, 1] ** 2 + k2 * d2[:, 1] ** 2)
+
+
+def _field(surface, arcs: OverbentSurface, thickness_mm: float, material: Material):
+    """Spline of the height correction that over-bends the curvature point by point, or None."""
+    bounds = getattr(surface, "bounds", None)
+    if bounds is None:
+        return None
+    (u0, u1), (v0, v1) = bounds
+    u_ax = np.arange(u0 - FIELD_MARGIN_MM, u1 + FIELD_MARGIN_MM + FIELD_SPACING_MM, FIELD_SPACING_MM)
+    v_ax = np.arange(v0 - FIELD_MARGIN_MM, v1 + FIELD_MARGIN_MM + FIELD_SPACING_MM, FIELD_SPACING_MM)
+    uu, vv = np.meshgrid(u_ax, v_ax, indexing="ij")
+    target = curvatures(surface, uu.ravel(), vv.ravel())
+    if max(np.ptp(target.k1), np.ptp(target.k2)) < UNIFORM_CURVATURE:
+        return None  # uniform curvature: the over-bent arcs are exact
+    want = _tensor(_loaded_map(target.k1, thickness_mm, material), _loaded_map(target.k2, thickness_mm, material),
+                   target.dir1, target.dir2)
+    have_c = curvatures(_Arcs(arcs), uu.ravel(), vv.ravel())
+    have = _tensor(have_c.k1, have_c.k2, have_c.dir1, have_c.dir2)
+    delta = [(w - h).reshape(uu.shape) for w, h in zip(want, have)]
+    # first grid axis u, second v: the integrator's "x" is v (second axis), its "y" is u
+    dz = integrate_hessian(delta[2], delta[1], delta[0], FIELD_SPACING_MM, FIELD_SPACING_MM)
+    inside = (uu >= u0) & (uu <= u1) & (vv >= v0) & (vv <= v1)
+    design = np.column_stack([np.ones(inside.sum()), uu[inside], vv[inside]])
+    coef, *_ = np.linalg.lstsq(design, dz[inside], rcond=None)
+    dz = dz - (coef[0] + coef[1] * uu + coef[2] * vv)
+    return RectBivariateSpline(u_ax, v_ax, dz, kx=3, ky=3, s=0)
+
+
+def _second_difference(n: int, h: float) -> sparse.csr_matrix:
+    """(n, n) second-difference operator; one-sided at the ends (rows copy the neighbours)."""
+    main = np.full(n, -2.0)
+    d = sparse.diags([np.ones(n - 1), main, np.ones(n - 1)], [-1, 0, 1], format="lil")
+    d[0, :3] = [1.0, -2.0, 1.0]
+    d[n - 1, n - 3:] = [1.0, -2.0, 1.0]
+    return d.tocsr() / (h * h)
+
+
+def _first_difference(n: int, h: float) -> sparse.csr_matrix:
+    """(n, n) central first-difference operator, one-sided at the ends."""
+    d = sparse.diags([-np.ones(n - 1), np.ones(n - 1)], [-1, 1], format="lil") * 0.5
+    d[0, :2] = [-1.0, 1.0]
+    d[n - 1, n - 2:] = [-1.0, 1.0]
+    return d.tocsr() / h
+
+
+def integrate_hessian(hxx, hxy, hyy, hx: float, hy: float) -> np.ndarray:
+    """Heights w whose second derivatives best match the given fields (least squares).
+
+    Parameters
+    ----------
+    hxx, hxy, hyy : (ny, nx) float
+        Wanted second derivatives on a regular grid (first axis y, spacing ``hy``;
+        second axis x, spacing ``hx``), 1/mm.
+    hx, hy : float
+        Grid spacings, mm.
+
+    Returns
+    -------
+    (ny, nx) float
+        Heights, mm, up to a plane a + b x + c y (fixed by the caller; a tiny Tikhonov
+        term keeps the system regular).
+    """
+    ny, nx = hxx.shape
+    ix, iy = sparse.identity(nx), sparse.identity(ny)
+    dxx = sparse.kron(iy, _second_difference(nx, hx))
+    dyy = sparse.kron(_second_difference(ny, hy), ix)
+    dxy = sparse.kron(_first_difference(ny, hy), _first_difference(nx, hx))
+    scale = max(hx, hy) ** 2
+    reg = sparse.identity(nx * ny) * 1e-6
+    a = sparse.vstack([dxx * scale, dyy * scale, np.sqrt(2.0) * dxy * scale, reg]).tocsr()
+    b = np.concatenate([hxx.ravel() * scale, hyy.ravel() * scale, np.sqrt(2.0) * hxy.ravel() * scale,
+                        np.zeros(nx * ny)])
+    normal = (a.T @ a).tocsc()
+    sol = spsolve(normal, a.T @ b)
+    return sol.reshape(ny, nx)

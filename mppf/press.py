@@ -20,6 +20,9 @@ from mppf.errors import ConfigError
 
 MAX_ROWS = 32
 MAX_COLS = 32
+MAX_VALUE = 1.0e6
+"""Largest magnitude of any number in a press description (mm, mm/s, mm/s^2): a
+kilometre-sized value is a typing error, and would overflow the punch geometry."""
 
 
 @dataclass(frozen=True)
@@ -149,6 +152,9 @@ def _typed(source: str, table: str, key: str, value, kind):
         )
     if not np.isfinite(value):
         raise ConfigError(f"{source}: [{table}] {key} must be finite, got {value!r}")
+    if abs(value) > MAX_VALUE:
+        raise ConfigError(f"{source}: [{table}] {key} is implausibly large, got {value!r}",
+                          hint=f"give it in mm (mm/s for speeds), at most {MAX_VALUE:g} in size")
     return float(value)
 
 

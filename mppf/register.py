@@ -261,7 +261,8 @@ def _check_options(method, init, max_iterations, trim_fraction, robust, max_poin
             raise InputError("init is not a rigid transform (its 3x3 part is not a rotation)",
                              hint="give a proper rotation and a translation")
     if int(max_iterations) < 1:
-        raise InputError(f"max_iterations must be at least 1, got {max_iterations}")
+        raise InputError(f"max_iterations must be at least 1, got {max_iterations}",
+                         hint="give the iteration limit per stage, e.g. 100")
     if trim_fraction is not None and not 0.0 <= float(trim_fraction) < 0.9:
         raise InputError(f"trim_fraction must be in [0, 0.9), got {trim_fraction}",
                          hint="the fraction of the worst pairs dropped each iteration, e.g. 0.1")
@@ -418,6 +419,11 @@ def register_icp(
     history.append(final.rms_mm)
     uncertainty = icp.uncertainty(problem, final)
     uncertainty["in_plane"] = "pinned by the outline" if pin is not None else "from the surface shape"
+    free = [axis for axis in ("u", "v") if uncertainty.get(f"t_{axis}_mm") is None]
+    if pin is None and free:
+        notes.append(f"the in-plane shift along {' and '.join(free)} is not fixed by the surface shape "
+                     "(too shallow) and the outline was not used: it stays where the start put it; "
+                     "scan the whole plate so the outline pins it, or check it against marks")
     return Registration(
         tf=stage.tf, rms_mm=final.rms_mm, iterations=total_iter, rms_history=history,
         converged=stage.converged, stop_reason=stage.stop_reason, method=method,

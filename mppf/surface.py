@@ -424,8 +424,9 @@ def fit_spline(u, v, z, smoothing: float | None = None) -> SplineSurface:
     if umax - umin <= 0 or vmax - vmin <= 0:
         raise GeometryError("the points span no area in (u, v)", hint="a surface needs points spread over the plate")
     if smoothing is not None:
-        if not smoothing > 0:
-            raise InputError(f"spline smoothing must be a positive RMS in mm, got {smoothing!r}")
+        if not 0 < smoothing < np.inf:
+            raise InputError(f"spline smoothing must be a positive, finite RMS in mm, got {smoothing!r}",
+                             hint="give the residual RMS you accept, e.g. 0.5, or leave it out")
         spline = _fitpack(lambda: SmoothBivariateSpline(u, v, z, s=len(u) * smoothing**2, kx=3, ky=3),
                           f"smoothing {smoothing} mm")
     else:
@@ -619,7 +620,7 @@ def fit_plate(points, degree: int | str = 3, kind: str = "poly", smoothing: floa
     min_points = 16 if kind == "spline" or degree == "auto" else (degree + 1) ** 2
     pts = check_plate(as_points(points, name=source), min_points, source)
     frame = fit_frame(pts)
-    check_height_field(frame, pts, faces)
+    check_height_field(frame, pts, faces, source=source)
     u, v, w = frame.to_local(pts).T
     if kind == "poly":
         surface = fit_polynomial(u, v, w, degree=degree)

@@ -28,11 +28,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from matplotlib.path import Path as PolygonPath
-from scipy import sparse
 from scipy.interpolate import RBFInterpolator, RectBivariateSpline
-from scipy.sparse.linalg import spsolve
 
 from mppf.errors import GeometryError, InputError
+from mppf.overbend import integrate_hessian
 from mppf.press import PressConfig
 from mppf.springback import Material, springback_ratio
 
@@ -376,7 +375,7 @@ def _spring_back(x_mm, y_mm, loaded, plate: PlateSample, outline) -> tuple[np.nd
     ratio = springback_ratio(np.where(kappa == 0, np.inf, 1.0 / np.where(kappa == 0, 1.0, kappa)),
                              plate.thickness_mm, plate.material)
     scaled = np.einsum("...ik,...k,...jk->...ij", vec, kappa * ratio, vec)
-    w_unloaded = _integrate_hessian(scaled[..., 0, 0], scaled[..., 0, 1], scaled[..., 1, 1], hx, hy)
+    w_unloaded = integrate_hessian(scaled[..., 0, 0], scaled[..., 0, 1], scaled[..., 1, 1], hx, hy)
     # keep the loaded plate's best-fit plane (the unloaded plate rests there)
     fix = _best_plane(gx.ravel(), gy.ravel(), w_unloaded.ravel(), weight)
     w_unloaded -= fix[0] + fix[1] * gx + fix[2] * gy
@@ -386,41 +385,3 @@ def _spring_back(x_mm, y_mm, loaded, plate: PlateSample, outline) -> tuple[np.nd
     bent = inside.reshape(gx.shape) & (np.abs(kappa).max(axis=-1) > 1e-9)
     mean_ratio = float(main_ratio[bent].mean()) if bent.any() else 1.0
     return base + w_unloaded, mean_ratio
-
-
-def _second_difference(n: int, h: float) -> sparse.csr_matrix:
-    """(n, n) second-difference operator; one-sided at the ends (rows copy the neighbours)."""
-    main = np.full(n, -2.0)
-    d = sparse.diags([np.ones(n - 1), main, np.ones(n - 1)], [-1, 0, 1], format="lil")
-    d[0, :3] = [1.0, -2.0, 1.0]
-    d[n - 1, n - 3:] = [1.0, -2.0, 1.0]
-    return d.tocsr() / (h * h)
-
-
-def _first_difference(n: int, h: float) -> sparse.csr_matrix:
-    """(n, n) central first-difference operator, one-sided at the ends."""
-    d = sparse.diags([-np.ones(n - 1), np.ones(n - 1)], [-1, 1], format="lil") * 0.5
-    d[0, :2] = [-1.0, 1.0]
-    d[n - 1, n - 2:] = [-1.0, 1.0]
-    return d.tocsr() / h
-
-
-def _integrate_hessian(hxx, hxy, hyy, hx: float, hy: float) -> np.ndarray:
-    """Heights w (ny, nx) whose second derivatives best match the given fields (least squares).
-
-    The free plane a + b x + c y is fixed afterwards by the caller; here a tiny Tikhonov
-    term keeps the system regular.
-    """
-    ny, nx = hxx.shape
-    ix, iy = sparse.identity(nx), sparse.identity(ny)
-    dxx = sparse.kron(iy, _second_difference(nx, hx))
-    dyy = sparse.kron(_second_difference(ny, hy), ix)
-    dxy = sparse.kron(_first_difference(ny, hy), _first_difference(nx, hx))
-    scale = max(hx, hy) ** 2
-    reg = sparse.identity(nx * ny) * 1e-6
-    a = sparse.vstack([dxx * scale, dyy * scale, np.sqrt(2.0) * dxy * scale, reg]).tocsr()
-    b = np.concatenate([hxx.ravel() * scale, hyy.ravel() * scale, np.sqrt(2.0) * hxy.ravel() * scale,
-                        np.zeros(nx * ny)])
-    normal = (a.T @ a).tocsc()
-    sol = spsolve(normal, a.T @ b)
-    return sol.reshape(ny, nx)

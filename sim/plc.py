@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
+import math
 import threading
 import time
 from collections.abc import Iterator
@@ -113,8 +115,11 @@ class SimulatedPlc:
         self.word_order = check_word_order(word_order)
         if not 1 <= unit <= 247:
             raise InputError(f"Modbus unit id must be 1..247, got {unit}")
-        if not time_scale > 0:
-            raise InputError(f"time_scale must be positive, got {time_scale}")
+        if not (time_scale > 0 and math.isfinite(time_scale)):
+            raise InputError(f"time_scale must be a positive number, got {time_scale}",
+                             hint="e.g. 1 (real time) or 50 (fast tests)")
+        if watchdog_s is not None and not (watchdog_s >= 0 and math.isfinite(watchdog_s)):
+            raise InputError(f"watchdog_s must be a number of seconds >= 0 (0 or None: off), got {watchdog_s}")
         if not tick_s > 0:
             raise InputError(f"tick_s must be positive, got {tick_s}")
         self.unit = unit
@@ -869,10 +874,14 @@ def start_simulated_plc(
                     parity = "N"  # this kernel refuses parity on pseudo-terminals
             else:
                 handle.serial_port = rtu_port
-            asyncio.run_coroutine_threadsafe(plc.start_rtu(serve_on, baud=baud, parity=parity), handle._loop).result(10)
+            with _start_failure(f"serial device {serve_on}", "give an existing serial device, or 'pty'"):
+                asyncio.run_coroutine_threadsafe(plc.start_rtu(serve_on, baud=baud, parity=parity),
+                                                 handle._loop).result(10)
             handle.url = f"rtu://{handle.serial_port}?baud={baud}&parity={parity}&unit={plc.unit}"
         else:
-            handle.port = asyncio.run_coroutine_threadsafe(plc.start_tcp(host, port), handle._loop).result(10)
+            with _start_failure(f"{host}:{port}", "choose another --port (0: a free one) or a local --host; "
+                                "is another simulator already running there?"):
+                handle.port = asyncio.run_coroutine_threadsafe(plc.start_tcp(host, port), handle._loop).result(10)
             handle.url = f"tcp://{host}:{handle.port}?unit={plc.unit}"
         for spec in faults:
             handle.inject_spec(spec)
@@ -880,6 +889,36 @@ def start_simulated_plc(
         handle.stop()
         raise
     return handle
+
+
+class _LogCapture(logging.Handler):
+    """Keeps the messages pymodbus logs while a server starts (the reason of a failure)."""
+
+    def __init__(self):
+        super().__init__(logging.WARNING)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.messages.append(record.getMessage())
+
+
+@contextlib.contextmanager
+def _start_failure(where: str, hint: str) -> Iterator[None]:
+    """Turn pymodbus's "could not start" (a RuntimeError; the reason only logged) into an InputError."""
+    log = logging.getLogger("pymodbus")
+    capture = _LogCapture()
+    log.addHandler(capture)
+    propagate, log.propagate = log.propagate, False  # the reason goes into our message, not on stderr
+    try:
+        yield
+    except RuntimeError as exc:
+        # pymodbus logs "Repeating...." instead of a message identical to its previous one
+        reason = "; ".join(m for m in capture.messages if not m.startswith("Repeating")) or f"pymodbus: {exc}"
+
+        raise InputError(f"the simulated PLC cannot serve on {where}: {reason}", hint=hint) from None
+    finally:
+        log.removeHandler(capture)
+        log.propagate = propagate
 
 
 @contextlib.contextmanager

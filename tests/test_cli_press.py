@@ -71,6 +71,10 @@ def test_bad_input_exits_2(job_path, tmp_path, press, capsys):
     assert main(["press", str(job_path), "--plc", "http://plc:502"]) == 2
     assert "unknown scheme" in capsys.readouterr().err
     assert main(["status"]) == 2
+    for bad in ("nan", "inf"):
+        assert main(["press", str(job_path), "--timeout", bad]) == 2
+        err = capsys.readouterr().err
+        assert f"--timeout must be a finite number of seconds, got {bad}" in err and "DRY RUN" not in err
 
 
 def test_strokes_beyond_limits_exit_2_before_anything_moves(tmp_path, press, sim, capsys):

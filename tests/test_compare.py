@@ -253,3 +253,31 @@ def test_outline_fit_places_a_badly_formed_plate(press):
     assert abs(np.degrees(np.arctan2(error[1, 0], error[0, 0]))) < 0.5  # turn about the vertical
     assert "outline fit" in c.notes[0]
     assert c.rms_mm > 20.0  # and the deviations are large, as they should be
+
+
+def test_reference_mark_gives_the_right_turn_of_a_symmetric_plate_in_any_pose(press):
+    """A half-turn symmetric saddle, still off its design (springback), scanned in arbitrary poses.
+
+    Its best fits turned by 0 and 180 degrees are equally good; the reference-corner mark
+    picked in the scan settles the turn in every pose.
+    """
+    from mppf.loop import reference_corner_xy
+
+    t = THICKNESS_MM
+    formed = _form(press, 8000.0, 18000.0, asymmetric=False)
+    design = formed.mid_surface_points(50.0)
+    loaded = formed.mid_surface_points(50.0, loaded=True)
+    design[:, 2] += 0.15 * (loaded[:, 2] - design[:, 2])  # the plate is still mm off its design
+    corner = reference_corner_xy(formed.outline_xy_mm)
+    design_mark = design[np.argmin(np.linalg.norm(design[:, :2] - corner, axis=1))]
+    for seed in (3, 4, 5):
+        sample = SimulatedScanner(seed=seed).sample(formed, corner)
+        assert rotation_angle_deg(sample.tf_scan_press) > 1.0  # an arbitrary pose
+        c = compare(design, sample.points, offset_mm=t / 2, reference_mark=(sample.mark_mm, design_mark))
+        assert rotation_angle_deg(c.transform @ sample.tf_scan_press) < 1.0, seed
+        assert "reference mark" in c.notes[0]
+    # a mark that fits no start is reported, the best fit kept
+    c = compare(design, sample.points, offset_mm=t / 2, reference_mark=(sample.mark_mm + 1e5, design_mark))
+    assert "check the mark" in c.notes[0]
+    with pytest.raises(InputError, match="reference_mark"):
+        compare(design, sample.points, reference_mark=(np.zeros(2), design_mark))

@@ -318,6 +318,59 @@ def test_ctrl_c_during_motion_sends_stop_and_cancels(start_sim, press, audit):
     assert not flags["busy"] and not flags["in_position"]  # stopped short of the targets
 
 
+def test_ctrl_c_again_while_stop_is_sent_repeats_the_stop(start_sim, press, audit):
+    sim = start_sim(time_scale=2.0, watchdog_s=None)  # no watchdog: only a STOP ends the motion
+    upper, lower = step_setpoints(press)
+    rmap = load_register_map()
+    interrupted = []
+
+    def operator_presses_ctrl_c(completed):
+        raise KeyboardInterrupt
+
+    with ModbusPress(sim.url, press, audit=audit) as plc:
+        send = plc._io.write_command
+
+        def write_command(address, words):
+            if address == rmap["command"].address and words[0] == rmap.command("STOP") and not interrupted:
+                interrupted.append(words)
+                raise KeyboardInterrupt  # the operator's second Ctrl-C, before the STOP frame left
+            return send(address, words)
+
+        plc._io.write_command = write_command
+        with pytest.raises(Cancelled, match="STOP was sent"):
+            plc.run_step(upper, lower, reporter=HookReporter(on_update=operator_presses_ctrl_c))
+    assert interrupted
+    assert [(e.outcome, e.detail) for e in audit.entries() if e.action == "stop"] == [
+        ("ok", "cancelled by the operator (Ctrl-C again: STOP repeated)")]
+    flags = sim.wait_idle(5.0)
+    assert not flags["busy"] and not flags["in_position"]
+
+
+def test_an_unexpected_error_after_go_sends_stop(start_sim, press, audit):
+    sim = start_sim(time_scale=2.0, watchdog_s=None)  # no watchdog: only a STOP ends the motion
+    upper, lower = step_setpoints(press)
+
+    def display_breaks(completed):
+        raise RuntimeError("the progress display broke")
+
+    with ModbusPress(sim.url, press, audit=audit) as plc, pytest.raises(RuntimeError, match="display broke"):
+        plc.run_step(upper, lower, reporter=HookReporter(on_update=display_breaks))
+    assert [(e.outcome, e.detail) for e in audit.entries() if e.action == "stop"] == [
+        ("ok", "unexpected error: RuntimeError: the progress display broke")]
+    flags = sim.wait_idle(5.0)
+    assert not flags["busy"] and not flags["in_position"]
+
+
+def test_nan_or_infinite_motion_timeout_is_refused_before_any_write(start_sim, press, audit):
+    sim = start_sim()
+    upper, lower = step_setpoints(press)
+    with ModbusPress(sim.url, press, audit=audit) as plc:
+        for bad in (float("nan"), float("inf"), 0.0):
+            with pytest.raises(InputError, match=f"timeout must be a positive number of seconds, got {bad}"):
+                plc.run_step(upper, lower, timeout_s=bad)
+    assert actions(audit) == [("connect", "ok")]
+
+
 def test_connect_checks_identity(start_sim, press):
     sim = start_sim(word_order="CDAB")
     with pytest.raises(LinkError, match="uses word order CDAB, but ABCD was requested"):
@@ -331,6 +384,15 @@ def test_connect_checks_identity(start_sim, press):
         with pytest.raises(InputError, match="press description"):
             plc.run_step(*step_setpoints(press))
     assert report["word_order"] == "CDAB" and report["limits_mm"]["upper"] == [-300.0, 400.0]
+
+
+def test_a_wrong_unit_id_is_named(start_sim, press):
+    sim = start_sim(unit=2)
+    with pytest.raises(LinkError, match="not an mppf press PLC with unit id 1: .*exception 4") as info:
+        ModbusPress(f"tcp://127.0.0.1:{sim.port}?unit=1&retries=0", press)
+    assert "check the unit id" in info.value.hint
+    with ModbusPress(f"tcp://127.0.0.1:{sim.port}?unit=2", press, heartbeat_s=None) as plc:
+        assert plc.status().ready
 
 
 @pytest.fixture

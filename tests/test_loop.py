@@ -136,6 +136,9 @@ def test_loop_converges_on_the_simulated_press(hull_dir, tmp_path, capsys):
             assert Path(c.scan_path).exists() and len(c.scan_sha256) == 64
             assert np.isfinite(c.punch_deviation_mm).any()
             assert Path(c.job_path).exists()
+            # the simulated scanner wrote the reference mark and compare used it for the start
+            assert Path(c.scan_path + ".mark.json").exists()
+            assert "reference mark" in c.comparison["notes"][0]
         # the correction moved the strokes by what was measured
         if len(cycles) > 1:
             moved = cycles[1].steps[0].lower_mm - cycles[0].steps[-1].lower_mm
@@ -295,3 +298,27 @@ def test_a_fault_during_motion_leaves_the_cycle_pressing_and_resume_measures_it(
         first = result.cycles[0]
         assert result.resumed_state == "pressing" and first.interrupted and first.scan_sha256
         assert sum(1 for e in audit.entries() if e.action == "go") == gos_before == 1
+
+
+def test_reference_mark_file_is_read_and_a_bad_one_refused(tmp_path):
+    from mppf.job import Job, StepStrokes
+    from mppf.loop import reference_corner_xy, reference_mark
+
+    press = load_press(example_press_path())
+    active = np.zeros(press.shape, dtype=bool)
+    active[:3, :3] = True
+    steps = [StepStrokes(np.where(active, 20.0, np.nan), np.where(active, 0.0, np.nan), active)]
+    outline = [[-500.0, -300.0], [500.0, -300.0], [500.0, 300.0], [-500.0, 300.0]]
+    job = Job(press=press, thickness_mm=20.0, steps=steps, tf_press_design=np.eye(4), tf_press_flat=np.eye(4),
+              extra={"plate_outline_mm": outline})
+    assert np.allclose(reference_corner_xy(outline), [-500.0, -300.0])
+    gx, gy = np.meshgrid(np.linspace(-500, 500, 11), np.linspace(-300, 300, 7))
+    design = np.column_stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)])
+    scan = tmp_path / "scan.ply"
+    assert reference_mark(scan, design, job) is None  # no mark file: register without it
+    Path(str(scan) + ".mark.json").write_text(json.dumps({"reference_mark_mm": [1.0, 2.0, 3.0]}))
+    measured, on_design = reference_mark(scan, design, job)
+    assert np.allclose(measured, [1.0, 2.0, 3.0]) and np.allclose(on_design, [-500.0, -300.0, 0.0])
+    Path(str(scan) + ".mark.json").write_text(json.dumps({"reference_mark_mm": [1.0, 2.0]}))
+    with pytest.raises(InputError, match="reference mark"):
+        reference_mark(scan, design, job)

@@ -66,6 +66,7 @@ def test_saddle_without_pin_reports_the_in_plane_uncertainty(saddle_case):
     # the surface fixes the normal to microns, but not the in-plane position: ICP held it
     assert unc["t_n_mm"] < 0.05
     assert unc["t_u_mm"] is None and unc["t_v_mm"] is None
+    assert any("in-plane shift along u and v is not fixed" in note for note in result.notes)
     assert unc["observability"][0] < 1e-5 < unc["observability"][2]
     assert in_plane_error(result.tf, tf_true, design)[2] < 0.1  # the normal offset is still right
 

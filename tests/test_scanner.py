@@ -99,3 +99,24 @@ def test_bad_scanner_settings_are_refused():
         SimulatedScanner(occlusion_fraction=1.5)
     with pytest.raises(InputError, match="noise"):
         SimulatedScanner(noise_mm=-1.0)
+
+
+def test_reference_mark_is_picked_in_the_scan_and_written_beside_it(formed, tmp_path):
+    import json
+
+    from mppf.loop import MARK_SUFFIX, reference_corner_xy
+
+    corner = reference_corner_xy(formed.outline_xy_mm)
+    sample = SimulatedScanner(seed=4).sample(formed, corner)
+    # the mark is the top skin over the corner, in the scan's (arbitrary) pose, picked within a few mm
+    truth = apply_tf(sample.tf_scan_press, formed.offset_points(corner[None], 0.5 * formed.thickness_mm))[0]
+    assert 0.0 < np.linalg.norm(sample.mark_mm - truth) < 30.0
+    # the scan itself is the same with or without the mark
+    assert np.array_equal(sample.points, SimulatedScanner(seed=4).sample(formed).points)
+    path = SimulatedScanner(seed=4).scan(formed, tmp_path / "scan.ply", corner)
+    doc = json.loads((tmp_path / ("scan.ply" + MARK_SUFFIX)).read_text())
+    assert np.allclose(doc["reference_mark_mm"], sample.mark_mm)
+    assert read_points(path).points.shape == sample.points.shape
+    assert not (tmp_path / ("plain.ply" + MARK_SUFFIX)).exists()
+    SimulatedScanner(seed=4).scan(formed, tmp_path / "plain.ply")
+    assert not (tmp_path / ("plain.ply" + MARK_SUFFIX)).exists()

@@ -11,6 +11,7 @@ import sys
 import traceback
 
 import click
+from rich.markup import escape
 
 from mppf import __version__
 from mppf.cli._common import err_console
@@ -73,9 +74,9 @@ def main(argv: list[str] | None = None) -> int:
     except MppfError as exc:
         if debug:
             traceback.print_exc()
-        err_console.print(f"[bold red]error:[/] {exc.message}", highlight=False, markup=True)
+        err_console.print(f"[bold red]error:[/] {escape(exc.message)}", highlight=False, markup=True)
         if exc.hint:
-            err_console.print(f"  [yellow]what to do:[/] {exc.hint}", highlight=False)
+            err_console.print(f"  [yellow]what to do:[/] {escape(exc.hint)}", highlight=False)
         code = exc.exit_code
     except Exception as exc:  # noqa: BLE001 - the last line of defence
         if debug:

@@ -83,3 +83,51 @@ class RichReporter:
     def info(self, message: str) -> None:
         if self._enabled:
             err_console.print(message)
+
+
+PICTURE_SUFFIXES = (".png", ".pdf", ".svg")
+"""Picture files the ``--plot`` options write."""
+
+
+def check_output_path(path, what: str, suffixes=None, kind: str = "file"):
+    """Refuse an output path that cannot be written, before any work is done.
+
+    Parameters
+    ----------
+    path : str or Path
+    what : str
+        What the file is, for the message (e.g. ``"the job file"``).
+    suffixes : sequence of str, optional
+        Accepted suffixes (lower case, with the dot); any when omitted.
+    kind : str
+        What the suffix names, for the message ("point file", "picture").
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    InputError
+        Unknown suffix, a folder that does not exist or cannot be written, or a path
+        that is a folder.
+    """
+    import os
+    from pathlib import Path
+
+    from mppf.errors import InputError
+
+    path = Path(path)
+    if suffixes is not None and path.suffix.lower() not in suffixes:
+        raise InputError(f"cannot write {what} {path}: unknown {kind} type {path.suffix or '(no suffix)'!r}",
+                         hint=f"give it one of the suffixes {', '.join(suffixes)}")
+    folder = path.parent
+    if not folder.is_dir():
+        raise InputError(f"cannot write {what} {path}: the folder {folder} does not exist",
+                         hint="create the folder or give another path")
+    if path.is_dir():
+        raise InputError(f"cannot write {what} {path}: it is a folder", hint="give a file name")
+    if not os.access(folder, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise InputError(f"cannot write {what} {path}: permission denied",
+                         hint="give a path in a folder you may write to")
+    return path

@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import hashlib
+from pathlib import Path
+
 import click
 from rich.table import Table
 
-from mppf.cli._common import RichReporter, console, print_json, units_option
+from mppf.cli._common import (PICTURE_SUFFIXES, RichReporter, check_output_path, console, print_json,
+                              units_option)
 from mppf.errors import InputError
 from mppf.io import read_points
 from mppf.job import save_job
@@ -97,7 +101,7 @@ def _print_summary(summary: dict, output) -> None:
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=str), default=None,
               help="Write the job file (JSON) here.")
 @click.option("--plot", type=click.Path(dir_okay=False, path_type=str), default=None,
-              help="Draw the stroke map of the last step (PNG).")
+              help="Draw the stroke map of the last step (.png .pdf .svg).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 def plan_command(design, flat, press_path, thickness_mm, steps, springback, material, youngs, poisson,
                  yield_mpa, units, output, plot, as_json):
@@ -107,7 +111,12 @@ def plan_command(design, flat, press_path, thickness_mm, steps, springback, mate
     (e.g. from 'mppf unfold'; same point order = paired registration). Nothing is
     written when the plan fails validation.
     """
-    press = load_press(press_path or example_press_path())
+    if output:
+        check_output_path(output, "the job file")
+    if plot:
+        check_output_path(plot, "the stroke map", PICTURE_SUFFIXES, kind="picture")
+    press_file = Path(press_path) if press_path else example_press_path()
+    press = load_press(press_file)
     mat = _material(material, youngs, poisson, yield_mpa)
     if springback and mat is None:
         raise InputError("--springback needs the plate material",
@@ -117,19 +126,19 @@ def plan_command(design, flat, press_path, thickness_mm, steps, springback, mate
     inputs = {
         "design": {"path": str(design_cloud.path), "sha256": design_cloud.sha256},
         "flat": {"path": str(flat_cloud.path), "sha256": flat_cloud.sha256},
-        "press": {"path": str(press_path or example_press_path())},
+        "press": {"path": str(press_file), "sha256": hashlib.sha256(press_file.read_bytes()).hexdigest()},
         "units": units,
     }
     reporter = RichReporter(enabled=not as_json)
     job = plan_job(design_cloud.points, flat_cloud.points, press, thickness_mm, steps=steps, material=mat,
                    springback=springback, design_faces=design_cloud.faces, reporter=reporter, inputs=inputs)
     reporter.finish()
-    if output:
-        save_job(job, output)
-    if plot:
+    if plot:  # the picture first: a job file exists only when the whole command succeeded
         from mppf.viz.plan import plot_strokes
 
         plot_strokes(job, plot)
+    if output:
+        save_job(job, output)
     summary = plan_summary(job)
     if output:
         summary["job"] = {"path": output, "sha256": job.sha256()}

@@ -6,7 +6,10 @@ Thin wrappers over :class:`mppf.drivers.modbus.ModbusPress`; see ``docs/driver.m
 from __future__ import annotations
 
 import contextlib
+import math
+import signal
 import sys
+import threading
 from pathlib import Path
 
 import click
@@ -73,6 +76,23 @@ def _confirm(plc, job_path: Path, steps: list[int], yes: bool) -> None:
         raise PressRefused("the operator declined: nothing was sent to the press")
 
 
+@contextlib.contextmanager
+def _sigterm_as_ctrl_c():
+    """While pressing, SIGTERM (kill, a service manager, a CI cancel) is handled like Ctrl-C: STOP first."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminate(signum, frame):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def _result_table(step: int, result, tolerance_mm: float) -> Table:
     table = Table(title=f"step {step}: job sequence {result.sequence}, motion {result.duration_s:.2f} s")
     table.add_column("matrix")
@@ -107,13 +127,17 @@ def press_command(job_path, plc_url, step, yes, audit_path, timeout_s, word_orde
     the targets. A real press asks for confirmation first (or takes --yes).
 
     Exit codes: 0 done, 2 bad input (job, URL, strokes beyond limits), 3 link failure,
-    4 press fault or refusal (also: no confirmation), 130 cancelled (STOP was sent).
+    4 press fault or refusal (also: no confirmation), 130 cancelled by Ctrl-C or SIGTERM
+    (STOP was sent).
     """
     from mppf.job import load_job
 
+    if timeout_s is not None and not math.isfinite(timeout_s):
+        raise InputError(f"--timeout must be a finite number of seconds, got {timeout_s}",
+                         hint="leave it out for the default (from the longest move)")
     job = load_job(job_path)
     steps = _select_steps(job, step)
-    with contextlib.ExitStack() as stack:
+    with _sigterm_as_ctrl_c(), contextlib.ExitStack() as stack:
         dry_run = plc_url is None
         if dry_run:
             from mppf.sim.plc import run_simulated_plc

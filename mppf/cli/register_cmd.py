@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from mppf.cli._common import RichReporter, console, err_console, print_json, units_option
+from mppf.errors import MppfError
 
 
 @click.command("register")
@@ -35,21 +36,42 @@ def register_command(source: str, target: str, method: str, init: str, robust: s
     inlier fraction and the 4x4 transform. With --method paired the files must hold
     the same number of points, in corresponding order.
     """
-    from mppf.io import read_points, write_points
+    from pathlib import Path
+
+    from mppf.errors import InputError
+    from mppf.io import WRITE_SUFFIXES, read_points, write_points
     from mppf.register import register_icp, register_paired
     from mppf.transform import apply_tf
 
+    if method == "paired":
+        ctx = click.get_current_context()
+        icp_only = [f"--{name.replace('_', '-')}" for name in
+                    ("init", "robust", "trim_fraction", "max_iterations", "pin_outline")
+                    if ctx.get_parameter_source(name) is not click.core.ParameterSource.DEFAULT]
+        if icp_only:
+            names = ", ".join(icp_only).replace("--trim-fraction", "--trim")
+            raise InputError(f"{names} only appl{'ies' if len(icp_only) == 1 else 'y'} to ICP, "
+                             "not to --method paired",
+                             hint="leave it out, or use --method point or plane")
+    if output is not None and Path(output).suffix.lower() not in WRITE_SUFFIXES:
+        # refuse before the registration, not after it
+        raise InputError(f"cannot write {output}: unknown point file type {Path(output).suffix or '(no suffix)'!r}",
+                         hint=f"give -o a file ending in one of {', '.join(WRITE_SUFFIXES)}")
     src = read_points(source, units=units)
     tgt = read_points(target, units=units)
-    if method == "paired":
-        result = register_paired(src.points, tgt.points)
-    else:
-        result = register_icp(
-            src.points, tgt.points, method=method, init=init, max_iterations=max_iterations,
-            robust=None if robust == "none" else robust, trim_fraction=trim_fraction,
-            pin_outline={"auto": "auto", "yes": True, "no": False}[pin_outline],
-            reporter=RichReporter(enabled=not as_json),
-        )
+    try:
+        if method == "paired":
+            result = register_paired(src.points, tgt.points)
+        else:
+            result = register_icp(
+                src.points, tgt.points, method=method, init=init, max_iterations=max_iterations,
+                robust=None if robust == "none" else robust, trim_fraction=trim_fraction,
+                pin_outline={"auto": "auto", "yes": True, "no": False}[pin_outline],
+                reporter=RichReporter(enabled=not as_json),
+            )
+    except MppfError as exc:
+        _name_the_file(exc, source, target)
+        raise
     if output is not None:
         write_points(output, apply_tf(result.tf, src.points),
                      header=f"{source} registered onto {target} (mm)")
@@ -61,6 +83,16 @@ def register_command(source: str, target: str, method: str, init: str, robust: s
         print_json(data)
         return
     _print_result(result, source, target, output)
+
+
+def _name_the_file(exc: MppfError, source: str, target: str) -> None:
+    """Put the file name in place of the library's "source: " / "target: " message prefix."""
+    for role, path in (("source", source), ("target", target)):
+        prefix = f"{role}: "
+        if exc.message.startswith(prefix):
+            exc.message = f"{path} ({role}): {exc.message[len(prefix):]}"
+            exc.args = (exc.message,)
+            return
 
 
 def _print_result(result, source: str, target: str, output: str | None) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 
 import click
@@ -35,7 +36,7 @@ def _status_line(sim) -> str:
     default=None,
     help="Serve Modbus RTU on this serial device instead of TCP; 'pty' makes a pseudo-terminal pair.",
 )
-@click.option("--baud", type=int, default=115200, show_default=True, help="RTU baud rate.")
+@click.option("--baud", type=click.IntRange(300, 4_000_000), default=115200, show_default=True, help="RTU baud rate.")
 @click.option("--parity", type=click.Choice(["N", "E", "O"]), default="E", show_default=True, help="RTU parity.")
 @click.option("--paced", is_flag=True, help="With --rtu pty: pace the pseudo-terminals at the baud rate.")
 @click.option(
@@ -80,10 +81,10 @@ def sim_command(
 
     if rtu_port and (host is not None or port is not None):
         raise InputError("--rtu cannot be combined with --host/--port", hint="serve either TCP or RTU")
-    if time_scale <= 0:
-        raise InputError(f"--time-scale must be positive, got {time_scale}")
-    if watchdog < 0:
-        raise InputError(f"--watchdog must be >= 0 s, got {watchdog}")
+    for name, value, low in (("--time-scale", time_scale, None), ("--watchdog", watchdog, 0.0),
+                             ("--status-every", status_every, None), ("--duration", duration, 0.0)):
+        if value is not None and not (math.isfinite(value) and (value > 0 if low is None else value >= low)):
+            raise InputError(f"{name} must be a {'positive number' if low is None else 'number >= 0'}, got {value}")
     faults = [parse_fault_spec(spec) for spec in fault_specs]
     press = load_press(press_path or example_press_path())
     sim = start_simulated_plc(

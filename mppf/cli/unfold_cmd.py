@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from mppf.cli._common import console, print_json, units_option
+from mppf.cli._common import PICTURE_SUFFIXES, check_output_path, console, print_json, units_option
 from mppf.unfold import STRAIN_LIMIT_PCT
 
 
@@ -39,12 +39,12 @@ def unfold_command(design: str, output: str, units: str, strain_limit_pct: float
     result = unfold(cloud.points, cloud.faces, strain_limit_pct=strain_limit_pct)
     header = (f"x_mm,y_mm,z_mm  flat (unfolded) shape of {Path(design).name}; point k = design point k; "
               f"strain RMS {result.rms_strain_pct:.4f} %, max {result.max_strain_pct:.4f} %")
-    write_points(out, result.flat, header=header,
-                 faces=result.faces if out.suffix.lower() == ".ply" else None)
-    if plot_path is not None:
+    if plot_path is not None:  # the picture first: the flat file exists only when everything succeeded
         from mppf.viz.unfold import plot_strain
 
         plot_strain(result, plot_path)
+    write_points(out, result.flat, header=header,
+                 faces=result.faces if out.suffix.lower() == ".ply" else None)
     report = {
         **result.to_dict(),
         "design": str(design),
@@ -52,6 +52,8 @@ def unfold_command(design: str, output: str, units: str, strain_limit_pct: float
         "output": str(out),
         "plot": plot_path,
         "tf_flat_design": result.tf_flat_design.tolist(),
+        "worst_flat_xy_mm": result.flat[result.worst_point, :2].tolist(),
+        "strain_pct": result.strain_pct.round(5).tolist(),
     }
     if as_json:
         print_json(report)
@@ -61,17 +63,11 @@ def unfold_command(design: str, output: str, units: str, strain_limit_pct: float
 
 def _writable(output: str, plot_path: str | None) -> Path:
     """Refuse output paths that cannot be written, before the work is done."""
-    from mppf.errors import InputError
     from mppf.io import WRITE_SUFFIXES
 
-    path = Path(output)
-    if path.suffix.lower() not in WRITE_SUFFIXES:
-        raise InputError(f"cannot write {path}: unknown point file type {path.suffix or '(no suffix)'!r}",
-                         hint=f"give the flat file one of the suffixes {', '.join(WRITE_SUFFIXES)}")
-    for what, target in (("the flat file", path), ("the strain picture", plot_path)):
-        if target is not None and not Path(target).parent.is_dir():
-            raise InputError(f"cannot write {what} {target}: the folder {Path(target).parent} does not exist",
-                             hint="create the folder or give another path")
+    path = check_output_path(output, "the flat file", WRITE_SUFFIXES, kind="point file")
+    if plot_path is not None:
+        check_output_path(plot_path, "the strain picture", PICTURE_SUFFIXES, kind="picture")
     return path
 
 
