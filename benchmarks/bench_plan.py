@@ -10,6 +10,8 @@ presses of each size (pitch chosen so the plate fits the bed), and prints a tabl
 
 File reading is excluded. Best of ``--repeat`` runs, wall clock and CPU time of this
 process (the CPU figure is the one to compare on a machine shared with other work).
+On a busy machine run it with ``OPENBLAS_NUM_THREADS=1``: multi-threaded BLAS on two
+shared cores multiplies the wall time (the figures in docs/ are measured that way).
 
     python benchmarks/bench_plan.py [--repeat 3]
 """

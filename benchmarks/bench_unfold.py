@@ -4,6 +4,8 @@ Run: ``python benchmarks/bench_unfold.py [--repeat N]``. Prints one row per plat
 points, triangles, wall and CPU time (best of N; CPU time is the fairer figure on a
 shared machine), Gauss-Newton iterations, RMS and max strain.
 Targets (issue 4): a 61 x 41 hull patch well under a second, 200 x 200 under 10 s.
+On a busy machine run it with ``OPENBLAS_NUM_THREADS=1``: multi-threaded BLAS on two
+shared cores multiplies the wall time (the figures in docs/ are measured that way).
 """
 
 from __future__ import annotations

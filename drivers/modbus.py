@@ -44,6 +44,7 @@ from mppf.progress import NULL_REPORTER, Reporter
 SIDES = ("upper", "lower")
 MAX_LISTED = 8  # punches named in one error message
 RECONNECT_S = 2.0  # how long to try reconnecting after a lost link before sending STOP
+PLC_STALE_S = 1.0  # plc_heartbeat unchanged this long during motion: the PLC program has stopped
 STOP_ATTEMPTS_AFTER_CTRL_C = 3  # a STOP interrupted by another Ctrl-C is sent again, this often at most
 
 
@@ -649,6 +650,7 @@ class ModbusPress:
         reporter.start(f"motion job {seq} (mm of travel)", total=max(total_mm, 1e-9))
         last_progress = time.monotonic()
         last_hb = None
+        last_hb_change = time.monotonic()
         while True:
             raw = self._status_words()
             st = self._status_from(raw)
@@ -669,7 +671,17 @@ class ModbusPress:
                     "STOP was sent, the step did not complete",
                     hint="check the press, then run the step again",
                 )
-            last_hb = raw["plc_heartbeat"]
+            if raw["plc_heartbeat"] != last_hb:
+                last_hb, last_hb_change = raw["plc_heartbeat"], now
+            elif now - last_hb_change > PLC_STALE_S:
+                reporter.finish()
+                self._stop_after_trouble("PLC heartbeat stale")
+                raise PressFault(
+                    f"job {seq}: the PLC heartbeat stayed at {last_hb} for {now - last_hb_change:.1f} s during "
+                    "motion: the PLC program is not running (PLC in STOP mode, or halted); STOP was sent, but "
+                    "the PLC may not act on it",
+                    hint="stop the press at the machine and check the PLC before anything else",
+                )
             if not st.busy:
                 break
             if now - t0 > timeout_s:

@@ -31,7 +31,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mppf.errors import InputError
+from mppf.overbend import integrate_hessian
 from mppf.press import PressConfig
+from mppf.springback import Material, unloaded_curvature
 
 GAIN_RANGE = (0.5, 3.0)
 """Range the secant gain is clipped to."""
@@ -44,6 +46,12 @@ SECANT_BLEND = 0.5
 
 SMOOTHING = 0.25
 """Weight of the neighbour average in the smoothed correction (0 = none, 1 = only neighbours)."""
+
+MIN_SLOPE = 0.25
+"""Smallest springback slope the model-based correction divides by (at most 4 x the error)."""
+
+FILL_SMOOTHING = 1.0
+"""Smoothing of the thin-plate spline that fills the error grid where no punch has data."""
 
 
 @dataclass(frozen=True)
@@ -263,3 +271,106 @@ def _max_neighbour_diff(c: np.ndarray, active: np.ndarray) -> float:
         if pair.any():
             worst = max(worst, float(np.abs(a[1:] - a[:-1])[pair].max()))
     return worst
+
+
+def springback_slopes(k1, k2, thickness_mm: float, material: Material):
+    """Slopes of the springback map at loaded principal curvatures ``k1, k2`` (1/mm, any shape).
+
+    ``f(k) = k R_i/R_f`` (:func:`mppf.springback.unloaded_curvature`) maps a loaded principal
+    curvature to the unloaded one. A small change of the loaded curvature tensor changes the
+    unloaded one, in the principal axes of the loaded tensor, by
+
+    - ``f'(k_i) = 1 - 8 c^3 / |k_i|^3`` along each principal direction (0 below the elastic
+      limit ``2 c``, where the plate springs back flat), ``c = sy' / (E' t)``, and
+    - ``(f(k1) - f(k2)) / (k1 - k2)`` for the twist (off-diagonal) part: a matrix function's
+      divided difference; about the springback ratio ``R_i/R_f`` for a cylinder, much less
+      than 1 for a saddle.
+
+    Returns
+    -------
+    d1, d2, twist : float arrays like ``k1``
+    """
+    k1 = np.asarray(k1, dtype=float)
+    k2 = np.asarray(k2, dtype=float)
+    c = material.plane_strain_yield_mpa / (material.plane_strain_modulus_mpa * thickness_mm)
+
+    def slope(k):
+        mag = np.maximum(np.abs(k), 1e-300)
+        return np.where(mag >= 2.0 * c, 1.0 - 8.0 * c**3 / mag**3, 0.0)
+
+    f1 = unloaded_curvature(k1, thickness_mm, material)
+    f2 = unloaded_curvature(k2, thickness_mm, material)
+    close = np.abs(k1 - k2) < 1e-9
+    with np.errstate(invalid="ignore", divide="ignore"):
+        twist = np.where(close, slope(0.5 * (k1 + k2)), (f1 - f2) / np.where(close, 1.0, k1 - k2))
+    return slope(k1), slope(k2), twist
+
+
+def model_correction(upper_mm, lower_mm, punch_error_mm, *, press: PressConfig, thickness_mm: float,
+                     material: Material) -> np.ndarray:
+    """Stroke correction (rows, cols) that undoes the measured error through the springback model.
+
+    A quasi-Newton step with the model's slope instead of secants from noisy data:
+
+    1. the loaded mid-surface ``(upper + lower) / 2`` and the measured error ``e`` on the
+       punch grid (thin-plate splines fill the punches without data);
+    2. their curvature tensors (second differences on the punch grid): the loaded ``K_i``
+       and the wanted change of the unloaded one, ``dK_f = -Hess(e)``;
+    3. in the principal axes of ``K_i`` each component of ``dK_f`` is divided by its
+       springback slope (:func:`springback_slopes`, nominal material, at least
+       ``MIN_SLOPE``): ``dK_i``;
+    4. ``dK_i`` is integrated back to heights (least squares), its best plane over the
+       active punches removed (the comparison fixes the plate's rigid position).
+
+    Where the slopes are 1 (sharp bends) this is the plain displacement adjustment
+    ``-e``; where the plate springs back more (near the elastic limit, the twist of a
+    saddle) the step is larger, as the model says it must be.
+
+    Returns
+    -------
+    (rows, cols) float
+        Correction to add to both matrices (0 where inactive).
+    """
+    upper, lower, error = (_grid(press, a, name) for a, name in
+                           ((upper_mm, "upper_mm"), (lower_mm, "lower_mm"), (punch_error_mm, "punch_error_mm")))
+    active = np.isfinite(upper) & np.isfinite(lower)
+    known = active & np.isfinite(error)
+    if known.sum() < 6:
+        return np.where(known, -np.where(known, error, 0.0), 0.0)
+    px, py = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    grid_xy = np.column_stack([px.ravel(), py.ravel()])
+    mid = _filled(grid_xy, active, 0.5 * (upper + lower), 0.0)
+    err = _filled(grid_xy, known, error, FILL_SMOOTHING)
+    hx, hy = press.pitch_x_mm, press.pitch_y_mm
+    kxx, kxy, kyy = _hessian(mid, hx, hy)
+    exx, exy, eyy = _hessian(err, hx, hy)
+    tensor = np.stack([np.stack([kxx, kxy], -1), np.stack([kxy, kyy], -1)], -2)
+    kappa, vec = np.linalg.eigh(tensor)
+    d1, d2, twist = (np.maximum(s, MIN_SLOPE) for s in springback_slopes(kappa[..., 0], kappa[..., 1],
+                                                                         thickness_mm, material))
+    want = -np.stack([np.stack([exx, exy], -1), np.stack([exy, eyy], -1)], -2)
+    local = np.einsum("...ki,...kl,...lj->...ij", vec, want, vec)  # in the loaded principal axes
+    scale = np.stack([np.stack([d1, twist], -1), np.stack([twist, d2], -1)], -2)
+    loaded = np.einsum("...ik,...kl,...jl->...ij", vec, local / scale, vec)
+    dz = integrate_hessian(loaded[..., 0, 0], loaded[..., 0, 1], loaded[..., 1, 1], hx, hy)
+    design = np.column_stack([np.ones(active.sum()), px[active], py[active]])
+    coef, *_ = np.linalg.lstsq(design, dz[active], rcond=None)
+    dz = dz - (coef[0] + coef[1] * px + coef[2] * py)
+    return np.where(active, dz, 0.0)
+
+
+def _filled(grid_xy: np.ndarray, mask: np.ndarray, values: np.ndarray, smoothing: float) -> np.ndarray:
+    """``values`` on the whole punch grid: a thin-plate spline through the entries in ``mask``."""
+    from scipy.interpolate import RBFInterpolator
+
+    spline = RBFInterpolator(grid_xy[mask.ravel()], values[mask], kernel="thin_plate_spline", smoothing=smoothing)
+    return spline(grid_xy).reshape(mask.shape)
+
+
+def _hessian(z: np.ndarray, hx: float, hy: float):
+    """(zxx, zxy, zyy) of a grid (rows along y, spacing hy; columns along x, spacing hx)."""
+    zy, zx = np.gradient(z, hy, hx)
+    zxx = np.gradient(zx, hx, axis=1)
+    zyy = np.gradient(zy, hy, axis=0)
+    zxy = 0.5 * (np.gradient(zx, hy, axis=0) + np.gradient(zy, hx, axis=1))
+    return zxx, zxy, zyy

@@ -111,7 +111,13 @@ class OverbentSurface:
 
     def evaluate(self, u, v):
         """Height z'(u, v), mm."""
-        return self.derivatives(u, v)[0]
+        u = np.asarray(u, dtype=float)
+        v = np.asarray(v, dtype=float)
+        z = self._arc_derivatives(u, v)[0]
+        if self.field is not None:
+            uu, vv = np.broadcast_arrays(u, v)
+            z = z + self.field.ev(uu, vv)
+        return z
 
 
 def overbend(surface, thickness_mm: float, material: Material, half_size_mm: float) -> OverbentSurface:
@@ -166,9 +172,9 @@ def _loaded_map(values, thickness_mm: float, material: Material) -> np.ndarray:
     top = float(mag.max())
     if top < 1.0 / FLAT_RADIUS_MM:
         return values.copy()
-    table = np.geomspace(1.0 / FLAT_RADIUS_MM, top * 1.001, 400)
+    table = np.geomspace(1.0 / FLAT_RADIUS_MM, top * 1.001, 150)
     loaded = loaded_curvature(table, thickness_mm, material)
-    out = np.sign(values) * np.interp(mag, table, loaded)
+    out = np.sign(values) * np.exp(np.interp(np.log(np.maximum(mag, 1e-300)), np.log(table), np.log(loaded)))
     return np.where(mag < 1.0 / FLAT_RADIUS_MM, values, out)
 
 

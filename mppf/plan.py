@@ -24,7 +24,7 @@ from mppf.placement import (check_flat_belongs, design_area_mm2, distance_outsid
 from mppf.press import PressConfig
 from mppf.progress import NULL_REPORTER
 from mppf.springback import Material
-from mppf.steps import split_steps, steps_needed, validate_steps
+from mppf.steps import MAX_STEPS, split_steps, steps_needed, validate_steps
 from mppf.surface import fit_plate
 from mppf.transform import apply_tf, as_points, rotation_angle_deg
 
@@ -82,8 +82,10 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
     if springback and material is None:
         raise InputError("springback compensation needs the plate material",
                          hint="give --material steel|ah36 or --youngs/--poisson/--yield")
-    if steps is not None and (isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1):
-        raise InputError(f"the number of steps must be a whole number >= 1, got {steps!r}")
+    if steps is not None and (isinstance(steps, bool) or not isinstance(steps, (int, np.integer))
+                              or not 1 <= steps <= MAX_STEPS):
+        raise InputError(f"the number of steps must be a whole number 1..{MAX_STEPS}, got {steps!r}",
+                         hint="leave --steps out to get the fewest steps within the dimpling limit")
     t = float(thickness_mm)
 
     # 1. lay the flat plate on the bed: centred, long side along x, bottom skin at z = 0
@@ -125,6 +127,10 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
     tf_press_design = pose.tf_adjust @ registration.tf
     # 6. press steps from flat to the target, within the dimpling limit
     n_steps = steps if steps is not None else steps_needed(upper, lower, active, press, t)
+    if n_steps > MAX_STEPS:
+        raise LimitError(f"the plate needs {n_steps} press steps to keep within the dimpling limit of "
+                         f"{press.max_neighbour_diff_mm:g} mm, more than the {MAX_STEPS} one job may hold",
+                         hint="check [forming] max_neighbour_diff_mm in the press description")
     step_list = split_steps(upper, lower, active, t, int(n_steps))
     # 7. validate everything before a job exists
     validation = validate_steps(step_list, press, t)

@@ -23,6 +23,9 @@ GAP_TOLERANCE_MM = 0.01
 """The tip gap of a punch pair may be this much below the thickness (rounding)."""
 
 LIMIT_TOLERANCE_MM = 1e-6
+MAX_STEPS = 200
+"""Most press steps one job may hold (a larger count is a typing error or a dimpling
+limit far too small for the plate; the job file grows with every step)."""
 MAX_LISTED = 10
 
 

@@ -7,13 +7,15 @@ spec                       fault
                            stops at P % of every move (default 50); no fault bit by itself
 ``estop[@T]``              e-stop pressed now, or after T s of motion of the next GO
 ``overpressure[@T]``       overpressure fault now, or after T s of motion of the next GO
+``freeze[@T]``             PLC program halts (no scan: heartbeat and status frozen, punches
+                           stop, writes land in memory unacted), now or after T s of motion
 ``slow:MS``                every reply is delayed by MS milliseconds
 ``drop[:D][@T]``           connections closed and nothing answered for D s (default 2),
                            now or T s (wall clock) after the simulator starts
 ``restart[@T]``            PLC restart (registers back to power-on state), now or after T s
 =========================  ===============================================================
 
-Motion times (``estop@T``, ``overpressure@T``) are simulated seconds, so they scale with
+Motion times (``estop@T``, ``overpressure@T``, ``freeze@T``) are simulated seconds, so they scale with
 the time scale like the motion itself; ``drop`` and ``restart`` times are wall-clock.
 """
 
@@ -23,9 +25,9 @@ from dataclasses import dataclass, field
 
 from mppf.errors import InputError
 
-KINDS = ("stuck", "estop", "overpressure", "slow", "drop", "restart")
+KINDS = ("stuck", "estop", "overpressure", "freeze", "slow", "drop", "restart")
 GRAMMAR = (
-    "stuck:upper|lower:ROW:COL@PERCENT, estop@T, overpressure@T, slow:MS, drop:DURATION@T, "
+    "stuck:upper|lower:ROW:COL@PERCENT, estop@T, overpressure@T, freeze@T, slow:MS, drop:DURATION@T, "
     "restart@T (the @... parts and :DURATION may be left out)"
 )
 
@@ -82,7 +84,7 @@ def parse_fault_spec(spec: str) -> FaultSpec:
                 raise InputError(f"fault spec {spec!r}: PERCENT must be 0..100, got {at!r}", hint=f"grammar: {GRAMMAR}")
             params["percent"] = percent
         return FaultSpec("stuck", params)
-    if kind in ("estop", "overpressure", "restart"):
+    if kind in ("estop", "overpressure", "freeze", "restart"):
         if args:
             raise bad_arity
         return FaultSpec(kind, {} if at is None else {"after_s": _number(at, "T", spec)})

@@ -143,6 +143,7 @@ class SimulatedPlc:
         # injected conditions
         self.slow_s = 0.0
         self.estop_pressed = False
+        self.frozen = False  # PLC program halted: no scan, the communication still answers
         self._motion_faults: list[tuple[float, str]] = []  # (after simulated s of motion, kind)
         self._drop_after_writes: tuple[int, float] | None = None
         self._stuck_fault_after_s: dict[tuple[int, int, int], float] = {}
@@ -295,6 +296,8 @@ class SimulatedPlc:
             await asyncio.sleep(self.slow_s)
         if not set_values:
             return None
+        if self.frozen:
+            return None  # a halted program: the write lands in memory, no logic acts on it
         if self._drop_after_writes is not None:
             left, duration = self._drop_after_writes
             if left <= 1:
@@ -401,6 +404,8 @@ class SimulatedPlc:
         steps = min(max(1, int(np.ceil(sim_dt / self.tick_s))), _MAX_STEPS_PER_SCAN)
         for _ in range(steps):
             self._step(sim_dt / steps)
+            if self.frozen:  # the program halted in this step: this scan publishes its last image
+                break
         self._check_watchdog()
         self.heartbeat = (self.heartbeat + 1) & 0xFFFF
         self._publish()
@@ -415,6 +420,8 @@ class SimulatedPlc:
             if self.motion_time_s >= after_s:
                 self._motion_faults.remove((after_s, kind))
                 self._trigger(kind)
+        if self.frozen:
+            return
         self._check_stuck()
         if not self.hydraulics.moving and not self._stuck_pending():
             self.busy = False
@@ -450,7 +457,10 @@ class SimulatedPlc:
                 self._latch("STUCK_PUNCH")
 
     def _trigger(self, kind: str) -> None:
-        if kind == "estop":
+        if kind == "freeze":
+            self.frozen = True
+            self.hydraulics.halt()  # outputs off: the valves close
+        elif kind == "estop":
             self.estop_pressed = True
             self._latch("ESTOP")
         elif kind == "overpressure":
@@ -461,7 +471,8 @@ class SimulatedPlc:
         while True:
             await asyncio.sleep(self.tick_s)
             now = time.monotonic()
-            self._scan(now - last)
+            if not self.frozen:
+                self._scan(now - last)
             last = now
 
     # ---------------------------------------------------------------- faults ---
@@ -470,12 +481,12 @@ class SimulatedPlc:
 
         Parameters
         ----------
-        kind : {"stuck", "estop", "overpressure", "slow", "drop", "restart"}
+        kind : {"stuck", "estop", "overpressure", "freeze", "slow", "drop", "restart"}
         **params
             stuck: ``matrix`` ("upper"/"lower"), ``row``, ``col``, ``percent`` (of each
             move done before it sticks, default 50), ``fault_after_s`` (simulated s after
             the other punches arrived until fault STUCK_PUNCH and the punch's fault bit;
-            None: no fault, motion simply ends short). estop / overpressure:
+            None: no fault, motion simply ends short). estop / overpressure / freeze:
             ``after_s`` (simulated s of motion of the next or current GO; None: now).
             slow: ``delay_ms``. drop: ``duration_s`` (2.0), ``after_s`` (wall s; None:
             now), ``after_writes`` (drop on the n-th master write, which is not applied).
@@ -496,7 +507,7 @@ class SimulatedPlc:
     def _inject(self, kind, **params) -> None:
         if kind == "stuck":
             self._inject_stuck(**params)
-        elif kind in ("estop", "overpressure"):
+        elif kind in ("estop", "overpressure", "freeze"):
             self._inject_timed(kind, **params)
         elif kind == "slow":
             self._inject_slow(**params)
@@ -507,7 +518,7 @@ class SimulatedPlc:
         else:
             raise InputError(
                 f"unknown fault {kind!r}",
-                hint="known faults: stuck, estop, overpressure, slow, drop, restart",
+                hint="known faults: stuck, estop, overpressure, freeze, slow, drop, restart",
             )
 
     def _inject_stuck(self, matrix, row, col, percent=50.0, fault_after_s=None) -> None:
@@ -556,6 +567,7 @@ class SimulatedPlc:
         self._drop_after_writes = None
         self.slow_s = 0.0
         self.estop_pressed = False
+        self.frozen = False
         if self._regs is not None:
             self._publish()
 
@@ -598,6 +610,7 @@ class SimulatedPlc:
 
     async def restart(self, downtime_s: float = 0.3) -> None:
         """Restart now: program state to power-on, connections dropped for ``downtime_s``."""
+        self.frozen = False
         self._power_on()
         await self.drop(downtime_s)
 

@@ -240,6 +240,19 @@ def test_stuck_punch_fault_of_the_plc_names_the_punch(start_sim, press):
     assert "STUCK_PUNCH" in str(info.value) and "upper (row 0, col 1)" in str(info.value)
 
 
+def test_a_halted_plc_program_is_detected_from_its_stale_heartbeat(start_sim, press, audit):
+    sim = start_sim(time_scale=5.0)
+    upper, lower = step_setpoints(press)
+    sim.inject("freeze", after_s=1.0)  # the PLC program halts 1 s into the motion; the link still answers
+    t0 = time.monotonic()
+    with ModbusPress(sim.url, press, audit=audit) as plc, pytest.raises(PressFault) as info:
+        plc.run_step(upper, lower)
+    assert time.monotonic() - t0 < 5.0  # long before the motion timeout (about 45 s here)
+    assert "the PLC heartbeat stayed at" in str(info.value) and "PLC program is not running" in str(info.value)
+    assert "stop the press at the machine" in info.value.hint
+    assert ("stop", "ok") in actions(audit) and ("complete", "ok") not in actions(audit)
+
+
 def test_watchdog_expiry_when_the_heartbeat_stops(start_sim, press, audit):
     sim = start_sim(time_scale=5.0, watchdog_s=0.3)
     upper, lower = step_setpoints(press)

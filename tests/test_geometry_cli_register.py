@@ -114,3 +114,16 @@ def test_fit_bad_spline_smoothing_exit_2(hull_dir, capsys, value):
     assert main(["fit", str(hull_dir / "P1_midbody_bilge.csv"), "--kind", "spline", "--smoothing", value]) == 2
     err = " ".join(capsys.readouterr().err.split())
     assert "smoothing must be a positive, finite RMS" in err and "what to do:" in err
+
+
+def test_file_names_with_brackets_are_printed_as_they_are(tmp_path, hull_dir, capsys):
+    # rich would take "[bold]" for markup and print "ax.csv"
+    source = read_points(hull_dir / "P3_stern_saddle.csv").points
+    src = write_points(tmp_path / "a[bold]x.csv", source)
+    tgt = write_points(tmp_path / "b[red]y.csv", apply_tf(TF_TRUE, source))
+    out = tmp_path / "m[i]z.csv"
+    assert main(["fit", str(src)]) == 0
+    assert "a[bold]x.csv" in capsys.readouterr().out.replace("\n", "")
+    assert main(["register", str(src), str(tgt), "-o", str(out)]) == 0
+    text = "".join(capsys.readouterr().out.split())
+    assert "a[bold]x.csv->" in text and "b[red]y.csv" in text and "m[i]z.csv" in text

@@ -154,3 +154,17 @@ def test_job_path_in_a_missing_folder_is_refused_first(cylinder_files, tmp_path,
     code = main(["plan", str(design), str(flat), "--thickness", "16", "-o", str(tmp_path / "no" / "job.json")])
     err = " ".join(capsys.readouterr().err.split())
     assert code == 2 and "cannot write the job file" in err and "placing" not in err
+
+
+def test_step_count_is_bounded(cylinder_files, tmp_path, capsys):
+    design, flat, _ = cylinder_files
+    job_path = tmp_path / "job.json"
+    assert main(["plan", str(design), str(flat), "--thickness", "16", "--steps", "201", "-o", str(job_path)]) == 2
+    assert "the number of steps must be a whole number 1..200, got 201" in " ".join(capsys.readouterr().err.split())
+    text = example_press_path().read_text().replace("max_neighbour_diff_mm = 30.0", "max_neighbour_diff_mm = 0.01")
+    press = tmp_path / "press.toml"
+    press.write_text(text)
+    assert main(["plan", str(design), str(flat), "--thickness", "16", "--press", str(press), "-o", str(job_path)]) == 2
+    err = " ".join(capsys.readouterr().err.split())
+    assert "press steps to keep within the dimpling limit of 0.01 mm, more than the 200" in err
+    assert not job_path.exists()

@@ -292,6 +292,30 @@ def test_fault_during_motion_halts_the_punches(plc, kind):
     assert np.all((actual_upper > 330.0) & (actual_upper < 352.0))
 
 
+def test_freeze_halts_the_program_but_the_link_still_answers(plc):
+    sim, master = plc
+    upper, lower = targets()
+    sim.inject("freeze", after_s=3.0)
+    assert master.validate(master.upload(upper, lower), 1) is None
+    assert master.command("GO", 1) is None
+    deadline = time.monotonic() + 5.0
+    while not sim.plc.frozen:
+        assert time.monotonic() < deadline, "the freeze did not happen"
+        time.sleep(0.01)
+    beat, actual = master.read("plc_heartbeat"), master.actuals_mm("upper")
+    time.sleep(0.2)  # ten scan periods
+    assert master.read("plc_heartbeat") == beat and (master.actuals_mm("upper") == actual).all()
+    assert master.flags()["busy"]  # frozen status: still says moving
+    assert np.all((actual > 330.0) & (actual < 352.0))  # halted about 3 s into the move (see above)
+    assert master.command("STOP") is None  # accepted into memory; nothing acts on it
+    sim.restart(downtime_s=0.0)  # power cycle: the program runs again
+    master.close()
+    master = Master(sim)
+    time.sleep(0.1)
+    assert not master.flags()["busy"] and master.read("plc_heartbeat") != beat
+    master.close()
+
+
 def test_watchdog_stops_motion_when_the_heartbeat_goes_stale():
     with run_simulated_plc(PRESS, time_scale=2.0, watchdog_s=0.3) as sim:
         master = Master(sim)
@@ -489,6 +513,7 @@ def test_paced_pty_relay_takes_the_wire_time():
         ("estop", "estop", {}),
         ("estop@2.0", "estop", {"after_s": 2.0}),
         ("overpressure@1.5", "overpressure", {"after_s": 1.5}),
+        ("freeze@2", "freeze", {"after_s": 2.0}),
         ("slow:50", "slow", {"delay_ms": 50.0}),
         ("drop@3", "drop", {"after_s": 3.0}),
         ("drop:0.5@3", "drop", {"duration_s": 0.5, "after_s": 3.0}),

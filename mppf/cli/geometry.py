@@ -56,9 +56,10 @@ def fit_command(file: str, degree: str, kind: str, smoothing: float | None, unit
 
 
 def _print_fit(result: dict) -> None:
+    from rich.markup import escape
     from rich.table import Table
 
-    table = Table(title=f"fit of {result['file']}", show_header=False, title_justify="left")
+    table = Table(title=f"fit of {escape(result['file'])}", show_header=False, title_justify="left")
     table.add_column(style="bold")
     table.add_column()
     degree = "bicubic B-spline" if result["kind"] == "spline" else f"polynomial ({result['degree']}, {result['degree']})"

@@ -96,9 +96,10 @@ def _name_the_file(exc: MppfError, source: str, target: str) -> None:
 
 
 def _print_result(result, source: str, target: str, output: str | None) -> None:
+    from rich.markup import escape
     from rich.table import Table
 
-    table = Table(title=f"register {source} -> {target}", show_header=False, title_justify="left")
+    table = Table(title=f"register {escape(source)} -> {escape(target)}", show_header=False, title_justify="left")
     table.add_column(style="bold")
     table.add_column()
     table.add_row("method", result.method)
@@ -126,9 +127,9 @@ def _print_result(result, source: str, target: str, output: str | None) -> None:
         err_console.print("[yellow]warning:[/] the principal-axes start was ambiguous (nearly symmetric "
                           "plate); check the turn of the result")
     for note in result.notes:
-        err_console.print(f"[yellow]note:[/] {note}")
+        err_console.print(f"[yellow]note:[/] {escape(note)}")
     if output is not None:
-        console.print(f"moved source written to {output}")
+        console.print(f"moved source written to {escape(output)}")
 
 
 def _fmt(value) -> str:

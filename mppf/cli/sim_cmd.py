@@ -61,7 +61,7 @@ def _status_line(sim) -> str:
     "fault_specs",
     multiple=True,
     metavar="SPEC",
-    help="Inject a fault (repeatable): stuck:upper:3:5@40, estop[@T], overpressure[@T], slow:MS, "
+    help="Inject a fault (repeatable): stuck:upper:3:5@40, estop[@T], overpressure[@T], freeze[@T], slow:MS, "
     "drop[:D][@T], restart[@T]. See docs/simulator.md.",
 )
 @click.option("--status-every", type=float, default=5.0, show_default=True, help="Seconds between status lines.")
