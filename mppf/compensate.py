@@ -47,8 +47,9 @@ SECANT_BLEND = 0.5
 SMOOTHING = 0.25
 """Weight of the neighbour average in the smoothed correction (0 = none, 1 = only neighbours)."""
 
-MIN_SLOPE = 0.25
-"""Smallest springback slope the model-based correction divides by (at most 4 x the error)."""
+MIN_SLOPE = 0.4
+"""Smallest springback slope the model-based correction divides by (at most 2.5 x the error:
+a damping against the scan noise, which the division would amplify as much)."""
 
 FILL_SMOOTHING = 1.0
 """Smoothing of the thin-plate spline that fills the error grid where no punch has data."""
@@ -106,6 +107,7 @@ def compensate(
     gain: float = 1.0,
     previous: PreviousCycle | Mapping | None = None,
     smoothing: float = SMOOTHING,
+    material: Material | None = None,
 ) -> Correction:
     """Correct the strokes of one press step from the measured deviation at the punches.
 
@@ -126,6 +128,10 @@ def compensate(
         The cycle before, for the secant gain.
     smoothing : float
         Weight of the neighbour average in the correction, in [0, 1].
+    material : Material, optional
+        Nominal plate material: correct through the springback model
+        (:func:`model_correction`, times ``gain``) instead of ``-lambda e``; ``previous``
+        is then not used (the model gives the slope, no secant from noisy data).
 
     Returns
     -------
@@ -152,7 +158,15 @@ def compensate(
 
     # 1. gain per punch: the secant of the last two cycles, else the default
     lam = np.where(active, float(gain), np.nan)
-    if previous is not None:
+    if material is not None:
+        model = model_correction(upper, lower, error, press=press, thickness_mm=thickness_mm, material=material)
+        known = active & (np.isfinite(error) | (model != 0.0))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ratio = np.where(known & np.isfinite(error) & (np.abs(error) > 0.5), -gain * model / error, np.nan)
+        notes.append(f"springback-model correction (nominal material, gain {gain:g}); effective gain median "
+                     f"{np.nanmedian(ratio) if np.isfinite(ratio).any() else gain:.2f} where |e| > 0.5 mm")
+        raw = np.where(known, gain * model, 0.0)
+    elif previous is not None:
         lam, fallback = _secant_gain(press, lower, error, previous, float(gain), known)
         lam = np.where(active, lam, np.nan)
         notes.append(f"own secant gain at {int((known & ~fallback).sum())} punches, plate-wide or default at "
@@ -160,7 +174,8 @@ def compensate(
                      f"..{np.nanmax(lam[known]) if known.any() else gain:.2f}")
 
     # 2. raw displacement adjustment, smoothed on the punch grid
-    raw = np.where(known, -lam * np.where(known, error, 0.0), 0.0)
+    if material is None:
+        raw = np.where(known, -lam * np.where(known, error, 0.0), 0.0)
     smooth = (1.0 - smoothing) * raw + smoothing * _neighbour_mean(raw, known)
     smooth = np.where(known, smooth, 0.0)
 
@@ -295,7 +310,7 @@ def springback_slopes(k1, k2, thickness_mm: float, material: Material):
     c = material.plane_strain_yield_mpa / (material.plane_strain_modulus_mpa * thickness_mm)
 
     def slope(k):
-        mag = np.maximum(np.abs(k), 1e-300)
+        mag = np.maximum(np.abs(k), c)  # below 2 c the slope is 0 anyway
         return np.where(mag >= 2.0 * c, 1.0 - 8.0 * c**3 / mag**3, 0.0)
 
     f1 = unloaded_curvature(k1, thickness_mm, material)

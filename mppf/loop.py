@@ -70,8 +70,13 @@ class LoopSettings:
     max_cycles : int
         Press cycles at most (the first, planned one included).
     gain : float
-        Displacement-adjustment gain lambda of the first correction (later ones use
-        the secant gain of :func:`mppf.compensate.compensate`).
+        Displacement-adjustment gain lambda (with ``model_gain``: a factor on the
+        springback-model correction).
+    model_gain : bool
+        Correct through the springback model with the nominal material of the job
+        (:func:`mppf.compensate.model_correction`: the slope of the springback law at the
+        loaded curvature, per punch and per curvature component). Off: the secant gains
+        of :func:`mppf.compensate.compensate` (gain ``gain`` in the first correction).
     divergence_factor : float
         The loop stops as diverged when the RMS deviation grows by more than this
         factor from one cycle to the next, or grows two cycles in a row (see :func:`decide`).
@@ -89,6 +94,7 @@ class LoopSettings:
     divergence_factor: float = 1.5
     springback: bool = True
     offset_mm: float | None = None
+    model_gain: bool = True
 
     def __post_init__(self):
         for name in ("tolerance_mm", "rms_tolerance_mm", "gain", "divergence_factor"):
@@ -504,14 +510,15 @@ def _plan_next(history: History, plate: PlateRecord, record: CycleRecord, press:
     if record.cycle > 1:
         before = history.cycle(plate.plate_id, record.cycle - 1)
         previous = PreviousCycle(lower_mm=_last_step(before).lower_mm, punch_error_mm=before.punch_deviation_mm)
+    job = _load_cycle_job(record)
+    nominal = job.extra.get("material") if settings.model_gain else None
     correction = compensate(
         step.upper_mm, step.lower_mm, record.punch_deviation_mm, press=press, thickness_mm=plate.thickness_mm,
-        gain=settings.gain, previous=previous,
+        gain=settings.gain, previous=previous, material=None if not nominal else Material(**nominal),
     )
     active = step.active
     strokes = StepStrokes(np.where(active, correction.upper_mm, np.nan), np.where(active, correction.lower_mm, np.nan),
                           active)
-    job = _load_cycle_job(record)
     job = Job(press=job.press, thickness_mm=job.thickness_mm, steps=[strokes], tf_press_design=job.tf_press_design,
               tf_press_flat=job.tf_press_flat, punch_x_mm=job.punch_x_mm, punch_y_mm=job.punch_y_mm,
               extra={**job.extra, "loop": {"plate_id": plate.plate_id, "cycle": record.cycle + 1,

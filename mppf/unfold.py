@@ -628,7 +628,8 @@ def _report(pts, tri, flat2, uv, frame, edges, boundary, lengths_mm, strain_limi
     if max_strain > strain_limit_pct:
         warnings.append(
             f"in-plane strain {max_strain:.3g} % exceeds the limit {strain_limit_pct:g} % near {region} "
-            f"(u={worst_uv[0] / 1000:+.2f} m, v={worst_uv[1] / 1000:+.2f} m in the plate frame, point {worst}): "
+            f"(u={worst_uv[0] / 1000:+.2f} m, v={worst_uv[1] / 1000:+.2f} m in the plate frame, "
+            f"x={flat[worst, 0] / 1000:+.2f} m, y={flat[worst, 1] / 1000:+.2f} m on the flat plate, point {worst}): "
             "press forming cannot take this without thinning or wrinkling; split the plate or add line heating"
         )
     return Unfolding(

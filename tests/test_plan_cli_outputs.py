@@ -168,3 +168,21 @@ def test_step_count_is_bounded(cylinder_files, tmp_path, capsys):
     err = " ".join(capsys.readouterr().err.split())
     assert "press steps to keep within the dimpling limit of 0.01 mm, more than the 200" in err
     assert not job_path.exists()
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".ply"])
+def test_plan_takes_the_flat_file_of_mppf_unfold(cylinder_files, tmp_path, capsys, suffix):
+    design, flat, _ = cylinder_files
+    unfolded = tmp_path / f"unfolded{suffix}"
+    assert main(["unfold", str(design), "-o", str(unfolded), "--json"]) == 0
+    capsys.readouterr()
+    assert main(["plan", str(design), str(unfolded), "--thickness", "16", "--json"]) == 0
+    via_unfold = json.loads(capsys.readouterr().out)
+    assert main(["plan", str(design), str(flat), "--thickness", "16", "--json"]) == 0
+    exact = json.loads(capsys.readouterr().out)
+    assert via_unfold["registration"]["method"] == "paired"
+    assert via_unfold["registration"]["neighbour_strain_p95_pct"] < 0.001
+    assert via_unfold["max_travel_mm"] == pytest.approx(exact["max_travel_mm"], abs=0.01)
+    for side in ("upper", "lower"):
+        assert via_unfold[side]["min_mm"] == pytest.approx(exact[side]["min_mm"], abs=0.01)
+        assert via_unfold[side]["max_mm"] == pytest.approx(exact[side]["max_mm"], abs=0.01)

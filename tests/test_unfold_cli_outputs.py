@@ -34,6 +34,8 @@ def test_json_has_the_strain_of_every_point(sphere_cap, tmp_path, capsys):
     # over the limit: one warning naming the region of the worst point, which is a corner of the cap
     assert report["max_strain_pct"] > 0.3
     assert len(report["warnings"]) == 1 and report["worst_region"] in report["warnings"][0]
+    x_m, y_m = np.array(report["worst_flat_xy_mm"]) / 1000.0
+    assert f"x={x_m:+.2f} m, y={y_m:+.2f} m on the flat plate" in report["warnings"][0]
     # the cap's strain is largest at its rim: the named region is an edge or corner, and the
     # worst point lies in the outer quarters of the plate in the named direction(s)
     design = read_points(sphere_cap).points

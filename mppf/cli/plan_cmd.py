@@ -48,6 +48,7 @@ def _print_summary(summary: dict, output) -> None:
                                   f"turn {_fmt(reg['rotation_deg'])} deg")
     if reg.get("neighbour_strain_p95_pct") is not None:
         table.add_row("flat vs design strain (p95)", f"{reg['neighbour_strain_p95_pct']:.3f} %")
+    table.add_row("flat plate", f"{summary['plate_size_mm'][0]:.0f} x {summary['plate_size_mm'][1]:.0f} mm")
     table.add_row("tilt x / y", f"{pose['tilt_x_deg']:.3f} / {pose['tilt_y_deg']:.3f} deg")
     table.add_row("vertical offset", f"{pose['offset_mm']:.1f} mm")
     table.add_row("largest punch travel", f"{summary['max_travel_mm']:.1f} mm")
@@ -72,8 +73,7 @@ def _print_summary(summary: dict, output) -> None:
                         f"{m['max_travel_mm']:.1f}")
     console.print(strokes)
 
-    corners = Table(title=f"plate corners on the bed ({summary['plate_size_mm'][0]:.0f} x "
-                          f"{summary['plate_size_mm'][1]:.0f} mm plate)")
+    corners = Table(title="plate corners on the bed")
     for col in ("corner", "x (mm)", "y (mm)"):
         corners.add_column(col, justify="right")
     for name, (x, y, _) in zip(("-x -y", "+x -y", "+x +y", "-x +y"), summary["plate_corners_mm"]):
