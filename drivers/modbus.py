@@ -288,6 +288,7 @@ class ModbusPress:
             acknowledged_sequence=raw["acknowledged_sequence"],
             plc_heartbeat=raw["plc_heartbeat"],
             fault_text=self.map.fault_text(raw["fault_code"]),
+            simulated=flags.get("simulated", False),
         )
 
     def status(self) -> PressStatus:
@@ -311,7 +312,7 @@ class ModbusPress:
             "cols": self.identity.cols,
             "limits_mm": {k: list(v) for k, v in self.identity.limits_mm.items()},
             "status": {k: getattr(st, k) for k in ("ready", "busy", "in_position", "fault", "estop", "remote",
-                                                    "data_valid")},
+                                                    "data_valid", "simulated")},
             "fault_code": st.fault_code,
             "fault_text": st.fault_text,
             "refusal_code": raw["refusal_code"],

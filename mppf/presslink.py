@@ -31,6 +31,8 @@ class PressStatus:
         PLC heartbeat counter.
     fault_text : str
         Human-readable fault code.
+    simulated : bool
+        The PLC is mppf's simulated PLC (status bit ``simulated``; a real PLC leaves it 0).
     """
 
     ready: bool
@@ -44,6 +46,7 @@ class PressStatus:
     acknowledged_sequence: int = 0
     plc_heartbeat: int = 0
     fault_text: str = ""
+    simulated: bool = False
 
 
 @dataclass(frozen=True)

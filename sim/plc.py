@@ -108,8 +108,12 @@ class SimulatedPlc:
         noise_mm: float = 0.0,
         tick_s: float = 0.02,
         regmap: RegisterMap | None = None,
+        announce_simulated: bool = True,
     ):
         self.press = press
+        # status bit `simulated`: the driver skips the operator's confirmation for a simulator;
+        # False makes it pose as a real press (to test the confirmation path)
+        self.announce_simulated = bool(announce_simulated)
         self.map = regmap or load_register_map()
         self.map.check_shape(press.rows, press.cols)
         self.word_order = check_word_order(word_order)
@@ -237,6 +241,7 @@ class SimulatedPlc:
             "estop": self.estop_pressed,
             "remote": remote,
             "data_valid": self.data_valid,
+            "simulated": self.announce_simulated,
         }
 
     def _publish(self) -> None:

@@ -89,12 +89,27 @@ def test_strokes_beyond_limits_exit_2_before_anything_moves(tmp_path, press, sim
     assert (sim.actual_positions_mm()[0] == before[0]).all()
 
 
-def test_real_plc_without_confirmation_is_refused(job_path, sim, tmp_path, monkeypatch, capsys):
+def test_real_plc_without_confirmation_is_refused(job_path, press, tmp_path, monkeypatch, capsys):
     monkeypatch.setattr("sys.stdin", io.StringIO(""))  # not a terminal
     audit = tmp_path / "audit.sqlite"
-    assert main(["press", str(job_path), "--plc", sim.url, "--audit", str(audit)]) == 4
+    real = start_simulated_plc(press, time_scale=50.0, announce_simulated=False)  # poses as a real press
+    try:
+        assert main(["press", str(job_path), "--plc", real.url, "--audit", str(audit)]) == 4
+        before = real.actual_positions_mm()
+    finally:
+        real.stop()
     assert "without confirmation" in capsys.readouterr().err
     assert "upload" not in [a[0] for a in audit_actions(audit)]
+    assert (before[0] == press.upper.park_mm).all()  # nothing moved
+
+
+def test_the_simulated_plc_needs_no_confirmation(job_path, sim, tmp_path, monkeypatch, capsys):
+    """The simulator sets status bit `simulated`: pressing on it asks nothing, even without a terminal."""
+    monkeypatch.setattr("sys.stdin", io.StringIO(""))  # not a terminal
+    audit = tmp_path / "audit.sqlite"
+    assert main(["press", str(job_path), "--plc", sim.url, "--audit", str(audit)]) == 0
+    assert "no confirmation needed" in " ".join(capsys.readouterr().err.split())
+    assert "go" in [a[0] for a in audit_actions(audit)]
 
 
 def test_real_plc_with_yes_runs(job_path, sim, tmp_path, capsys):

@@ -153,7 +153,10 @@ def press_command(job_path, plc_url, step, yes, audit_path, timeout_s, word_orde
         for k in steps:  # every step checked before the first moves
             plc.check_setpoints(*setpoints[k])
         if not dry_run:
-            _confirm(plc, job_path, steps, yes)
+            if plc.status().simulated:
+                err_console.print("simulated PLC (status bit 'simulated'): no confirmation needed")
+            else:
+                _confirm(plc, job_path, steps, yes)
         for k in steps:
             reporter = RichReporter(enabled=True)
             reporter.info(f"step {k} of {len(job.steps)}")
