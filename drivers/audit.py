@@ -23,6 +23,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from mppf.errors import InputError
+from mppf.paths import data_dir
 
 SCHEMA_VERSION = 1
 _SCHEMA = """
@@ -46,9 +47,7 @@ CREATE INDEX IF NOT EXISTS audit_time ON audit (time_s);
 
 def default_audit_path() -> Path:
     """``$MPPF_HOME/audit.sqlite``, else ``~/.local/share/mppf/audit.sqlite``."""
-    home = os.environ.get("MPPF_HOME")
-    base = Path(home) if home else Path.home() / ".local" / "share" / "mppf"
-    return base / "audit.sqlite"
+    return data_dir() / "audit.sqlite"
 
 
 @dataclass(frozen=True)

@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from mppf.errors import InputError
+from mppf.paths import data_dir
 from mppf.job import StepStrokes
 
 SCHEMA_VERSION = 1
@@ -98,9 +99,7 @@ CREATE TABLE IF NOT EXISTS events (
 
 def default_history_path() -> Path:
     """``$MPPF_HOME/history.sqlite``, else ``~/.local/share/mppf/history.sqlite``."""
-    home = os.environ.get("MPPF_HOME")
-    base = Path(home) if home else Path.home() / ".local" / "share" / "mppf"
-    return base / "history.sqlite"
+    return data_dir() / "history.sqlite"
 
 
 def _now_utc() -> str:
