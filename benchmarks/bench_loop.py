@@ -7,7 +7,10 @@ and record the deviations of every cycle. Target (issue 6): in tolerance (larges
 absolute deviation <= 2.5 mm and RMS <= 1 mm) within 3 cycles in at least 90 % of runs;
 and ``mppf demo`` in under 60 s.
 
-Run:  python benchmarks/bench_loop.py [--seeds 1 2 3] [--plates ...] [--no-demo]
+The simulated scanner picks the plate's reference-corner mark in every scan (see
+``docs/compare.md``, "Which way round"); ``--no-mark`` leaves it out.
+
+Run:  python benchmarks/bench_loop.py [--seeds 1 2 3] [--plates ...] [--no-demo] [--no-mark]
 """
 
 from __future__ import annotations
@@ -40,7 +43,7 @@ TARGET_PCT = 90.0
 
 
 def run_one(work: Path, name: str, flat_path: Path, seed: int, thickness_mm: float, max_cycles: int,
-            time_scale: float) -> dict:
+            time_scale: float, mark: bool = True) -> dict:
     press = load_press(example_press_path())
     design = read_points(HULL / f"{name}.csv")
     flat = read_points(flat_path)
@@ -51,7 +54,8 @@ def run_one(work: Path, name: str, flat_path: Path, seed: int, thickness_mm: flo
         start_plate(history, design, flat, press, thickness_mm, plate_id=plate_id, work_dir=work / plate_id,
                     settings=settings)
         job = load_job(history.cycle(plate_id, 1).job_path)
-        scanner = SimulatedPlateScanner(press, thickness_mm, plate_outline_xy(job, flat.points), seed=seed)
+        scanner = SimulatedPlateScanner(press, thickness_mm, plate_outline_xy(job, flat.points), seed=seed,
+                                        reference_mark=mark)
         with run_simulated_plc(press, time_scale=time_scale) as sim, ModbusPress(sim.url, press) as link:
             result = run_loop(history, plate_id, link, scanner)
     cycles = result.cycles
@@ -76,6 +80,8 @@ def main(argv=None) -> int:
     parser.add_argument("--max-cycles", type=int, default=5)
     parser.add_argument("--time-scale", type=float, default=100.0)
     parser.add_argument("--no-demo", action="store_true", help="skip timing 'mppf demo'")
+    parser.add_argument("--no-mark", action="store_true",
+                        help="scans without the reference-corner mark (registration by the best fit alone)")
     args = parser.parse_args(argv)
 
     rows = []
@@ -85,7 +91,8 @@ def main(argv=None) -> int:
             flat_path = write_points(work / f"{name}.flat.csv", unfold(read_points(HULL / f"{name}.csv").points).flat)
             for seed in args.seeds:
                 try:
-                    row = run_one(work, name, flat_path, seed, args.thickness, args.max_cycles, args.time_scale)
+                    row = run_one(work, name, flat_path, seed, args.thickness, args.max_cycles, args.time_scale,
+                                  not args.no_mark)
                 except MppfError as exc:  # a failed run counts as not in tolerance
                     row = {"plate": name, "seed": seed, "status": "error", "cycles": 0, "ok_at": None,
                            "max_abs": [], "rms": [], "true_yield_mpa": float("nan"), "true_t_mm": float("nan"),

@@ -73,6 +73,11 @@ DENSE_POINTS = 25000
 OUTLINE_ITERATIONS = 40
 """Iterations of the 2-D outline fit."""
 
+OUTLINE_MIN_TURN_DEG = 0.5
+"""An outline turn smaller than this is not applied (the outline fit then only shifts): the scan's
+edge (sampling, occlusion across the rim) gives the turn to a few tenths of a degree only, the
+surface fit of a curved plate far better; the outline corrects the gross turns of the best fit."""
+
 OUTLINE_MAX_TURN_DEG = 15.0
 """Largest turn the outline fit may apply (beyond it the fit is rejected)."""
 
@@ -422,7 +427,10 @@ def _outline_refit(fitted, uv_design, measured, tf, sign: float, offset_mm: floa
     1. in the design plane, the scan's edge points (those within 1.5 point spacings of the
        scan's convex outline; gaps from occlusion are bridged and skipped) are fitted to the
        design's convex outline by 2-D point-to-segment ICP (trimmed 10 %): a turn about
-       the normal and a shift in the plane;
+       the normal and a shift in the plane. A turn below ``OUTLINE_MIN_TURN_DEG`` is not
+       applied (the fit is redone as a shift only): the scan's edge gives the turn to a few
+       tenths of a degree only (sampling, occlusion at the rim), which on a curved plate
+       makes a twist of 1-3 mm at the corners; the surface fit gives it better there;
     2. then the deviations' best plane ``d ~ a + b u + c v`` (robust) is removed by a shift
        ``a`` along the normal and small tilts about u and v (three passes).
 
@@ -441,16 +449,9 @@ def _outline_refit(fitted, uv_design, measured, tf, sign: float, offset_mm: floa
     if edge.sum() < 20:
         return tf, "outline fit skipped: too few edge points in the scan"
     points = uv[edge]
-    total = np.eye(3)
-    for _ in range(OUTLINE_ITERATIONS):
-        moved = points @ total[:2, :2].T + total[:2, 2]
-        target = _closest_on_segments(moved, seg_a, seg_b)
-        residual = np.linalg.norm(moved - target, axis=1)
-        keep = residual <= np.quantile(residual, 0.9)
-        step = _rigid_2d(moved[keep], target[keep])
-        total = step @ total
-        if np.hypot(*step[:2, 2]) < 1e-3 and abs(np.arctan2(step[1, 0], step[0, 0])) < 1e-7:
-            break
+    total = _fit_outline_2d(points, seg_a, seg_b, turn=True)
+    if abs(float(np.degrees(np.arctan2(total[1, 0], total[0, 0])))) < OUTLINE_MIN_TURN_DEG:
+        total = _fit_outline_2d(points, seg_a, seg_b, turn=False)
     turn_deg = float(np.degrees(np.arctan2(total[1, 0], total[0, 0])))
     shift_mm = float(np.hypot(*total[:2, 2]))
     size_mm = float(np.ptp(uv_design, axis=0).max())
@@ -470,6 +471,24 @@ def _outline_refit(fitted, uv_design, measured, tf, sign: float, offset_mm: floa
         lift = make_tf(Rotation.from_rotvec([-c, b, 0.0]).as_matrix(), [0.0, 0.0, -a])
         tf = frame.tf_world_local @ lift @ frame.tf_local_world @ tf
     return tf, f"outline fit: turned {turn_deg:+.2f} deg and shifted {shift_mm:.1f} mm in the plane"
+
+
+def _fit_outline_2d(points, seg_a, seg_b, turn: bool) -> np.ndarray:
+    """(3, 3) 2-D transform fitting edge points to the outline segments (turn + shift, or shift only)."""
+    total = np.eye(3)
+    for _ in range(OUTLINE_ITERATIONS):
+        moved = points @ total[:2, :2].T + total[:2, 2]
+        target = _closest_on_segments(moved, seg_a, seg_b)
+        residual = np.linalg.norm(moved - target, axis=1)
+        keep = residual <= np.quantile(residual, 0.9)
+        step = _rigid_2d(moved[keep], target[keep])
+        if not turn:
+            step = np.eye(3)
+            step[:2, 2] = (target[keep] - moved[keep]).mean(axis=0)
+        total = step @ total
+        if np.hypot(*step[:2, 2]) < 1e-3 and abs(np.arctan2(step[1, 0], step[0, 0])) < 1e-7:
+            break
+    return total
 
 
 def _distance_to_polygon(points: np.ndarray, corners: np.ndarray) -> np.ndarray:

@@ -19,7 +19,12 @@ punch's own secant is unreliable (a stroke or deviation change below 0.1 mm, or 
 estimate) the plate-wide one is used, and the default gain where that fails too. The
 corrections are smoothed on the punch grid, then limited so that neighbouring
 corrections differ by at most the press's dimpling limit (``max_neighbour_diff_mm``)
-and every corrected stroke stays within the matrices' tip-height limits. See
+and every corrected stroke stays within the matrices' tip-height limits.
+
+With the plate's nominal material (``material=``, the loop's default) the step is instead
+computed through the springback law (:func:`model_correction`): each curvature component of
+the error is divided by the slope of the springback map at the loaded curvature, so a twist
+error, which springs back much more than a bend, gets a larger step. See
 ``docs/compare.md``, section "Compensation".
 """
 
@@ -29,6 +34,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.interpolate import RBFInterpolator
 
 from mppf.errors import InputError
 from mppf.overbend import integrate_hessian
@@ -376,8 +382,6 @@ def model_correction(upper_mm, lower_mm, punch_error_mm, *, press: PressConfig, 
 
 def _filled(grid_xy: np.ndarray, mask: np.ndarray, values: np.ndarray, smoothing: float) -> np.ndarray:
     """``values`` on the whole punch grid: a thin-plate spline through the entries in ``mask``."""
-    from scipy.interpolate import RBFInterpolator
-
     spline = RBFInterpolator(grid_xy[mask.ravel()], values[mask], kernel="thin_plate_spline", smoothing=smoothing)
     return spline(grid_xy).reshape(mask.shape)
 
