@@ -157,7 +157,8 @@ def decide(rms_history_mm: list[float], max_abs_mm: float, cycle: int, settings:
     rms_history_mm : list of float
         RMS deviation of every cycle so far, the current one last.
     max_abs_mm : float
-        Largest absolute deviation of the current cycle.
+        Largest absolute form deviation of the current cycle
+        (:attr:`mppf.compare.Comparison.form_max_abs_mm`).
     cycle : int
         The current cycle (1-based).
 
@@ -329,9 +330,11 @@ def run_loop(
                 history.reject_scan(plate_id, number, record.scan_path, record.scan_sha256, exc.message)
                 raise
             rms = [c.rms_mm for c in history.cycles(plate_id)[: number - 1]] + [comparison.rms_mm]
-            decision = decide(rms, comparison.max_abs_mm, number, settings)
+            # the plate's largest deviation is judged on its form (scanner point noise averaged
+            # out, see mppf.compare); the raw point extremes stay in the stored comparison
+            decision = decide(rms, comparison.form_max_abs_mm, number, settings)
             history.mark_compared(
-                plate_id, number, rms_mm=comparison.rms_mm, max_abs_mm=comparison.max_abs_mm,
+                plate_id, number, rms_mm=comparison.rms_mm, max_abs_mm=comparison.form_max_abs_mm,
                 within_pct=comparison.within_tolerance_pct, punch_deviation_mm=comparison.punch_deviation_mm,
                 comparison=_summary(comparison), decision=decision,
             )

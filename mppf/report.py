@@ -75,7 +75,8 @@ def statistics_rows(c: Comparison) -> list[tuple]:
     """The statistics of a comparison as (name, value, unit) rows."""
     return [
         ("RMS deviation", c.rms_mm, "mm"),
-        ("largest absolute deviation", c.max_abs_mm, "mm"),
+        ("largest absolute deviation of the form (decides the tolerance)", c.form_max_abs_mm, "mm"),
+        ("largest absolute deviation of a single point", c.max_abs_mm, "mm"),
         ("mean deviation", c.mean_mm, "mm"),
         ("standard deviation", c.std_mm, "mm"),
         (f"within tolerance +-{c.tolerance_mm:g} mm", c.within_tolerance_pct, "%"),

@@ -113,6 +113,35 @@ def test_perfect_scan_gives_the_noise_as_rms():
     assert c.within_tolerance_pct == 100.0
     assert c.in_tolerance
     assert c.is_outlier.sum() < 5
+
+
+def test_form_deviation_averages_out_the_scanner_noise(bump_result):
+    """The plate's form deviation keeps the 5 mm bump but not the 0.3 mm point noise."""
+    u, v, c = bump_result
+    form = c.form_deviation_mm
+    assert np.isnan(form[~c.inlier]).all() and np.isfinite(form[c.inlier]).all()
+    assert c.form_max_abs_mm == pytest.approx(np.max(np.abs(form[c.inlier])))
+    # the bump's peak survives the local planes (150 mm wide bump, planes over ~12 points)
+    assert c.form_max_abs_mm == pytest.approx(5.0, abs=0.2)
+    # away from the bump the form deviation is the noise averaged over about 12 points
+    far = _bump(u, v) < 5e-3
+    raw_spread = np.std(c.deviation_mm[far & c.inlier])
+    form_spread = np.std(form[far & c.inlier])
+    assert raw_spread == pytest.approx(0.3, abs=0.05)
+    assert form_spread < 0.5 * raw_spread
+    doc = c.to_dict()
+    assert doc["form_max_abs_mm"] == pytest.approx(c.form_max_abs_mm)
+    assert doc["in_tolerance"] is False
+
+
+def test_noise_alone_never_fails_the_tolerance_but_its_raw_extremes_would():
+    """1.0 mm of scanner noise puts single points beyond a 2.5 mm tolerance; the form
+    deviation of that perfectly formed plate stays well inside it."""
+    _, _, measured = _measured(n=8000, bump=False, noise_mm=1.0, seed=6)
+    c = compare(_design(), measured, tolerance_mm=2.5)
+    assert c.max_abs_mm > 2.5  # raw points: noise extremes
+    assert c.form_max_abs_mm < 2.0  # about 1.6: the local planes cut the noise by about 2.5x
+    assert c.in_tolerance
     assert rotation_angle_deg(c.transform @ _pose()) < 0.1
 
 

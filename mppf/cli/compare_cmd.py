@@ -122,7 +122,8 @@ def _print_result(result, design: str, measured: str) -> None:
     verdict = "[green]IN tolerance[/]" if c.in_tolerance else "[red]OUT of tolerance[/]"
     table.add_row("result", verdict)
     table.add_row("RMS deviation", f"{c.rms_mm:.3f} mm")
-    table.add_row("largest |deviation|", f"{c.max_abs_mm:.3f} mm")
+    table.add_row("largest |deviation| (form)", f"{c.form_max_abs_mm:.3f} mm")
+    table.add_row("largest |deviation| (points)", f"{c.max_abs_mm:.3f} mm")
     table.add_row(f"within +-{c.tolerance_mm:g} mm", f"{c.within_tolerance_pct:.1f} %")
     table.add_row("mean deviation", f"{c.mean_mm:+.3f} mm")
     table.add_row("inliers", f"{c.n_inliers} of {c.n_points} ({100.0 * c.n_inliers / c.n_points:.1f} %)")
