@@ -158,7 +158,7 @@ def run_plate(history, plate, *, plc_url, scanner_spec, time_scale, audit, repor
 @click.option("--plc", "plc_url", help="PLC URL (tcp://HOST:PORT?unit=1); none = dry run on the simulated PLC.")
 @click.option("--scanner", "scanner_spec", help="'sim' (simulated scan; default in dry runs) or the folder the "
               "scanner software writes scan files into.")
-@click.option("--tolerance", type=float, default=2.5, show_default=True, help="Largest absolute deviation (mm).")
+@click.option("--tolerance", type=float, default=2.5, show_default=True, help="Largest absolute form deviation (mm; scanner point noise averaged out, see docs/compare.md).")
 @click.option("--rms-tolerance", type=float, default=1.0, show_default=True, help="Largest RMS deviation (mm).")
 @click.option("--max-cycles", type=int, default=5, show_default=True, help="Press cycles at most.")
 @click.option("--gain", type=float, default=1.0, show_default=True, help="Gain of the first correction.")
@@ -186,7 +186,7 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
          as_json, yes, units):
     """Plan, press, measure, compare, correct, press again, until the plate is in tolerance.
 
-    Stops when the largest absolute deviation is within --tolerance and the RMS within
+    Stops when the largest absolute form deviation is within --tolerance and the RMS within
     --rms-tolerance, after --max-cycles, or when the error diverges (the RMS grows by
     more than 1.5 times, or by more than 0.1 mm two cycles in a row). Every cycle is recorded in the history; after a
     crash or power cut, 'mppf loop --resume' continues at the right cycle and never
