@@ -158,7 +158,8 @@ def run_plate(history, plate, *, plc_url, scanner_spec, time_scale, audit, repor
 @click.option("--plc", "plc_url", help="PLC URL (tcp://HOST:PORT?unit=1); none = dry run on the simulated PLC.")
 @click.option("--scanner", "scanner_spec", help="'sim' (simulated scan; default in dry runs) or the folder the "
               "scanner software writes scan files into.")
-@click.option("--tolerance", type=float, default=2.5, show_default=True, help="Largest absolute form deviation (mm; scanner point noise averaged out, see docs/compare.md).")
+@click.option("--tolerance", type=float, default=2.5, show_default=True,
+              help="Largest absolute form deviation (mm; scanner point noise averaged out).")
 @click.option("--rms-tolerance", type=float, default=1.0, show_default=True, help="Largest RMS deviation (mm).")
 @click.option("--max-cycles", type=int, default=5, show_default=True, help="Press cycles at most.")
 @click.option("--gain", type=float, default=1.0, show_default=True, help="Gain of the first correction.")
