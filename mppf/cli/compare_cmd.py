@@ -7,14 +7,11 @@ from pathlib import Path
 import click
 import numpy as np
 
-from mppf.cli._common import console, err_console, print_json, units_option
+from mppf.cli._common import PICTURE_SUFFIXES, check_output_path, console, err_console, print_json, units_option
 from mppf.errors import InputError
 
 SKIN_SIDE = {"top": 1.0, "mid": 0.0, "bottom": -1.0}
 """Offset of the measured skin from the design mid-surface, in half thicknesses."""
-
-PLOT_SUFFIXES = (".png", ".pdf", ".svg")
-"""Picture types of --plot."""
 
 HISTOGRAM_WIDTH = 40
 """Characters of the longest bar of the terminal histogram."""
@@ -64,13 +61,10 @@ def compare_command(design: str, measured: str, tolerance: float, thickness: flo
     if not (np.isfinite(tolerance) and tolerance > 0):
         raise InputError(f"--tolerance must be a positive length in mm, got {tolerance}")
     offset = skin_offset_mm(skin, thickness)
-    if plot and Path(plot).suffix.lower() not in PLOT_SUFFIXES:
-        raise InputError(f"--plot {plot}: unknown picture type {Path(plot).suffix or '(no suffix)'!r}",
-                         hint=f"use one of {', '.join(PLOT_SUFFIXES)}")
-    for option, path in (("--plot", plot), ("--report", report)):
-        if path and not Path(path).resolve().parent.is_dir():
-            raise InputError(f"cannot write {option} {path}: the folder {Path(path).parent} does not exist",
-                             hint="create the folder first or give another path")
+    if plot:
+        check_output_path(plot, "the deviation map (--plot)", PICTURE_SUFFIXES, kind="picture")
+    if report:
+        check_output_path(report, "the report (--report)")
     design_cloud = read_points(design, units=units)
     measured_cloud = read_points(measured, units=units)
     result = compare(design_cloud.points, measured_cloud.points, tolerance_mm=tolerance, offset_mm=offset,

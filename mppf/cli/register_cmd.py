@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from mppf.cli._common import RichReporter, console, err_console, print_json, units_option
+from mppf.cli._common import RichReporter, check_output_path, console, err_console, print_json, units_option
 from mppf.errors import MppfError
 
 
@@ -36,7 +36,6 @@ def register_command(source: str, target: str, method: str, init: str, robust: s
     inlier fraction and the 4x4 transform. With --method paired the files must hold
     the same number of points, in corresponding order.
     """
-    from pathlib import Path
 
     from mppf.errors import InputError
     from mppf.io import WRITE_SUFFIXES, read_points, write_points
@@ -53,10 +52,8 @@ def register_command(source: str, target: str, method: str, init: str, robust: s
             raise InputError(f"{names} only appl{'ies' if len(icp_only) == 1 else 'y'} to ICP, "
                              "not to --method paired",
                              hint="leave it out, or use --method point or plane")
-    if output is not None and Path(output).suffix.lower() not in WRITE_SUFFIXES:
-        # refuse before the registration, not after it
-        raise InputError(f"cannot write {output}: unknown point file type {Path(output).suffix or '(no suffix)'!r}",
-                         hint=f"give -o a file ending in one of {', '.join(WRITE_SUFFIXES)}")
+    if output is not None:  # refuse before the registration, not after it
+        check_output_path(output, "the moved points (-o)", WRITE_SUFFIXES, kind="point file")
     src = read_points(source, units=units)
     tgt = read_points(target, units=units)
     try:
