@@ -32,7 +32,7 @@ from mppf.job import load_job
 from mppf.loop import LoopSettings, run_loop, start_plate
 from mppf.press import example_press_path, load_press
 from mppf.sim.plc import run_simulated_plc
-from mppf.sim.shop import SimulatedPlateScanner, plate_outline_xy
+from mppf.sim.shop import SimulatedPlateScanner
 from mppf.unfold import unfold
 
 HULL = Path(__file__).resolve().parents[1] / "mppf" / "examples" / "hull"
@@ -54,8 +54,7 @@ def run_one(work: Path, name: str, flat_path: Path, seed: int, thickness_mm: flo
         start_plate(history, design, flat, press, thickness_mm, plate_id=plate_id, work_dir=work / plate_id,
                     settings=settings)
         job = load_job(history.cycle(plate_id, 1).job_path)
-        scanner = SimulatedPlateScanner(press, thickness_mm, plate_outline_xy(job, flat.points), seed=seed,
-                                        reference_mark=mark)
+        scanner = SimulatedPlateScanner.for_job(press, thickness_mm, job, flat.points, seed=seed, reference_mark=mark)
         with run_simulated_plc(press, time_scale=time_scale) as sim, ModbusPress(sim.url, press) as link:
             result = run_loop(history, plate_id, link, scanner)
     cycles = result.cycles

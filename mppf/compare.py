@@ -24,6 +24,11 @@ The steps of :func:`compare` (the math is in ``docs/compare.md``):
 6. Statistics of the inliers (RMS, largest absolute, mean, percent within tolerance,
    histogram) and, given the punch positions, the deviation at each punch.
 
+A trim margin (``margin_mm``: the excess band the scanned plate still carries around the
+net outline) grows the registration target, the size check and the outline fit by the
+margin; points in the band are measured (against the design surface's extension past its
+edge) and used for the punch deviations, but left out of the statistics.
+
 Which way is "+normal": with ``tf_press_design`` the design normal pointing up in press
 coordinates (+z); without it the normal of the design's frame (:mod:`mppf.frame`: the
 side from which a curved plate looks concave, like a bowl on the press bed).
@@ -42,6 +47,7 @@ from scipy.spatial.transform import Rotation
 from mppf.errors import GeometryError, InputError
 from mppf.frame import LocalFrame, fit_frame
 from mppf.localize import foot_points
+from mppf.placement import offset_convex_polygon
 from mppf.register import Registration, principal_candidates, register_icp
 from mppf.surface import fit_plate
 from mppf.transform import apply_rotation, apply_tf, as_points, make_tf, rotation_angle_deg, tf_to_list
@@ -155,7 +161,8 @@ class Comparison:
     design_fit_rms_mm : float
         RMS residual of the surface fitted to the design points.
     form_deviation_mm : (n,) float
-        The form deviation of every inlier (NaN elsewhere).
+        The form deviation of every inlier and of every trim-margin point that is not an
+        outlier (NaN elsewhere; the margin points' are not in the form statistics).
     punch_deviation_mm : (rows, cols) float or None
         Deviation of the plate at each punch along press z (the stroke direction):
         positive = plate above the design. NaN where the punch is off the plate.
@@ -164,6 +171,13 @@ class Comparison:
     punch_interpolated : (rows, cols) bool or None
         Punches without measured points nearby (occlusion) whose value is interpolated.
     notes : list of str
+    margin_mm : float
+        Width of the trim margin (excess band around the design outline), as given.
+    in_margin : (n,) bool
+        Points whose foot point lies in the trim margin: beyond the design's convex
+        outline, within the outline grown by ``margin_mm``. Measured, used for the punch
+        deviations, not in the statistics (nor in ``inlier`` or ``is_outside``). All False
+        when ``margin_mm`` is 0; default (None given): all False.
     """
 
     rms_mm: float
@@ -194,6 +208,12 @@ class Comparison:
     punch_normal_deviation_mm: np.ndarray | None = None
     punch_interpolated: np.ndarray | None = None
     notes: list[str] = field(default_factory=list)
+    margin_mm: float = 0.0
+    in_margin: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.in_margin is None:
+            object.__setattr__(self, "in_margin", np.zeros(self.deviation_mm.shape[0], dtype=bool))
 
     @property
     def n_points(self) -> int:
@@ -227,6 +247,8 @@ class Comparison:
             "n_inliers": self.n_inliers,
             "n_outliers": int(self.is_outlier.sum()),
             "n_outside": int(self.is_outside.sum()),
+            "margin_mm": self.margin_mm,
+            "n_margin": int(self.in_margin.sum()),
             "inlier_fraction": self.n_inliers / max(self.n_points, 1),
             "transform": tf_to_list(self.transform),
             "histogram": {"edges_mm": self.histogram_edges_mm.tolist(), "counts": self.histogram_counts.tolist()},
@@ -259,6 +281,7 @@ def compare(
     rotation_hint=None,
     reference_mark=None,
     fit_outline: bool | None = None,
+    margin_mm: float = 0.0,
 ) -> Comparison:
     """Register a scan onto its design and measure the deviation of every point.
 
@@ -304,6 +327,14 @@ def compare(
         deviations (see :func:`_outline_refit`). Default: on when ``punch_xy_mm`` is
         given (on the press the outline places the plate, and the punch deviations must
         be where the punches are), off otherwise (pure best fit).
+    margin_mm : float
+        Width (mm, >= 0) of the trim margin the scanned plate still carries around the
+        design's outline. The registration target, the size check and the outline fit use
+        the design's convex outline grown by it (:func:`offset_convex_polygon`); points in
+        the band (``Comparison.in_margin``) are measured against the design surface's
+        extension past its edge and give the deviations of the punches under the margin,
+        but are left out of every statistic (the tolerance is on the net plate). Default
+        0: no margin.
 
     Returns
     -------
@@ -321,6 +352,7 @@ def compare(
     design = as_points(design_points, name="design points")
     measured = as_points(measured_points, name="measured points")
     _check_options(tolerance_mm, offset_mm, measured, punch_xy_mm, tf_press_design)
+    margin_mm = _check_margin(margin_mm)
 
     # 1. the design surface, its normal oriented (up in press coordinates when known)
     fitted = fit_plate(design, kind="spline", faces=design_faces, source="design")
@@ -328,43 +360,54 @@ def compare(
     sign = _normal_sign(frame, tf_press_design)
     design_local = fitted.frame.to_local(design)
     uv_d = design_local[:, :2]
-    _check_size(uv_d, measured)
+    _check_size(uv_d, measured, margin_mm)
 
-    # 2. the design moved to the measured skin, sampled densely
-    target = _dense_skin(fitted, uv_d, sign, offset_mm)
+    # 2. the design moved to the measured skin, sampled densely (over the outline grown by the margin)
+    target = _dense_skin(fitted, uv_d, sign, offset_mm, margin_mm)
 
     # 3. robust registration of the scan onto the design skin, and
     # 4. signed normal deviation of every point (foot points on the design surface)
     init, start_note = _choose_start(measured, target, rotation_hint, reference_mark, float(np.ptp(uv_d, axis=0).max()))
-    reg, moved, feet, deviation, outside, reg_note = _register(measured, target, fitted, uv_d, sign, offset_mm,
-                                                               init)
+    reg, moved, feet, deviation, outside, in_margin, reg_note = _register(measured, target, fitted, uv_d, sign,
+                                                                          offset_mm, init, margin_mm)
     reg_note = f"{start_note}; {reg_note}"
     transform = reg.tf
     if fit_outline is None:
         fit_outline = punch_xy_mm is not None
     if fit_outline:
-        transform, note = _outline_refit(fitted, uv_d, measured, transform, sign, offset_mm)
+        transform, note = _outline_refit(fitted, uv_d, measured, transform, sign, offset_mm, margin_mm)
         reg_note = f"{reg_note}; {note}"
-        moved, feet, deviation, outside = _deviate(measured, transform, fitted, uv_d, sign, offset_mm)
+        moved, feet, deviation, outside, in_margin = _deviate(measured, transform, fitted, uv_d, sign, offset_mm,
+                                                              margin_mm)
     uv = np.asarray(feet.uv, dtype=float)
     _check_match(deviation, outside, tolerance_mm, reg, depth_mm=float(np.ptp(design_local[:, 2])))
 
-    # 5. outliers relative to their neighbours
+    # 5. outliers relative to their neighbours (the margin's points are neighbours too)
     outlier = _outliers(uv, deviation, ~outside)
-    inlier = ~outside & ~outlier
+    inlier = ~outside & ~outlier & ~in_margin
+    measured_ok = ~outside & ~outlier  # net and margin: the punch deviations
     if inlier.sum() < MIN_POINTS:
         raise GeometryError(f"only {int(inlier.sum())} of {len(inlier)} measured points are usable "
-                            f"({int(outlier.sum())} outliers, {int(outside.sum())} outside the design)",
+                            f"({int(outlier.sum())} outliers, {int(outside.sum())} outside the design, "
+                            f"{int(in_margin.sum())} in the trim margin)",
                             hint="check the scan: it should cover most of the plate")
 
     # 6. statistics, histogram and punch deviations
     d = deviation[inlier]
     form = np.full(deviation.shape[0], np.nan)
     form[inlier] = _local_plane(uv[inlier], d, FORM_NEIGHBOURS, leave_out=False, robust_passes=1)
+    margin_ok = measured_ok & in_margin
+    if margin_ok.any():  # for maps only: the net plate's form values above do not see the margin
+        form_all = _local_plane(uv[measured_ok], deviation[measured_ok], FORM_NEIGHBOURS, leave_out=False,
+                                robust_passes=1)
+        form[margin_ok] = form_all[in_margin[measured_ok]]
     edges = _bin_edges(d, tolerance_mm, bins)
     counts, _ = np.histogram(np.clip(d, edges[0], edges[-1]), bins=edges)
     notes = [reg_note, f"{int(outlier.sum())} outlier(s) and {int(outside.sum())} point(s) outside the design "
              "left out of the statistics"]
+    if margin_mm > 0:
+        notes.append(f"{int(in_margin.sum())} point(s) in the trim margin ({margin_mm:g} mm) left out of the "
+                     "statistics")
     punch = punch_n = punch_interp = None
     if punch_xy_mm is not None:
         n_z = apply_rotation(np.asarray(tf_press_design, dtype=float) @ fitted.frame.tf_world_local,
@@ -373,8 +416,8 @@ def compare(
                               np.asarray(feet.xyz, dtype=float))
         design_press = apply_tf(tf_press_design, design)
         punch, punch_n, punch_interp = _punch_deviation(
-            np.asarray(punch_xy_mm, dtype=float), foot_press[inlier, :2], d, np.maximum(n_z[inlier], 0.2),
-            design_press[:, :2], punch_radius_mm)
+            np.asarray(punch_xy_mm, dtype=float), foot_press[measured_ok, :2], deviation[measured_ok],
+            np.maximum(n_z[measured_ok], 0.2), design_press[:, :2], punch_radius_mm, margin_mm)
         notes.append(f"punch deviations: {int(np.isfinite(punch).sum())} punches on the plate, "
                      f"{int(punch_interp.sum())} interpolated across gaps in the scan")
     return Comparison(
@@ -406,38 +449,53 @@ def compare(
         punch_normal_deviation_mm=punch_n,
         punch_interpolated=punch_interp,
         notes=notes,
+        margin_mm=margin_mm,
+        in_margin=in_margin,
     )
 
 
-def _dense_skin(fitted, uv_design: np.ndarray, sign: float, offset_mm: float) -> np.ndarray:
+def _dense_skin(fitted, uv_design: np.ndarray, sign: float, offset_mm: float, margin_mm: float = 0.0) -> np.ndarray:
     """The design skin sampled densely from its fitted surface (world coordinates).
 
-    About ``DENSE_POINTS`` points on a square grid over the design's convex outline: a
-    dense target makes point-to-point ICP nearly a point-to-surface distance, without
+    About ``DENSE_POINTS`` points on a square grid over the design's convex outline grown
+    by ``margin_mm`` (:func:`offset_convex_polygon`; beyond the design's edge the spline
+    surface continues as its tangent plane there, see :class:`mppf.surface.SplineSurface`):
+    a dense target makes point-to-point ICP nearly a point-to-surface distance, without
     the bias of a coarse design grid.
     """
-    lo, hi = uv_design.min(axis=0), uv_design.max(axis=0)
+    outline = offset_convex_polygon(uv_design[ConvexHull(uv_design).vertices], margin_mm)
+    lo, hi = outline.min(axis=0), outline.max(axis=0)
     step = max(float(np.sqrt(np.prod(hi - lo) / DENSE_POINTS)), 1e-6)
     uu, vv = np.meshgrid(np.arange(lo[0], hi[0] + 1e-9, step), np.arange(lo[1], hi[1] + 1e-9, step))
     uv = np.column_stack([uu.ravel(), vv.ravel()])
-    uv = uv[PolygonPath(uv_design[ConvexHull(uv_design).vertices]).contains_points(uv, radius=1e-9)]
+    uv = uv[PolygonPath(outline).contains_points(uv, radius=1e-9)]
     w = fitted.surface.evaluate(uv[:, 0], uv[:, 1])
     local = np.column_stack([uv, w]) + (sign * offset_mm) * fitted.surface.normals(uv[:, 0], uv[:, 1])
     return fitted.frame.to_world(local)
 
 
-def _deviate(measured, tf, fitted, uv_design, sign: float, offset_mm: float):
-    """Moved points, foot points, signed deviations and the outside mask for a transform."""
+def _deviate(measured, tf, fitted, uv_design, sign: float, offset_mm: float, margin_mm: float = 0.0):
+    """Moved points, foot points, signed deviations, the outside and the trim-margin masks for a transform.
+
+    ``outside``: the foot point failed or lies beyond the outline grown by ``margin_mm``;
+    ``in_margin``: not outside, but beyond the design's (net) convex outline; all False
+    without a margin.
+    """
     moved = apply_tf(tf, measured)
     feet = foot_points(fitted.surface, fitted.frame.to_local(moved))
     distance = np.asarray(feet.distance_mm, dtype=float)
     deviation = np.where(np.isfinite(distance), sign * distance - offset_mm, np.nan)
+    uv = np.asarray(feet.uv, dtype=float)
     outside = (~np.asarray(feet.converged, dtype=bool) | ~np.isfinite(deviation)
-               | _outside(uv_design, np.asarray(feet.uv, dtype=float)))
-    return moved, feet, deviation, outside
+               | _outside(uv_design, uv, margin_mm))
+    in_margin = np.zeros(len(outside), dtype=bool)
+    if margin_mm > 0:
+        net = PolygonPath(uv_design[ConvexHull(uv_design).vertices])
+        in_margin = ~outside & ~net.contains_points(uv, radius=1e-9)
+    return moved, feet, deviation, outside, in_margin
 
 
-def _outline_refit(fitted, uv_design, measured, tf, sign: float, offset_mm: float):
+def _outline_refit(fitted, uv_design, measured, tf, sign: float, offset_mm: float, margin_mm: float = 0.0):
     """Re-place a registered scan by its outline (in-plane) and its deviations (out of plane).
 
     Best-fit registration trades shape errors against in-plane moves: a saddle formed with
@@ -447,13 +505,15 @@ def _outline_refit(fitted, uv_design, measured, tf, sign: float, offset_mm: floa
 
     1. in the design plane, the scan's edge points (those within 1.5 point spacings of the
        scan's convex outline; gaps from occlusion are bridged and skipped) are fitted to the
-       design's convex outline by 2-D point-to-segment ICP (trimmed 10 %): a turn about
+       design's convex outline (grown by ``margin_mm``: a scan that still carries its trim
+       margin, :func:`offset_convex_polygon`) by 2-D point-to-segment ICP (trimmed 10 %): a turn about
        the normal and a shift in the plane. A turn below ``OUTLINE_MIN_TURN_DEG`` is not
        applied (the fit is redone as a shift only): the scan's edge gives the turn to a few
        tenths of a degree only (sampling, occlusion at the rim), which on a curved plate
        makes a twist of 1-3 mm at the corners; the surface fit gives it better there;
-    2. then the deviations' best plane ``d ~ a + b u + c v`` (robust) is removed by a shift
-       ``a`` along the normal and small tilts about u and v (three passes).
+    2. then the deviations' best plane ``d ~ a + b u + c v`` (robust) of the net plate's
+       points (the margin's left out) is removed by a shift ``a`` along the normal and small
+       tilts about u and v (three passes).
 
     Returns the new measured -> design transform and a note. Falls back to ``tf`` when the
     scan shows too little edge or the outline fit wants an implausible move.
@@ -462,7 +522,7 @@ def _outline_refit(fitted, uv_design, measured, tf, sign: float, offset_mm: floa
     local = frame.to_local(apply_tf(tf, measured))
     uv = local[:, :2]
     hull = ConvexHull(uv_design)
-    corners = uv_design[hull.vertices]
+    corners = offset_convex_polygon(uv_design[hull.vertices], margin_mm)
     seg_a, seg_b = corners, np.roll(corners, -1, axis=0)
     spacing = float(np.median(cKDTree(uv).query(uv, k=2)[0][:, 1]))
     scan_hull = ConvexHull(uv)
@@ -484,9 +544,10 @@ def _outline_refit(fitted, uv_design, measured, tf, sign: float, offset_mm: floa
     tf = frame.tf_world_local @ in_plane @ frame.tf_local_world @ tf
     # out of plane: remove the deviations' robust best plane by a shift and two tilts
     for _ in range(3):
-        moved, feet, deviation, outside = _deviate(measured, tf, fitted, uv_design, sign, offset_mm)
+        moved, feet, deviation, outside, in_margin = _deviate(measured, tf, fitted, uv_design, sign, offset_mm,
+                                                              margin_mm)
         fuv = np.asarray(feet.uv, dtype=float)
-        use = ~outside
+        use = ~outside & ~in_margin
         coef = _robust_plane(fuv[use], deviation[use])
         a, b, c = sign * coef  # the plane along the frame's +n
         lift = make_tf(Rotation.from_rotvec([-c, b, 0.0]).as_matrix(), [0.0, 0.0, -a])
@@ -618,7 +679,8 @@ def _choose_start(measured, target, rotation_hint, reference_mark, length_mm: fl
     return fits[best], f"start: best converged fit{tie}; converged RMS {scored} mm"
 
 
-def _register(measured, target, fitted, uv_design, sign: float, offset_mm: float, init="principal"):
+def _register(measured, target, fitted, uv_design, sign: float, offset_mm: float, init="principal",
+              margin_mm: float = 0.0):
     """Register in two stages, then deviate every point.
 
     1. Point-to-point ICP (principal-axes start, plain least squares) on the dense design
@@ -628,7 +690,8 @@ def _register(measured, target, fitted, uv_design, sign: float, offset_mm: float
        normal, insensitive to outliers. It is kept unless it slid part of the scan off
        the design's edge (grossly different shapes), then stage 1 is used.
 
-    ``init`` is "principal" (the best of the four principal-axes starts) or a start
+    The design's edge is its outline grown by ``margin_mm`` (the trim margin). ``init`` is
+    "principal" (the best of the four principal-axes starts) or a start
     transform (:func:`_choose_start`).
     """
     stages = []
@@ -637,7 +700,7 @@ def _register(measured, target, fitted, uv_design, sign: float, offset_mm: float
         reg = register_icp(measured, target, method=method, init=init, trim_fraction=trim, robust=robust,
                            pin_outline=False, max_points=max_points, max_iterations=iterations)
         init = reg.tf
-        stages.append((reg, *_deviate(measured, reg.tf, fitted, uv_design, sign, offset_mm)))
+        stages.append((reg, *_deviate(measured, reg.tf, fitted, uv_design, sign, offset_mm, margin_mm)))
     point, plane = stages
     if plane[4].mean() <= point[4].mean() + OVERHANG_FRACTION:
         return (*plane, "registration: point-to-point, then point-to-plane (trimmed, Huber)")
@@ -664,6 +727,19 @@ def _check_options(tolerance_mm, offset_mm, measured, punch_xy_mm, tf_press_desi
         raise InputError(f"tf_press_design must be 4x4, got {np.asarray(tf_press_design).shape}")
 
 
+def _check_margin(margin_mm) -> float:
+    """The trim margin as a float; InputError unless it is a finite length >= 0."""
+    try:
+        value = float(margin_mm)
+    except (TypeError, ValueError):
+        raise InputError(f"trim margin must be a length in mm, got {margin_mm!r}",
+                         hint="give the width of the excess band around the design outline, e.g. 50") from None
+    if not (np.isfinite(value) and value >= 0):
+        raise InputError(f"trim margin must be a finite length >= 0 mm, got {margin_mm}",
+                         hint="give the width of the excess band around the design outline, 0 for a net plate")
+    return value
+
+
 def _normal_sign(frame: LocalFrame, tf_press_design) -> float:
     """+1 or -1: the sign that makes the frame's normal point up in press coordinates (when known)."""
     if tf_press_design is None:
@@ -672,21 +748,42 @@ def _normal_sign(frame: LocalFrame, tf_press_design) -> float:
     return 1.0 if up >= 0 else -1.0
 
 
-def _outside(uv_design: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """Foot points outside the design: beyond its convex hull and away from its points."""
+def _outside(uv_design: np.ndarray, uv: np.ndarray, margin_mm: float = 0.0) -> np.ndarray:
+    """Foot points outside the design: beyond its convex hull and away from its points.
+
+    With a trim margin: beyond the hull grown by ``margin_mm`` (:func:`offset_convex_polygon`)
+    and farther than ``margin_mm`` + 1.5 design spacings from the design's points.
+
+    Parameters
+    ----------
+    uv_design : (m, 2) float, mm
+        The design points in the design plane.
+    uv : (n, 2) float, mm
+        Foot points in the design plane.
+    margin_mm : float
+        Width of the trim margin (>= 0).
+
+    Returns
+    -------
+    (n,) bool
+    """
     tree = cKDTree(uv_design)
     spacing = float(np.median(tree.query(uv_design, k=2)[0][:, 1]))
     hull = ConvexHull(uv_design)
-    beyond = ~PolygonPath(uv_design[hull.vertices]).contains_points(uv)
-    far = tree.query(uv)[0] > 1.5 * max(spacing, 1e-9)
+    beyond = ~PolygonPath(offset_convex_polygon(uv_design[hull.vertices], margin_mm)).contains_points(uv)
+    far = tree.query(uv)[0] > 1.5 * max(spacing, 1e-9) + margin_mm
     return beyond & far
 
 
-def _check_size(uv_design: np.ndarray, measured: np.ndarray) -> None:
-    """Raise GeometryError when the scan's length is out of proportion with the design's."""
+def _check_size(uv_design: np.ndarray, measured: np.ndarray, margin_mm: float = 0.0) -> None:
+    """Raise GeometryError when the scan's length is out of proportion with the design's.
+
+    A scan that still carries its trim margin may be up to ``SIZE_RATIO[1]`` times the
+    design's length plus twice the margin.
+    """
     design_mm = float(np.ptp(uv_design[:, 0]))
     scan_mm = float(np.ptp(fit_frame(measured).to_local(measured)[:, 0]))
-    if not SIZE_RATIO[0] * design_mm <= scan_mm <= SIZE_RATIO[1] * design_mm:
+    if not SIZE_RATIO[0] * design_mm <= scan_mm <= SIZE_RATIO[1] * (design_mm + 2.0 * margin_mm):
         raise GeometryError(
             f"the scan is {scan_mm:.0f} mm long, the design {design_mm:.0f} mm: not the same plate",
             hint="check the files and the --units (a scan in metres read as millimetres is 1000 times too small)")
@@ -788,8 +885,24 @@ def _bin_edges(d: np.ndarray, tolerance_mm: float, bins) -> np.ndarray:
     return edges
 
 
-def _punch_deviation(punch_xy, xy, deviation, n_z, design_xy, radius_mm):
+def _punch_deviation(punch_xy, xy, deviation, n_z, design_xy, radius_mm, margin_mm: float = 0.0):
     """Median deviation near each punch axis; interpolated where the scan has a gap.
+
+    Parameters
+    ----------
+    punch_xy : (rows, cols, 2) float, mm
+        Punch axes in press coordinates.
+    xy : (p, 2) float, mm
+        Press (x, y) of the foot points of the measured points used (net and margin).
+    deviation, n_z : (p,) float
+        Their normal deviations (mm) and the press-z components of the design normal.
+    design_xy : (m, 2) float, mm
+        The design points' press (x, y).
+    radius_mm : float or None
+        Radius around an axis whose points give its deviation (None: 0.45 pitch).
+    margin_mm : float
+        Trim margin: a punch is on the plate when its axis lies inside the convex outline
+        of ``design_xy`` grown by it (:func:`offset_convex_polygon`).
 
     Returns (stroke-direction deviation, normal deviation, interpolated mask), each
     (rows, cols); NaN where the punch is off the plate.
@@ -800,7 +913,7 @@ def _punch_deviation(punch_xy, xy, deviation, n_z, design_xy, radius_mm):
         pitch = cKDTree(flat).query(flat, k=2)[0][:, 1] if flat.shape[0] > 1 else np.array([100.0])
         radius_mm = 0.45 * float(np.median(pitch))
     hull = ConvexHull(design_xy)
-    on_plate = PolygonPath(design_xy[hull.vertices]).contains_points(flat)
+    on_plate = PolygonPath(offset_convex_polygon(design_xy[hull.vertices], margin_mm)).contains_points(flat)
     normal = np.full(flat.shape[0], np.nan)
     vertical = np.full(flat.shape[0], np.nan)
     for i, near in enumerate(cKDTree(xy).query_ball_point(flat, radius_mm)):

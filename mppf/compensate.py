@@ -53,9 +53,13 @@ SECANT_BLEND = 0.5
 SMOOTHING = 0.25
 """Weight of the neighbour average in the smoothed correction (0 = none, 1 = only neighbours)."""
 
-MIN_SLOPE = 0.4
-"""Smallest springback slope the model-based correction divides by (at most 2.5 x the error:
+MIN_SLOPE = 0.2
+"""Smallest springback slope the model-based correction divides by (at most 5 x the error:
 a damping against the scan noise, which the division would amplify as much)."""
+
+MAX_STEP_RATIO = 2.5
+"""Trust region of the model-based correction: no punch moves by more than this times the
+plate's largest measured error (the whole step is scaled down when one would)."""
 
 FILL_SMOOTHING = 1.0
 """Smoothing of the thin-plate spline that fills the error grid where no punch has data."""
@@ -114,6 +118,7 @@ def compensate(
     previous: PreviousCycle | Mapping | None = None,
     smoothing: float = SMOOTHING,
     material: Material | None = None,
+    max_step_ratio: float | None = MAX_STEP_RATIO,
 ) -> Correction:
     """Correct the strokes of one press step from the measured deviation at the punches.
 
@@ -138,6 +143,10 @@ def compensate(
         Nominal plate material: correct through the springback model
         (:func:`model_correction`, times ``gain``) instead of ``-lambda e``; ``previous``
         is then not used (the model gives the slope, no secant from noisy data).
+    max_step_ratio : float or None
+        Trust region of the model step: scaled down as a whole when a punch would move
+        by more than this times the largest measured error; None = no limit (the virtual
+        cycles of :mod:`mppf.precompensate`, where the model is its own truth).
 
     Returns
     -------
@@ -172,6 +181,15 @@ def compensate(
         notes.append(f"springback-model correction (nominal material, gain {gain:g}); effective gain median "
                      f"{np.nanmedian(ratio) if np.isfinite(ratio).any() else gain:.2f} where |e| > 0.5 mm")
         raw = np.where(known, gain * model, 0.0)
+        # trust region: the model is a linearisation; far from the design (a plate measured
+        # after an interrupted job, a gross error) the step is scaled down as a whole
+        cap = max_step_ratio * float(np.nanmax(np.abs(np.where(known, error, np.nan)))) \
+            if max_step_ratio is not None and np.isfinite(error[known]).any() else 0.0
+        largest = float(np.max(np.abs(raw))) if raw.size else 0.0
+        if cap > 0 and largest > cap:
+            raw *= cap / largest
+            notes.append(f"model step scaled by {cap / largest:.2f} (trust region: at most {max_step_ratio:g} x "
+                         "the largest error)")
     elif previous is not None:
         lam, fallback = _secant_gain(press, lower, error, previous, float(gain), known)
         lam = np.where(active, lam, np.nan)

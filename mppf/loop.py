@@ -85,6 +85,10 @@ class LoopSettings:
     offset_mm : float or None
         Normal offset from the design surface to the scanned skin (mm); None = half the
         thickness (the design is the moulded mid-surface, the scanner sees the top skin).
+    margin_mm : float or None
+        Trim margin the flat plate is cut with (mm, see :func:`mppf.plan.plan_job`); None =
+        the press's ``[forming] margin_mm``. The scans carry it; the tolerance is judged on
+        the net plate.
     """
 
     tolerance_mm: float = 2.5
@@ -95,6 +99,7 @@ class LoopSettings:
     springback: bool = True
     offset_mm: float | None = None
     model_gain: bool = True
+    margin_mm: float | None = None
 
     def __post_init__(self):
         for name in ("tolerance_mm", "rms_tolerance_mm", "gain", "divergence_factor"):
@@ -235,7 +240,7 @@ def start_plate(
     inputs = {"design": {"path": str(design.path), "sha256": design.sha256},
               "flat": {"path": str(flat.path), "sha256": flat.sha256}}
     job = plan_job(design.points, flat.points, press, thickness_mm, material=material,
-                   springback=settings.springback, reporter=reporter, inputs=inputs)
+                   springback=settings.springback, reporter=reporter, inputs=inputs, margin_mm=settings.margin_mm)
     try:
         work_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -469,7 +474,7 @@ def reference_mark(scan_path, design_points: np.ndarray, job: Job):
         The mark file is unreadable or lacks three finite coordinates.
     """
     path = Path(str(scan_path) + MARK_SUFFIX)
-    outline = job.extra.get("plate_outline_mm")
+    outline = job.extra.get("net_outline_mm") or job.extra.get("plate_outline_mm")
     if not path.is_file() or not outline:
         return None
     try:
@@ -495,6 +500,7 @@ def _compare(plate: PlateRecord, record: CycleRecord, design: PointCloud, settin
         design.points, scan.points, tolerance_mm=settings.tolerance_mm, offset_mm=offset_mm,
         punch_xy_mm=_punch_xy(job), tf_press_design=job.tf_press_design,
         reference_mark=reference_mark(record.scan_path, design.points, job),
+        margin_mm=float(job.extra.get("margin_mm", 0.0)),
     )
 
 

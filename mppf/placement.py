@@ -15,7 +15,7 @@ from scipy.optimize import linprog
 from scipy.spatial import ConvexHull, QhullError, cKDTree
 
 from mppf.contact import PlacedSurface, tip_heights
-from mppf.errors import GeometryError, LimitError
+from mppf.errors import GeometryError, InputError, LimitError
 from mppf.frame import fit_frame
 from mppf.press import PressConfig
 from mppf.progress import NULL_REPORTER
@@ -38,6 +38,9 @@ MAX_TILT_DEG = 3.0
 MIN_TILT_GAIN_MM = 1.0
 """A tilt is used only when it lowers the largest punch travel by at least this much."""
 
+
+MITER_LIMIT = 4.0
+"""Longest corner move of a grown outline (:func:`offset_convex_polygon`), in margins."""
 
 @dataclass(frozen=True, eq=False)
 class FlatPlacement:
@@ -284,6 +287,63 @@ def distance_outside_mm(points_xy, polygon_xy) -> np.ndarray:
     dist = np.linalg.norm(pts[:, None, :] - nearest, axis=2).min(axis=1)
     outside = np.any(edge[None, :, 0] * rel[:, :, 1] - edge[None, :, 1] * rel[:, :, 0] < 0, axis=1)
     return np.where(outside, dist, 0.0)
+
+
+def offset_convex_polygon(corners, margin_mm: float) -> np.ndarray:
+    """A convex polygon grown outward by a margin, with mitred corners.
+
+    Each edge is moved outward by ``margin_mm`` along its unit outward normal; the new
+    corners are where adjacent moved edges meet. At a corner with the outward normals
+    ``n1``, ``n2`` of its two edges that point is ``c + margin (n1 + n2) / (1 + n1 . n2)``,
+    which stays well defined for nearly parallel edges (it tends to the simple vertex
+    offset ``c + margin n``). At a sharp corner (the miter longer than ``MITER_LIMIT``
+    margins) the corner is moved ``MITER_LIMIT`` margins along its bisector instead.
+    Repeated corners (edges shorter than 1e-9 mm) are dropped first.
+
+    Parameters
+    ----------
+    corners : (k, 2) float, mm
+        Corners of a convex polygon in order (either direction), not repeated at the end.
+    margin_mm : float
+        Width of the band (>= 0).
+
+    Returns
+    -------
+    (k', 2) float, mm
+        The grown polygon's corners, in the same order (k' = k unless corners repeat).
+
+    Raises
+    ------
+    InputError
+        Fewer than 3 distinct corners, or a negative or non-finite margin.
+    """
+    pts = np.asarray(corners, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 2 or not np.all(np.isfinite(pts)):
+        raise InputError(f"polygon corners must be finite (k, 2) coordinates, got shape {pts.shape}")
+    if not (np.isfinite(margin_mm) and margin_mm >= 0):
+        raise InputError(f"polygon offset must be a finite length >= 0, got {margin_mm} mm")
+    keep = np.linalg.norm(pts - np.roll(pts, -1, axis=0), axis=1) > 1e-9
+    pts = pts[keep]
+    if pts.shape[0] < 3:
+        raise InputError(f"a polygon needs at least 3 distinct corners, got {pts.shape[0]}")
+    if margin_mm == 0:
+        return pts.copy()
+    edge = np.roll(pts, -1, axis=0) - pts                   # edge i: corner i -> corner i + 1
+    area2 = float(np.sum(pts[:, 0] * np.roll(pts[:, 1], -1) - np.roll(pts[:, 0], -1) * pts[:, 1]))
+    turn = 1.0 if area2 >= 0 else -1.0                      # +1: counter-clockwise
+    normal = turn * np.column_stack([edge[:, 1], -edge[:, 0]]) / np.linalg.norm(edge, axis=1)[:, None]
+    n_in, n_out = np.roll(normal, 1, axis=0), normal        # the edges ending / starting at each corner
+    miter = (n_in + n_out) / np.maximum(1.0 + np.einsum("kd,kd->k", n_in, n_out), 1e-12)[:, None]
+    length = np.linalg.norm(miter, axis=1)
+    sharp = length > MITER_LIMIT
+    if sharp.any():
+        bisector = n_in[sharp] + n_out[sharp]
+        size = np.linalg.norm(bisector, axis=1)[:, None]
+        # opposite normals (a hairpin): the bisector is undefined, move along the edge direction
+        fallback = edge[sharp] / np.linalg.norm(edge[sharp], axis=1)[:, None]
+        direction = np.where(size > 1e-9, bisector / np.maximum(size, 1e-12), -fallback)
+        miter[sharp] = MITER_LIMIT * direction
+    return pts + margin_mm * miter
 
 
 def limit_violations(values_mm, low_mm, high_mm, labels) -> list[str]:

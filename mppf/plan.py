@@ -15,12 +15,13 @@ import numpy as np
 from matplotlib.path import Path
 from scipy.spatial import ConvexHull
 
-from mppf.contact import PlacedSurface
+from mppf.contact import PlacedSurface, tip_heights
 from mppf.errors import GeometryError, InputError, LimitError
 from mppf.job import Job
 from mppf.overbend import overbend
-from mppf.placement import (check_flat_belongs, design_area_mm2, distance_outside_mm, optimise_pose,
-                            place_flat, register_design)
+from mppf.placement import (check_flat_belongs, design_area_mm2, distance_outside_mm, offset_convex_polygon,
+                            optimise_pose, place_flat, register_design)
+from mppf.precompensate import refine_strokes
 from mppf.press import PressConfig
 from mppf.progress import NULL_REPORTER
 from mppf.springback import Material
@@ -30,11 +31,13 @@ from mppf.transform import apply_tf, as_points, rotation_angle_deg
 
 SURFACE_KIND = "poly"
 SURFACE_DEGREE = 4
+MAX_MARGIN_MM = 500.0
+"""Largest trim margin accepted (mm)."""
 
 
 def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float, *, steps: int | None = None,
              material: Material | None = None, springback: bool = False, design_faces=None,
-             reporter=NULL_REPORTER, inputs: dict | None = None) -> Job:
+             reporter=NULL_REPORTER, inputs: dict | None = None, margin_mm: float | None = None) -> Job:
     """Plan the strokes of every punch of both matrices for one plate.
 
     Parameters
@@ -52,19 +55,26 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
     material : Material, optional
         Needed for ``springback``.
     springback : bool
-        Over-bend the principal curvatures so the plate springs back to the design.
+        Pre-compensate springback: over-bend the principal arcs, then refine the strokes
+        by virtual press cycles on the plate model with the nominal material
+        (:func:`mppf.precompensate.refine_strokes`).
     design_faces : (m, 3) int, optional
         Mesh triangles of the design (better fold and area checks).
     reporter : Reporter
     inputs : dict, optional
         ``{"design": {"path", "sha256"}, "flat": {...}}`` recorded in the job.
+    margin_mm : float, optional
+        Trim margin: the flat plate is cut with this excess band around its net outline
+        (trimmed after forming), so punches under the band are used too; default the
+        press's ``[forming] margin_mm``. The design surface is extended smoothly over it.
 
     Returns
     -------
     Job
         Validated; ``extra`` holds ``registration``, ``validation``,
-        ``plate_corners_mm``, ``plate_outline_mm``, ``pose``, ``inputs``,
-        ``material``, ``springback``, ``n_steps``.
+        ``plate_corners_mm``, ``plate_outline_mm`` (the plate as cut, margin included),
+        ``net_outline_mm``, ``margin_mm``, ``pose``, ``inputs``, ``material``,
+        ``springback``, ``n_steps``.
 
     Raises
     ------
@@ -87,6 +97,12 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
         raise InputError(f"the number of steps must be a whole number 1..{MAX_STEPS}, got {steps!r}",
                          hint="leave --steps out to get the fewest steps within the dimpling limit")
     t = float(thickness_mm)
+    margin = press.margin_mm if margin_mm is None else margin_mm
+    if isinstance(margin, bool) or not isinstance(margin, (int, float)) or not math.isfinite(margin) \
+            or not 0 <= margin <= MAX_MARGIN_MM:
+        raise InputError(f"the trim margin must be 0..{MAX_MARGIN_MM:g} mm, got {margin!r}",
+                         hint="give e.g. --margin 100 (or 0 to cut the plate to its net outline)")
+    margin = float(margin)
 
     # 1. lay the flat plate on the bed: centred, long side along x, bottom skin at z = 0
     reporter.info("placing the flat plate on the bed")
@@ -104,14 +120,19 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
     # 3. the surface to press: the design, over-bent for springback if asked
     surface, springback_report = fitted.surface, {"enabled": False}
     if springback:
-        reach = float(np.linalg.norm(fitted.frame.to_local(design)[:, :2], axis=1).max()) + press.trim_allowance_mm
-        surface = overbend(fitted.surface, t, material, reach)
-        springback_report = _springback_report(surface)
+        reach = float(np.linalg.norm(fitted.frame.to_local(design)[:, :2], axis=1).max()) + margin \
+            + press.trim_allowance_mm
+        try:
+            surface = overbend(fitted.surface, t, material, reach)
+            springback_report = _springback_report(surface)
+        except GeometryError as exc:  # the over-bent arcs do not reach: start the refinement from the design
+            springback_report = {"enabled": True, "method": f"design start ({exc})"}
     placed = PlacedSurface(surface, registration.tf @ fitted.frame.tf_world_local)
-    # 4. active punches: axes inside the design's outline seen from above
+    # 4. active punches: axes inside the plate as cut (the design's outline seen from above,
+    # grown by the trim margin)
     design_press = apply_tf(registration.tf, design)
     gx, gy = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
-    outline_xy = _outline(design_press)
+    outline_xy = offset_convex_polygon(_outline(design_press), margin)
     active = Path(outline_xy).contains_points(np.column_stack([gx.ravel(), gy.ravel()])).reshape(press.shape)
     if not active.any():
         raise LimitError("the plate covers no punch axis", hint="check the plate size and the press pitch")
@@ -125,6 +146,21 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
     lower = np.full(press.shape, np.nan)
     upper[active], lower[active] = pose.upper_mm, pose.lower_mm
     tf_press_design = pose.tf_adjust @ registration.tf
+    net_outline = _outline(apply_tf(pose.tf_adjust, design_press))
+    outline = offset_convex_polygon(net_outline, margin)
+    if springback:
+        # virtual press cycles on the plate model (nominal material) against the design
+        reporter.info("refining the springback pre-compensation on the plate model")
+        design_placed = PlacedSurface(fitted.surface, tf_press_design @ fitted.frame.tf_world_local)
+        up_d, lo_d = tip_heights(design_placed, gx[active], gy[active], tip_radius_mm=press.tip_radius_mm,
+                                 thickness_mm=t)
+        target = np.full(press.shape, np.nan)
+        target[active] = 0.5 * (up_d.tip_mm + lo_d.tip_mm)
+        refined = refine_strokes(press, upper, lower, active, target, outline, t, material)
+        upper, lower = refined.upper_mm, refined.lower_mm
+        springback_report["refinement"] = {"virtual_cycles": len(refined.history_mm) - 1,
+                                           "predicted_max_mm": refined.predicted_max_mm,
+                                           "history_mm": refined.history_mm}
     # 6. press steps from flat to the target, within the dimpling limit
     n_steps = steps if steps is not None else steps_needed(upper, lower, active, press, t)
     if n_steps > MAX_STEPS:
@@ -136,19 +172,20 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
     validation = validate_steps(step_list, press, t)
     validation["contact_exact_fraction"] = float(np.mean(pose.exact))
     validation["contact_beyond_edge_mm"] = _check_trim(pose.contact_xy_mm, outline_xy, press)
-    outline = _outline(apply_tf(pose.tf_adjust, design_press))
     extra = {
         "planner": {"surface_kind": fitted.kind, "surface_degree": fitted.degree,
                     "surface_fit_rms_mm": fitted.rms_mm, "surface_fit_max_mm": fitted.max_abs_mm},
         "registration": {**registration.to_dict(), **belongs,
                          "rotation_deg": rotation_angle_deg(registration.tf)},
         "pose": {"tilt_x_deg": pose.tilt_x_deg, "tilt_y_deg": pose.tilt_y_deg, "offset_mm": pose.offset_mm,
-                 "max_travel_mm": pose.travel_mm,
+                 "max_travel_mm": float(max(np.abs(upper[active] - t).max(), np.abs(lower[active]).max())),
                  "travel_definition": "largest |tip height - flat-plate tip height| (upper t, lower 0)"},
         "validation": validation,
         "plate_corners_mm": placement.corners_mm.tolist(),
         "plate_size_mm": placement.size_mm.tolist(),
         "plate_outline_mm": outline.tolist(),
+        "net_outline_mm": net_outline.tolist(),
+        "margin_mm": margin,
         "n_active": int(active.sum()),
         "n_steps": int(n_steps),
         "inputs": inputs or {},
@@ -229,5 +266,6 @@ def plan_summary(job: Job) -> dict:
         "max_neighbour_step_mm": extra.get("validation", {}).get("max_neighbour_step_mm"),
         "plate_corners_mm": extra.get("plate_corners_mm"),
         "plate_size_mm": extra.get("plate_size_mm"),
+        "margin_mm": float(extra.get("margin_mm", 0.0)),
         "springback": extra.get("springback", {"enabled": False}),
     }

@@ -57,6 +57,10 @@ class PressConfig:
         Punch speed and acceleration.
     position_tolerance_mm : float
         Largest |actual - target| accepted as in position.
+    margin_mm : float
+        Default trim margin: the excess band the flat plate is cut with around its net
+        outline, so that punches also act beyond the net edge; trimmed after forming
+        (0 = cut to the net outline).
     name : str
     """
 
@@ -72,6 +76,7 @@ class PressConfig:
     speed_mm_s: float = 20.0
     accel_mm_s2: float = 100.0
     position_tolerance_mm: float = 0.2
+    margin_mm: float = 0.0
     name: str = "press"
 
     @property
@@ -113,6 +118,7 @@ class PressConfig:
                 "speed_mm_s": self.speed_mm_s,
                 "accel_mm_s2": self.accel_mm_s2,
                 "position_tolerance_mm": self.position_tolerance_mm,
+                "margin_mm": self.margin_mm,
             },
         }
 
@@ -133,6 +139,7 @@ _SPEC = {
         "speed_mm_s": (float, 20.0),
         "accel_mm_s2": (float, 100.0),
         "position_tolerance_mm": (float, 0.2),
+        "margin_mm": (float, 0.0),
     },
 }
 
@@ -227,6 +234,8 @@ def press_from_dict(data: dict, source: str = "press description") -> PressConfi
         raise ConfigError(
             f"{source}: [forming] trim_allowance_mm must be >= 0, got {v('forming.trim_allowance_mm')}"
         )
+    if v("forming.margin_mm") < 0:
+        raise ConfigError(f"{source}: [forming] margin_mm must be >= 0, got {v('forming.margin_mm')}")
     if 2 * v("matrix.tip_radius_mm") > min(v("matrix.pitch_x_mm"), v("matrix.pitch_y_mm")):
         raise ConfigError(
             f"{source}: [matrix] tip_radius_mm {v('matrix.tip_radius_mm')} is too large for the pitch "
@@ -258,6 +267,7 @@ def press_from_dict(data: dict, source: str = "press description") -> PressConfi
         speed_mm_s=v("forming.speed_mm_s"),
         accel_mm_s2=v("forming.accel_mm_s2"),
         position_tolerance_mm=v("forming.position_tolerance_mm"),
+        margin_mm=v("forming.margin_mm"),
         name=name,
     )
 

@@ -16,6 +16,10 @@ The model, in three steps (see ``docs/compare.md``, section "The simulated plate
    TRUE material and thickness. The scaled tensor field is integrated back to heights by
    sparse least squares; the unloaded plate keeps the loaded plate's best-fit plane.
 
+Steps 2 and 3 are :mod:`mppf.plate_model`, the plate model the planner also uses for its
+springback pre-compensation (:mod:`mppf.precompensate`) - there with the NOMINAL
+material, here with the plate's true one, which the planner does not know.
+
 Each press step is modelled on its own: the plate takes the shape the punches of that
 step hold it in (all active punch pairs clamp the whole plate), so after a job the shape
 is that of its last step. Everything is deterministic; the plate's scatter of properties
@@ -28,18 +32,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from matplotlib.path import Path as PolygonPath
-from scipy.interpolate import RBFInterpolator, RectBivariateSpline
+from scipy.interpolate import RectBivariateSpline
 
 from mppf.errors import GeometryError, InputError
-from mppf.overbend import integrate_hessian
+from mppf.plate_model import grid_axes, loaded_surface, spring_back
 from mppf.press import PressConfig
-from mppf.springback import Material, springback_ratio
+from mppf.springback import Material
 
 GRID_SPACING_MM = 20.0
 """Spacing of the internal grid on which the loaded and unloaded surfaces are computed."""
-
-RBF_SMOOTHING = 1e-3
-"""Smoothing of the thin-plate spline through the contact heights (0 = interpolate exactly)."""
 
 
 @dataclass(frozen=True)
@@ -290,13 +291,11 @@ def form_plate(
     z_contact = 0.5 * (lower[act] + upper[act])
 
     # 2. loaded mid-surface: thin-plate spline through the contact heights
-    rbf = RBFInterpolator(xy_contact, z_contact, kernel="thin_plate_spline", smoothing=RBF_SMOOTHING)
-    x_mm, y_mm = _grid_axes(outline, grid_spacing_mm)
-    gx, gy = np.meshgrid(x_mm, y_mm)
-    loaded = rbf(np.column_stack([gx.ravel(), gy.ravel()])).reshape(gx.shape)
+    x_mm, y_mm = grid_axes(outline, grid_spacing_mm)
+    loaded = loaded_surface(xy_contact, z_contact, x_mm, y_mm)
 
     # 3. springback of the principal curvatures, integrated back to heights
-    unloaded, mean_ratio = _spring_back(x_mm, y_mm, loaded, plate, outline)
+    unloaded, mean_ratio = spring_back(x_mm, y_mm, loaded, plate.thickness_mm, plate.material, outline)
     return FormedPlate(
         x_mm=x_mm,
         y_mm=y_mm,
@@ -338,50 +337,3 @@ def _outline(press: PressConfig, act: np.ndarray, outline_xy_mm) -> np.ndarray:
     if area <= 0:
         raise GeometryError("the plate outline has no area", hint="give the corners of the flat plate in press x, y")
     return outline
-
-
-def _grid_axes(outline: np.ndarray, spacing_mm: float) -> tuple[np.ndarray, np.ndarray]:
-    lo = outline.min(axis=0) - 2 * spacing_mm
-    hi = outline.max(axis=0) + 2 * spacing_mm
-    nx = max(int(np.ceil((hi[0] - lo[0]) / spacing_mm)) + 1, 6)
-    ny = max(int(np.ceil((hi[1] - lo[1]) / spacing_mm)) + 1, 6)
-    return np.linspace(lo[0], hi[0], nx), np.linspace(lo[1], hi[1], ny)
-
-
-def _best_plane(x: np.ndarray, y: np.ndarray, z: np.ndarray, weight: np.ndarray) -> np.ndarray:
-    """Coefficients (a, b, c) of z ~ a + b x + c y, weighted least squares."""
-    design = np.column_stack([np.ones_like(x), x, y]) * weight[:, None]
-    coef, *_ = np.linalg.lstsq(design, z * weight, rcond=None)
-    return coef
-
-
-def _spring_back(x_mm, y_mm, loaded, plate: PlateSample, outline) -> tuple[np.ndarray, float]:
-    """Unloaded heights: principal curvatures scaled by the springback ratio, re-integrated."""
-    gx, gy = np.meshgrid(x_mm, y_mm)
-    inside = PolygonPath(outline).contains_points(np.column_stack([gx.ravel(), gy.ravel()]), radius=1e-6)
-    weight = np.where(inside, 1.0, 1e-3)
-    plane = _best_plane(gx.ravel(), gy.ravel(), loaded.ravel(), weight)
-    base = plane[0] + plane[1] * gx + plane[2] * gy
-    w = loaded - base
-    hx = x_mm[1] - x_mm[0]
-    hy = y_mm[1] - y_mm[0]
-    # curvature tensor (Hessian, small slopes) and its principal decomposition
-    wy, wx = np.gradient(w, hy, hx)
-    wxx = np.gradient(wx, hx, axis=1)
-    wyy = np.gradient(wy, hy, axis=0)
-    wxy = 0.5 * (np.gradient(wx, hy, axis=0) + np.gradient(wy, hx, axis=1))
-    hess = np.stack([np.stack([wxx, wxy], -1), np.stack([wxy, wyy], -1)], -2)
-    kappa, vec = np.linalg.eigh(hess)
-    ratio = springback_ratio(np.where(kappa == 0, np.inf, 1.0 / np.where(kappa == 0, 1.0, kappa)),
-                             plate.thickness_mm, plate.material)
-    scaled = np.einsum("...ik,...k,...jk->...ij", vec, kappa * ratio, vec)
-    w_unloaded = integrate_hessian(scaled[..., 0, 0], scaled[..., 0, 1], scaled[..., 1, 1], hx, hy)
-    # keep the loaded plate's best-fit plane (the unloaded plate rests there)
-    fix = _best_plane(gx.ravel(), gy.ravel(), w_unloaded.ravel(), weight)
-    w_unloaded -= fix[0] + fix[1] * gx + fix[2] * gy
-    # mean ratio of the main (largest) curvature over the bent part of the plate
-    main = np.argmax(np.abs(kappa), axis=-1)[..., None]
-    main_ratio = np.take_along_axis(ratio, main, axis=-1)[..., 0]
-    bent = inside.reshape(gx.shape) & (np.abs(kappa).max(axis=-1) > 1e-9)
-    mean_ratio = float(main_ratio[bent].mean()) if bent.any() else 1.0
-    return base + w_unloaded, mean_ratio

@@ -34,8 +34,9 @@ from mppf.transform import apply_tf
 def plate_outline_xy(job: Job, flat_points) -> np.ndarray:
     """The plate's outline in press x, y.
 
-    The planner's ``plate_outline_mm`` (the design seen from above on the press) when the
-    job has it, else the convex hull of the flat points placed by ``tf_press_flat``.
+    The planner's ``plate_outline_mm`` (the design seen from above on the press, grown by
+    the trim margin the plate is cut with) when the job has it, else the convex hull of the
+    flat points placed by ``tf_press_flat``.
 
     Parameters
     ----------
@@ -79,13 +80,17 @@ class SimulatedPlateScanner:
         Scan file format (".ply" or ".csv").
     reference_mark : bool
         Pick the plate's reference-corner mark (:func:`mppf.loop.reference_corner_xy` of the
-        outline) in every scan and write it next to the scan (``<scan>.mark.json``), as the
-        operator does on the shop floor; the scan's pose stays arbitrary.
+        net outline) in every scan and write it next to the scan (``<scan>.mark.json``), as
+        the operator does on the shop floor; the scan's pose stays arbitrary.
+    net_outline_xy_mm : (j, 2) float, optional
+        The net plate's outline (without the trim margin), where the reference corner is
+        scribed; default ``outline_xy_mm``.
     """
 
     def __init__(self, press, thickness_mm: float, outline_xy_mm, *, seed: int = 0,
                  material: Material = Material(), noise_mm: float = 0.3, occlusion_fraction: float = 0.2,
-                 outlier_fraction: float = 0.01, suffix: str = ".ply", reference_mark: bool = True):
+                 outlier_fraction: float = 0.01, suffix: str = ".ply", reference_mark: bool = True,
+                 net_outline_xy_mm=None):
         self.press = press
         self.plate = sample_plate(thickness_mm, material, seed)
         self.outline_xy_mm = np.asarray(outline_xy_mm, dtype=float)
@@ -94,8 +99,29 @@ class SimulatedPlateScanner:
         self.occlusion_fraction = occlusion_fraction
         self.outlier_fraction = outlier_fraction
         self.suffix = suffix
-        self.mark_xy_mm = reference_corner_xy(self.outline_xy_mm) if reference_mark else None
+        net = self.outline_xy_mm if net_outline_xy_mm is None else np.asarray(net_outline_xy_mm, dtype=float)
+        self.mark_xy_mm = reference_corner_xy(net) if reference_mark else None
         self.last_formed = None
+
+    @classmethod
+    def for_job(cls, press, thickness_mm: float, job: Job, flat_points, **options) -> SimulatedPlateScanner:
+        """The scanner of a job's plate: the plate as cut (trim margin included) and its net outline.
+
+        Parameters
+        ----------
+        press : PressConfig
+        thickness_mm : float
+            Nominal thickness.
+        job : Job
+            The plate's (first) job.
+        flat_points : (n, 3) float
+            The flat plate, flat coordinates (mm).
+        **options
+            Further keyword arguments of the constructor (``seed``, ``material``...).
+        """
+        net = job.extra.get("net_outline_mm")
+        return cls(press, thickness_mm, plate_outline_xy(job, flat_points),
+                   net_outline_xy_mm=None if not net else np.asarray(net, dtype=float), **options)
 
     def acquire(self, cycle: int, context: ScanContext) -> Path:
         """Form the plate from the cycle's last tip positions and scan it into the work folder."""

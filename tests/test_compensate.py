@@ -184,7 +184,7 @@ def test_model_correction_divides_each_curvature_component_by_its_springback_slo
     corr = model_correction(upper, lower, np.where(active, b * px * py, np.nan), press=press,
                             thickness_mm=THICKNESS_MM, material=steel)
     cxy = np.gradient(np.gradient(corr, hy, axis=0), hx, axis=1)
-    assert np.allclose(cxy[inner], -b / max(float(twist), MIN_SLOPE), rtol=0.08)  # damped at MIN_SLOPE
+    assert np.allclose(cxy[inner], -b / max(float(twist), MIN_SLOPE), rtol=0.15)  # damped at MIN_SLOPE
     assert np.abs(cxy[inner]).min() > 2.0 * b  # the twist needs more than twice the error
     # a rigid offset is the comparison's business: no correction
     corr = model_correction(upper, lower, np.where(active, 2.0, np.nan), press=press, thickness_mm=THICKNESS_MM,
@@ -197,3 +197,22 @@ def test_model_correction_divides_each_curvature_component_by_its_springback_slo
     assert np.allclose((c.upper_mm - c.lower_mm)[active], THICKNESS_MM)
     assert np.abs(np.diff(c.applied_mm[active.any(axis=1)][:, active.any(axis=0)], axis=1)).max() \
         <= press.max_neighbour_diff_mm + 1e-6
+
+
+def test_model_step_is_scaled_into_its_trust_region(press, grid):
+    """A twist error needs about 3x its size in strokes; the trust region allows 2.5x the largest error."""
+    from mppf.compensate import MAX_STEP_RATIO
+    from mppf.springback import Material
+
+    px, py, active, lower = grid
+    upper = lower + THICKNESS_MM
+    error = np.where(active, 2e-5 * px * py, np.nan)  # a gross twist: tens of mm at the corners
+    corr = compensate(upper, lower, error, press=press, thickness_mm=THICKNESS_MM, material=Material())
+    applied = corr.applied_mm[active]
+    largest_error = np.nanmax(np.abs(error))
+    assert np.abs(applied).max() <= MAX_STEP_RATIO * largest_error + 1e-9
+    assert np.abs(applied).max() > 0.9 * MAX_STEP_RATIO * largest_error or corr.clipped.any()
+    assert any("trust region" in note for note in corr.notes)
+    # the step still undoes the error: opposite sign at the corners
+    corner = active & (np.abs(px) > 1000) & (np.abs(py) > 600)
+    assert np.all(np.sign(applied[corner[active]]) == -np.sign(error[corner]))

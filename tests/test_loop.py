@@ -192,6 +192,9 @@ def test_loop_with_a_bad_scan_file_exits_2_and_resumes(plate_files, tmp_path, ca
     scans = tmp_path / "scans"
     scans.mkdir()
     (scans / "scan1.csv").write_text("this is not a point file\n")
+    # saved "during the cycle": newer than the plan the loop is about to record
+    later = time.time() + 600
+    os.utime(scans / "scan1.csv", (later, later))
     args = loop_args(design, flat, tmp_path, "--plate-id", "K2-B", "--scanner", str(scans), "--scan-timeout", "5",
                      "--max-cycles", "1")
     assert main(args) == 2
@@ -243,10 +246,10 @@ def _start(tmp_path, plate_files, history, plate_id, max_cycles=1):
 
 def _scanner(history, plate_id, press, flat_path):
     from mppf.job import load_job
-    from mppf.sim.shop import SimulatedPlateScanner, plate_outline_xy
+    from mppf.sim.shop import SimulatedPlateScanner
 
     job = load_job(history.cycle(plate_id, 1).job_path)
-    return SimulatedPlateScanner(press, 20.0, plate_outline_xy(job, read_points(flat_path).points), seed=1)
+    return SimulatedPlateScanner.for_job(press, 20.0, job, read_points(flat_path).points, seed=1)
 
 
 def test_a_refused_step_is_not_started_and_is_pressed_on_resume(plate_files, tmp_path):

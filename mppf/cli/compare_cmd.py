@@ -38,6 +38,9 @@ def skin_offset_mm(skin: str, thickness_mm: float | None) -> float:
 @click.option("--skin", type=click.Choice(["top", "mid", "bottom"]), default="mid", show_default=True,
               help="Which skin the scan measured: the design is the mid-surface; top = its +normal side "
                    "(the concave side of a curved plate), offset by half the thickness.")
+@click.option("--margin", type=float, default=0.0, show_default=True,
+              help="Width of the trim margin (excess) the scanned plate still carries around the design outline "
+                   "(mm); statistics cover the net plate only.")
 @units_option
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
 @click.option("--plot", type=click.Path(dir_okay=False, path_type=str), default=None,
@@ -45,14 +48,16 @@ def skin_offset_mm(skin: str, thickness_mm: float | None) -> float:
 @click.option("--report", type=click.Path(dir_okay=False, path_type=str), default=None,
               help="Write an HTML report with the pictures and tables.")
 def compare_command(design: str, measured: str, tolerance: float, thickness: float | None, skin: str,
-                    units: str, as_json: bool, plot: str | None, report: str | None) -> None:
+                    margin: float, units: str, as_json: bool, plot: str | None, report: str | None) -> None:
     """Compare the scan MEASURED with the design plate DESIGN.
 
     Registers the scan onto the design (ICP from the principal axes: point-to-point,
     then robust point-to-plane), measures the signed normal deviation of every scanned point (positive =
     on the design's +normal side) and prints the statistics: RMS, largest absolute
     deviation, percent within the tolerance, and a histogram. Outliers are flagged and
-    left out. Both files are point or mesh files (.csv .txt .xyz .ply .stl .obj).
+    left out. With --margin, the scan may still carry its trim margin (excess band) of that
+    width around the design outline: it is measured but left out of the statistics.
+    Both files are point or mesh files (.csv .txt .xyz .ply .stl .obj).
     Exit code 2 for unreadable files or a scan that does not match the design.
     """
     from mppf.compare import compare
@@ -60,6 +65,8 @@ def compare_command(design: str, measured: str, tolerance: float, thickness: flo
 
     if not (np.isfinite(tolerance) and tolerance > 0):
         raise InputError(f"--tolerance must be a positive length in mm, got {tolerance}")
+    if not (np.isfinite(margin) and margin >= 0):
+        raise InputError(f"--margin must be the trim margin's width in mm, 0 or more, got {margin}")
     offset = skin_offset_mm(skin, thickness)
     if plot:
         check_output_path(plot, "the deviation map (--plot)", PICTURE_SUFFIXES, kind="picture")
@@ -68,7 +75,7 @@ def compare_command(design: str, measured: str, tolerance: float, thickness: flo
     design_cloud = read_points(design, units=units)
     measured_cloud = read_points(measured, units=units)
     result = compare(design_cloud.points, measured_cloud.points, tolerance_mm=tolerance, offset_mm=offset,
-                     design_faces=design_cloud.faces)
+                     design_faces=design_cloud.faces, margin_mm=margin)
     if plot:
         from mppf.viz.compare import plot_deviation
 
@@ -122,6 +129,8 @@ def _print_result(result, design: str, measured: str) -> None:
     table.add_row("mean deviation", f"{c.mean_mm:+.3f} mm")
     table.add_row("inliers", f"{c.n_inliers} of {c.n_points} ({100.0 * c.n_inliers / c.n_points:.1f} %)")
     table.add_row("outliers / outside", f"{int(c.is_outlier.sum())} / {int(c.is_outside.sum())}")
+    if c.margin_mm > 0:
+        table.add_row(f"in the {c.margin_mm:g} mm trim margin", f"{int(c.in_margin.sum())} (not counted)")
     table.add_row("registration RMS", f"{reg.rms_mm:.3f} mm")
     table.add_row("registration iterations", f"{reg.iterations}" + ("" if reg.converged else " (not converged)"))
     if reg.ambiguous_start:

@@ -70,12 +70,12 @@ def _scanner(spec: str, press, plate, history_plate_cycle1_job, seed: int, scan_
 
         return DirectoryScanner(spec, timeout_s=scan_timeout_s)
     from mppf.io import read_points
-    from mppf.sim.shop import SimulatedPlateScanner, plate_outline_xy
+    from mppf.sim.shop import SimulatedPlateScanner
 
     flat = read_points(plate.flat_path, units=plate.settings.get("units", "mm"))
-    outline = plate_outline_xy(history_plate_cycle1_job, flat.points)
     material = MATERIALS[plate.settings.get("material", "steel")]
-    return SimulatedPlateScanner(press, plate.thickness_mm, outline, seed=seed, material=material)
+    return SimulatedPlateScanner.for_job(press, plate.thickness_mm, history_plate_cycle1_job, flat.points, seed=seed,
+                                         material=material)
 
 
 def _check_link_and_scanner(plc_url: str | None, scanner_spec: str) -> None:
@@ -164,6 +164,9 @@ def run_plate(history, plate, *, plc_url, scanner_spec, time_scale, audit, repor
 @click.option("--max-cycles", type=int, default=5, show_default=True, help="Press cycles at most.")
 @click.option("--gain", type=float, default=1.0, show_default=True, help="Gain of the first correction.")
 @click.option("--no-springback", is_flag=True, help="Plan without springback pre-compensation.")
+@click.option("--margin", "margin_mm", type=float, default=None,
+              help="Trim margin (mm) the flat plate is cut with and trimmed off after forming; default the "
+                   "press's [forming] margin_mm.")
 @click.option("--material", type=click.Choice(["steel", "ah36"]), default="steel", show_default=True,
               help="Nominal plate material (springback pre-compensation; the simulated plate).")
 @click.option("--history", "history_path", type=click.Path(dir_okay=False, path_type=Path),
@@ -183,7 +186,7 @@ def run_plate(history, plate, *, plc_url, scanner_spec, time_scale, audit, repor
 @click.option("--yes", is_flag=True, help="Do not ask before driving a real press.")
 @units_option
 def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, rms_tolerance, max_cycles, gain,
-         no_springback, material, history_path, audit_path, plate_id, work_dir, seed, time_scale, scan_timeout, resume,
+         no_springback, margin_mm, material, history_path, audit_path, plate_id, work_dir, seed, time_scale, scan_timeout, resume,
          as_json, yes, units):
     """Plan, press, measure, compare, correct, press again, until the plate is in tolerance.
 
@@ -222,7 +225,7 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
                 err_console.print("[yellow]note:[/] real PLC with the simulated scanner: the scans are simulated")
             press = load_press(press_path)
             settings = LoopSettings(tolerance_mm=tolerance, rms_tolerance_mm=rms_tolerance, max_cycles=max_cycles,
-                                    gain=gain, springback=not no_springback)
+                                    gain=gain, springback=not no_springback, margin_mm=margin_mm)
             design_cloud = read_points(design, units=units)
             flat_cloud = read_points(flat, units=units)
             plate_id = plate_id or new_plate_id(design)
@@ -298,7 +301,7 @@ def _run_demo(out: Path, plate_name: str, seed: int, thickness_mm: float, time_s
     from mppf.job import load_job
     from mppf.loop import LoopSettings, run_loop, start_plate
     from mppf.press import example_press_path, load_press
-    from mppf.sim.shop import SimulatedPlateScanner, plate_outline_xy
+    from mppf.sim.shop import SimulatedPlateScanner
     from mppf.unfold import unfold
     from mppf.viz.compare import plot_deviation
     from mppf.viz.loop import loop_report, plot_convergence, plot_punch_deviation
@@ -332,7 +335,7 @@ def _run_demo(out: Path, plate_name: str, seed: int, thickness_mm: float, time_s
         job = load_job(history.cycle(plate_id, 1).job_path)
         files.append(plot_strokes(job, out / "strokes.png"))
         # 3. the loop on the simulated press, plate and scanner; a deviation map per cycle
-        scanner = SimulatedPlateScanner(press, thickness_mm, plate_outline_xy(job, flat.points), seed=seed)
+        scanner = SimulatedPlateScanner.for_job(press, thickness_mm, job, flat.points, seed=seed)
         cycle_pictures = {}
 
         def on_cycle(record, comparison):

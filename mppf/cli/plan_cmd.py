@@ -48,7 +48,9 @@ def _print_summary(summary: dict, output) -> None:
                                   f"turn {_fmt(reg['rotation_deg'])} deg")
     if reg.get("neighbour_strain_p95_pct") is not None:
         table.add_row("flat vs design strain (p95)", f"{reg['neighbour_strain_p95_pct']:.3f} %")
-    table.add_row("flat plate", f"{summary['plate_size_mm'][0]:.0f} x {summary['plate_size_mm'][1]:.0f} mm")
+    table.add_row("flat plate (net)", f"{summary['plate_size_mm'][0]:.0f} x {summary['plate_size_mm'][1]:.0f} mm")
+    if summary["margin_mm"] > 0:
+        table.add_row("trim margin (cut, then trim after forming)", f"{summary['margin_mm']:g} mm all round")
     table.add_row("tilt x / y", f"{pose['tilt_x_deg']:.3f} / {pose['tilt_y_deg']:.3f} deg")
     table.add_row("vertical offset", f"{pose['offset_mm']:.1f} mm")
     table.add_row("largest punch travel", f"{summary['max_travel_mm']:.1f} mm")
@@ -59,8 +61,14 @@ def _print_summary(summary: dict, output) -> None:
     if summary["springback"].get("enabled"):
         radii = summary["springback"]
         for what in ("target", "loaded"):
+            if radii.get(f"{what}_radii_mm") is None:  # the arcs did not fit: refined from the design
+                continue
             text = ", ".join(_fmt(r and r / 1000, 2) + " m" for r in radii[f"{what}_radii_mm"])
             table.add_row(f"springback: {what} radii", text)
+        refinement = radii.get("refinement")
+        if refinement:
+            table.add_row("springback: virtual cycles", f"{refinement['virtual_cycles']}, predicted largest "
+                          f"deviation {refinement['history_mm'][0]:.1f} -> {refinement['predicted_max_mm']:.2f} mm")
     console.print(table)
 
     strokes = Table(title="final strokes (tip heights, mm)")
@@ -73,7 +81,7 @@ def _print_summary(summary: dict, output) -> None:
                         f"{m['max_travel_mm']:.1f}")
     console.print(strokes)
 
-    corners = Table(title="plate corners on the bed")
+    corners = Table(title="net plate corners on the bed" if summary["margin_mm"] > 0 else "plate corners on the bed")
     for col in ("corner", "x (mm)", "y (mm)"):
         corners.add_column(col, justify="right")
     for name, (x, y, _) in zip(("-x -y", "+x -y", "+x +y", "-x +y"), summary["plate_corners_mm"]):
@@ -92,6 +100,9 @@ def _print_summary(summary: dict, output) -> None:
 @click.option("--steps", type=click.IntRange(min=1), default=None,
               help="Number of press steps (default: the fewest within the dimpling limit).")
 @click.option("--springback", is_flag=True, help="Over-bend to pre-compensate springback (needs a material).")
+@click.option("--margin", "margin_mm", type=float, default=None,
+              help="Trim margin (mm): the flat plate is cut this much larger all round, pressed with the "
+                   "punches under the margin, and trimmed after forming; default the press's [forming] margin_mm.")
 @click.option("--material", type=click.Choice(sorted(MATERIALS)), default=None,
               help="Material preset: steel (E 206 GPa, nu 0.3, yield 235 MPa) or ah36 (yield 355 MPa).")
 @click.option("--youngs", type=float, default=None, help="Young's modulus in MPa (overrides the preset).")
@@ -103,7 +114,7 @@ def _print_summary(summary: dict, output) -> None:
 @click.option("--plot", type=click.Path(dir_okay=False, path_type=str), default=None,
               help="Draw the stroke map of the last step (.png .pdf .svg).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
-def plan_command(design, flat, press_path, thickness_mm, steps, springback, material, youngs, poisson,
+def plan_command(design, flat, press_path, thickness_mm, steps, springback, margin_mm, material, youngs, poisson,
                  yield_mpa, units, output, plot, as_json):
     """Plan the strokes of both punch matrices to press FLAT into DESIGN.
 
@@ -131,7 +142,8 @@ def plan_command(design, flat, press_path, thickness_mm, steps, springback, mate
     }
     reporter = RichReporter(enabled=not as_json)
     job = plan_job(design_cloud.points, flat_cloud.points, press, thickness_mm, steps=steps, material=mat,
-                   springback=springback, design_faces=design_cloud.faces, reporter=reporter, inputs=inputs)
+                   springback=springback, design_faces=design_cloud.faces, reporter=reporter, inputs=inputs,
+                   margin_mm=margin_mm)
     reporter.finish()
     if plot:  # the picture first: a job file exists only when the whole command succeeded
         from mppf.viz.plan import plot_strokes

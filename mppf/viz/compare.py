@@ -3,7 +3,9 @@
 The map shows the design plate in its own frame (u along its longest extent, v across,
 seen from the +normal side): the measured points coloured by their signed deviation
 with a diverging colour map centred on 0 (blue below the design, red above), the
-tolerance as black contour lines, outliers as black crosses and the design outline.
+tolerance as black contour lines, outliers as black crosses and the design outline. With a
+trim margin, the points in the margin are grey dots (not counted) inside the grown outline
+(dashed).
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from matplotlib.figure import Figure
 from matplotlib.tri import Triangulation
 from scipy.spatial import ConvexHull
 
-from mppf.compare import Comparison
+from mppf.compare import Comparison, offset_convex_polygon
 
 CMAP = "RdBu_r"
 """Diverging colour map: blue = below the design, red = above."""
@@ -55,6 +57,13 @@ def deviation_map_figure(comparison: Comparison, title: str | None = None) -> Fi
     ring = c.design_uv_mm[np.append(hull.vertices, hull.vertices[0])]
     ax.fill(ring[:, 0], ring[:, 1], color="0.92", zorder=0, label="design plate")
     ax.plot(ring[:, 0], ring[:, 1], color="black", linestyle="-", linewidth=1.2, zorder=4)
+    if c.margin_mm > 0:
+        grown = offset_convex_polygon(c.design_uv_mm[hull.vertices], c.margin_mm)
+        grown = np.vstack([grown, grown[:1]])
+        ax.plot(grown[:, 0], grown[:, 1], color="0.4", linestyle="--", linewidth=0.9, zorder=4)
+        if c.in_margin.any():
+            ax.plot(uv[c.in_margin, 0], uv[c.in_margin, 1], ".", color="0.6", markersize=2, zorder=1,
+                    label=f"trim margin {c.margin_mm:g} mm ({int(c.in_margin.sum())} points, not counted)")
     norm = TwoSlopeNorm(vcenter=0.0, vmin=-limit, vmax=limit)
     d = c.deviation_mm[inl]
     tri = _triangulation(uv[inl])

@@ -1,0 +1,69 @@
+"""Springback pre-compensation by virtual press cycles on the plate model."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from mppf.errors import InputError
+from mppf.precompensate import predict_mid_heights, refine_strokes
+from mppf.press import example_press_path, load_press
+from mppf.springback import Material, unloaded_curvature
+
+T = 20.0
+PRESS = dataclasses.replace(load_press(example_press_path()), margin_mm=0.0)
+STEEL = Material()
+
+
+def _grid(active_cols=slice(2, 22), active_rows=slice(1, 15)):
+    px, py = np.meshgrid(PRESS.punch_x_mm, PRESS.punch_y_mm)
+    active = np.zeros(PRESS.shape, dtype=bool)
+    active[active_rows, active_cols] = True
+    outline = np.array([[px[active].min() - 50, py[active].min() - 50], [px[active].max() + 50, py[active].min() - 50],
+                        [px[active].max() + 50, py[active].max() + 50], [px[active].min() - 50, py[active].max() + 50]])
+    return px, py, active, outline
+
+
+def test_a_sharp_cylinder_springs_back_by_the_law_in_the_middle():
+    px, py, active, outline = _grid()
+    k = 1.0 / 2500.0  # loaded radius 2.5 m: plastic
+    mid = np.where(active, py**2 * k / 2.0, np.nan)
+    predicted = predict_mid_heights(PRESS, mid + T / 2, mid - T / 2, active, outline, T, STEEL)
+    inner = active & (np.abs(py) <= 600) & (np.abs(px) <= 1200)
+    kf = float(unloaded_curvature(k, T, STEEL))
+    curvature = np.gradient(np.gradient(predicted, PRESS.pitch_y_mm, axis=0), PRESS.pitch_y_mm, axis=0)
+    assert 0.1 * k < kf < 0.9 * k
+    assert np.allclose(curvature[inner], kf, rtol=0.05)
+
+
+def test_refinement_brings_the_predicted_plate_onto_the_target():
+    px, py, active, outline = _grid()
+    target = np.where(active, py**2 / (2 * 6000.0) + px * py / 2.0e7, np.nan)  # a twisted bilge
+    result = refine_strokes(PRESS, target + T / 2, target - T / 2, active, target, outline, T, STEEL)
+    assert result.history_mm[0] > 5.0  # pressing the design itself springs back far off
+    assert result.predicted_max_mm < 0.5  # from 40+ mm
+    assert len(result.history_mm) >= 3
+    assert np.all(np.isnan(result.upper_mm[~active])) and np.all(np.isfinite(result.upper_mm[active]))
+    # the gap stays the plate thickness and the dimpling limit holds
+    np.testing.assert_allclose((result.upper_mm - result.lower_mm)[active], T)
+    step = result.lower_mm
+    assert np.nanmax(np.abs(np.diff(step, axis=1))) < 200  # sane strokes
+
+
+def test_zero_iterations_only_predict():
+    px, py, active, outline = _grid()
+    target = np.where(active, py**2 / (2 * 6000.0), np.nan)
+    result = refine_strokes(PRESS, target + T / 2, target - T / 2, active, target, outline, T, STEEL, iterations=0)
+    assert len(result.history_mm) == 1
+    np.testing.assert_allclose(result.lower_mm[active], (target - T / 2)[active])
+
+
+@pytest.mark.parametrize("iterations, tolerance", [(-1, 0.1), (3, 0.0), (3, float("nan"))])
+def test_bad_refinement_settings(iterations, tolerance):
+    px, py, active, outline = _grid()
+    target = np.where(active, 0.0, np.nan)
+    with pytest.raises(InputError, match="refinement"):
+        refine_strokes(PRESS, target + T / 2, target - T / 2, active, target, outline, T, STEEL,
+                       iterations=iterations, tolerance_mm=tolerance)
