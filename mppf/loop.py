@@ -460,6 +460,20 @@ def reference_corner_xy(outline_xy_mm) -> np.ndarray:
     return outline[int(np.argmin(outline[:, 0] + outline[:, 1]))]
 
 
+def net_outline_xy(job: Job) -> np.ndarray | None:
+    """The job's net plate outline on the press (without the trim margin), or None.
+
+    ``job.extra["net_outline_mm"]``; for jobs planned before the trim margin existed,
+    ``plate_outline_mm`` (then the plate was cut to its net outline).
+
+    Returns
+    -------
+    (k, 2) float, press x, y in mm, or None when the job has no outline
+    """
+    outline = job.extra.get("net_outline_mm") or job.extra.get("plate_outline_mm")
+    return None if not outline else np.asarray(outline, dtype=float)
+
+
 def reference_mark(scan_path, design_points: np.ndarray, job: Job):
     """``(measured_xyz, design_xyz)`` of the reference mark for :func:`mppf.compare.compare`, or None.
 
@@ -474,8 +488,8 @@ def reference_mark(scan_path, design_points: np.ndarray, job: Job):
         The mark file is unreadable or lacks three finite coordinates.
     """
     path = Path(str(scan_path) + MARK_SUFFIX)
-    outline = job.extra.get("net_outline_mm") or job.extra.get("plate_outline_mm")
-    if not path.is_file() or not outline:
+    outline = net_outline_xy(job)
+    if not path.is_file() or outline is None:
         return None
     try:
         measured = np.asarray(json.loads(path.read_text())["reference_mark_mm"], dtype=float).reshape(3)

@@ -23,7 +23,7 @@ from scipy.spatial import ConvexHull
 
 from mppf.errors import GeometryError
 from mppf.job import Job
-from mppf.loop import reference_corner_xy
+from mppf.loop import net_outline_xy, reference_corner_xy
 from mppf.scanners import ScanContext
 from mppf.sim.forming import form_plate, sample_plate
 from mppf.sim.scanner import SimulatedScanner
@@ -119,9 +119,8 @@ class SimulatedPlateScanner:
         **options
             Further keyword arguments of the constructor (``seed``, ``material``...).
         """
-        net = job.extra.get("net_outline_mm")
-        return cls(press, thickness_mm, plate_outline_xy(job, flat_points),
-                   net_outline_xy_mm=None if not net else np.asarray(net, dtype=float), **options)
+        return cls(press, thickness_mm, plate_outline_xy(job, flat_points), net_outline_xy_mm=net_outline_xy(job),
+                   **options)
 
     def acquire(self, cycle: int, context: ScanContext) -> Path:
         """Form the plate from the cycle's last tip positions and scan it into the work folder."""
