@@ -10,7 +10,7 @@ and ``mppf demo`` in under 60 s.
 The simulated scanner picks the plate's reference-corner mark in every scan (see
 ``docs/compare.md``, "Which way round"); ``--no-mark`` leaves it out.
 
-Run:  python benchmarks/bench_loop.py [--seeds 1 2 3] [--plates ...] [--no-demo] [--no-mark]
+Run:  python benchmarks/bench_loop.py [--seeds 1 2 ... 10] [--plates ...] [--no-demo] [--no-mark]
 """
 
 from __future__ import annotations
@@ -74,7 +74,7 @@ def _series(values) -> str:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--plates", nargs="+", default=PLATES)
-    parser.add_argument("--seeds", nargs="+", type=int, default=[1, 2, 3])
+    parser.add_argument("--seeds", nargs="+", type=int, default=list(range(1, 11)))
     parser.add_argument("--thickness", type=float, default=20.0)
     parser.add_argument("--max-cycles", type=int, default=5)
     parser.add_argument("--time-scale", type=float, default=100.0)

@@ -79,7 +79,7 @@ OVERHANG_FRACTION = 0.02
 DENSE_POINTS = 25000
 """Points of the dense design skin the scan is registered onto."""
 
-OUTLINE_ITERATIONS = 40
+OUTLINE_ITERATIONS = 60
 """Iterations of the 2-D outline fit."""
 
 OUTLINE_MIN_TURN_DEG = 0.5
@@ -89,6 +89,22 @@ surface fit of a curved plate far better; the outline corrects the gross turns o
 
 OUTLINE_MAX_TURN_DEG = 15.0
 """Largest turn the outline fit may apply (beyond it the fit is rejected)."""
+
+OUTLINE_EDGE_SPACINGS = 3.0
+"""Scan points within this many point spacings of the scan's convex outline are its edge candidates."""
+
+OUTLINE_PIECE_SPACINGS = 8.0
+"""Length of the pieces an outline edge is cut into for the edge fit, in point spacings."""
+
+OUTLINE_EDGE_QUANTILE = 0.1
+"""The scan's edge along a piece: this low quantile of its points' distances inside the outline."""
+
+OUTLINE_BAND_SPACINGS = (4.0, 0.6)
+"""Band (in point spacings) around the outer pieces' edge within which a piece is used: it
+narrows from the first to the second value over the iterations of the edge fit."""
+
+OUTLINE_ROUNDS = 2
+"""Rounds of the outline fit and the plane removal (a tilt moves a curved plate's edge a little)."""
 
 OUTLINE_MAX_SHIFT = 0.1
 """Largest in-plane shift the outline fit may apply, as a fraction of the plate length."""
@@ -105,10 +121,20 @@ START_POINTS = 2000
 START_ITERATIONS = 40
 """ICP iterations (per stage) run from each principal-axes start before it is scored."""
 
+HELD_TURN_STEP_DEG = 15.0
+"""Step of the sweep of turns about the normal for the starts held at the reference mark."""
+
+HELD_MAX_RMS_FRACTION = 0.05
+"""A start held at the mark is taken when its points lie this close (RMS, fraction of the design's
+length) to the design: a mark picked in the wrong place holds the scan off the design."""
+
+MARK_HOLD_ROUNDS = 5
+"""Rounds of a start fit with the reference mark held at its place (see :func:`_start_fit`)."""
+
 TIE_RATIO = 1.25
 """Two starts whose converged RMS are within this factor are a tie (a nearly symmetric plate)."""
 
-MARK_RADIUS_FRACTION = 0.25
+MARK_RADIUS_FRACTION = 0.1
 """A start agrees with the reference mark when it puts the mark within this fraction of the
 design's length of the mark's place on the design."""
 
@@ -375,7 +401,8 @@ def compare(
     if fit_outline is None:
         fit_outline = punch_xy_mm is not None
     if fit_outline:
-        transform, note = _outline_refit(fitted, uv_d, measured, transform, sign, offset_mm, margin_mm)
+        transform, note = _outline_refit(fitted, uv_d, measured, transform, sign, offset_mm, margin_mm,
+                                         tf_press_design)
         reg_note = f"{reg_note}; {note}"
         moved, feet, deviation, outside, in_margin = _deviate(measured, transform, fitted, uv_d, sign, offset_mm,
                                                               margin_mm)
@@ -495,82 +522,177 @@ def _deviate(measured, tf, fitted, uv_design, sign: float, offset_mm: float, mar
     return moved, feet, deviation, outside, in_margin
 
 
-def _outline_refit(fitted, uv_design, measured, tf, sign: float, offset_mm: float, margin_mm: float = 0.0):
+def _outline_refit(fitted, uv_design, measured, tf, sign: float, offset_mm: float, margin_mm: float = 0.0,
+                   tf_press_design=None):
     """Re-place a registered scan by its outline (in-plane) and its deviations (out of plane).
 
-    Best-fit registration trades shape errors against in-plane moves: a saddle formed with
-    a few mm of error can fit best turned by degrees, so that the deviations land beside
-    the punches that caused them. On the press the plate's outline fixes it in the plane;
-    so here:
+    Best-fit registration trades shape errors against rigid moves: a plate formed with a
+    few mm of error fits best turned and shifted, so that the deviations land beside the
+    punches that caused them. On the press the plate's outline fixes it in the plane and
+    the strokes act along press z; so here, in the press's coordinates when
+    ``tf_press_design`` is given (else in the design's frame, its normal as "z"):
 
-    1. in the design plane, the scan's edge points (those within 1.5 point spacings of the
-       scan's convex outline; gaps from occlusion are bridged and skipped) are fitted to the
-       design's convex outline (grown by ``margin_mm``: a scan that still carries its trim
-       margin, :func:`offset_convex_polygon`) by 2-D point-to-segment ICP (trimmed 10 %): a turn about
-       the normal and a shift in the plane. A turn below ``OUTLINE_MIN_TURN_DEG`` is not
-       applied (the fit is redone as a shift only): the scan's edge gives the turn to a few
-       tenths of a degree only (sampling, occlusion at the rim), which on a curved plate
-       makes a twist of 1-3 mm at the corners; the surface fit gives it better there;
-    2. then the deviations' best plane ``d ~ a + b u + c v`` (robust) of the net plate's
-       points (the margin's left out) is removed by a shift ``a`` along the normal and small
-       tilts about u and v (three passes).
+    1. seen along z, the scan's edge points (those within 1.5 point spacings of the scan's
+       convex outline; gaps from occlusion are bridged and skipped) are fitted to the
+       outline of the design skin that was measured (its convex outline seen along z,
+       grown by ``margin_mm``: a scan that still carries its trim margin,
+       :func:`offset_convex_polygon`) by 2-D point-to-segment ICP (trimmed 10 %): a turn
+       about z and a shift across it. A turn below ``OUTLINE_MIN_TURN_DEG`` is not
+       applied (the fit is then redone as a shift only);
+    2. then the best plane ``dz ~ a + b x + c y`` (robust) of the deviations along z over
+       the net plate's points (the margin's left out) is removed by a shift along z and
+       small tilts about the plate's centre;
+    3. both steps are repeated (``OUTLINE_ROUNDS``): a tilt moves a curved plate's edge a
+       little across z.
+
+    Seen from above the press is the view of the planner (the plate's outline as cut,
+    :func:`mppf.plan.plan_job`) and of the strokes, so the punch deviations come out where
+    the punches are; a view along the design's own normal would shift the outline of a
+    plate that sits tilted on the press by its depth times the tilt.
 
     Returns the new measured -> design transform and a note. Falls back to ``tf`` when the
     scan shows too little edge or the outline fit wants an implausible move.
     """
     frame = fitted.frame
-    local = frame.to_local(apply_tf(tf, measured))
-    uv = local[:, :2]
-    hull = ConvexHull(uv_design)
-    corners = offset_convex_polygon(uv_design[hull.vertices], margin_mm)
+    uv_hull = uv_design[ConvexHull(uv_design).vertices]
+    if tf_press_design is None:
+        view = frame.tf_local_world  # design world -> the design's frame
+        corners = offset_convex_polygon(uv_hull, margin_mm)
+    else:
+        press_design = np.asarray(tf_press_design, dtype=float)
+        # the measured skin of the net design, seen from above the press
+        local = np.column_stack([uv_design, fitted.surface.evaluate(uv_design[:, 0], uv_design[:, 1])])
+        skin = apply_tf(press_design, frame.to_world(
+            local + (sign * offset_mm) * fitted.surface.normals(uv_design[:, 0], uv_design[:, 1])))
+        centre = np.eye(4)
+        centre[:3, 3] = -skin.mean(axis=0)  # turns and tilts about the plate's centre
+        view = centre @ press_design
+        xy = skin[:, :2] + centre[:2, 3]
+        corners = offset_convex_polygon(xy[ConvexHull(xy).vertices], margin_mm)
+    unview = np.linalg.inv(view)
     seg_a, seg_b = corners, np.roll(corners, -1, axis=0)
-    spacing = float(np.median(cKDTree(uv).query(uv, k=2)[0][:, 1]))
-    scan_hull = ConvexHull(uv)
-    edge = _distance_to_polygon(uv, uv[scan_hull.vertices]) < 1.5 * spacing
-    if edge.sum() < 20:
-        return tf, "outline fit skipped: too few edge points in the scan"
-    points = uv[edge]
-    total = _fit_outline_2d(points, seg_a, seg_b, turn=True)
-    if abs(float(np.degrees(np.arctan2(total[1, 0], total[0, 0])))) < OUTLINE_MIN_TURN_DEG:
-        total = _fit_outline_2d(points, seg_a, seg_b, turn=False)
-    turn_deg = float(np.degrees(np.arctan2(total[1, 0], total[0, 0])))
-    shift_mm = float(np.hypot(*total[:2, 2]))
     size_mm = float(np.ptp(uv_design, axis=0).max())
-    if abs(turn_deg) > OUTLINE_MAX_TURN_DEG or shift_mm > OUTLINE_MAX_SHIFT * size_mm:
-        return tf, f"outline fit skipped: it wanted a turn of {turn_deg:.1f} deg and a shift of {shift_mm:.0f} mm"
-    in_plane = np.eye(4)
-    in_plane[:2, :2] = total[:2, :2]
-    in_plane[:2, 3] = total[:2, 2]
-    tf = frame.tf_world_local @ in_plane @ frame.tf_local_world @ tf
-    # out of plane: remove the deviations' robust best plane by a shift and two tilts
-    for _ in range(3):
-        moved, feet, deviation, outside, in_margin = _deviate(measured, tf, fitted, uv_design, sign, offset_mm,
-                                                              margin_mm)
-        fuv = np.asarray(feet.uv, dtype=float)
-        use = ~outside & ~in_margin
-        coef = _robust_plane(fuv[use], deviation[use])
-        a, b, c = sign * coef  # the plane along the frame's +n
-        lift = make_tf(Rotation.from_rotvec([-c, b, 0.0]).as_matrix(), [0.0, 0.0, -a])
-        tf = frame.tf_world_local @ lift @ frame.tf_local_world @ tf
-    return tf, f"outline fit: turned {turn_deg:+.2f} deg and shifted {shift_mm:.1f} mm in the plane"
+    turns, shifts = [], []
+    for _ in range(OUTLINE_ROUNDS):
+        xy = apply_tf(view @ tf, measured)[:, :2]
+        spacing = float(np.median(cKDTree(xy).query(xy, k=2)[0][:, 1]))
+        edge = _distance_to_polygon(xy, xy[ConvexHull(xy).vertices]) < OUTLINE_EDGE_SPACINGS * spacing
+        if edge.sum() < 20:
+            return tf, "outline fit skipped: too few edge points in the scan"
+        points = xy[edge]
+        total = _fit_outline_2d(points, seg_a, seg_b, True, spacing)
+        if abs(float(np.degrees(np.arctan2(total[1, 0], total[0, 0])))) < OUTLINE_MIN_TURN_DEG:
+            total = _fit_outline_2d(points, seg_a, seg_b, False, spacing)
+        turn_deg = float(np.degrees(np.arctan2(total[1, 0], total[0, 0])))
+        shift_mm = float(np.hypot(*total[:2, 2]))
+        if abs(turn_deg) > OUTLINE_MAX_TURN_DEG or shift_mm > OUTLINE_MAX_SHIFT * size_mm:
+            return tf, (f"outline fit skipped: it wanted a turn of {turn_deg:.1f} deg and a shift of "
+                        f"{shift_mm:.0f} mm")
+        turns.append(turn_deg)
+        shifts.append(shift_mm)
+        in_plane = np.eye(4)
+        in_plane[:2, :2] = total[:2, :2]
+        in_plane[:2, 3] = total[:2, 2]
+        tf = unview @ in_plane @ view @ tf
+        # out of plane: remove the deviations' robust best plane (along z) by a shift and two tilts
+        for _ in range(3):
+            moved, feet, deviation, outside, in_margin = _deviate(measured, tf, fitted, uv_design, sign, offset_mm,
+                                                                  margin_mm)
+            fuv = np.asarray(feet.uv, dtype=float)
+            use = ~outside & ~in_margin
+            # the deviation along the normal, as a height along z: d / n_z (n_z of the "up" normal)
+            n_z = apply_rotation(view @ frame.tf_world_local, fitted.surface.normals(fuv[use, 0], fuv[use, 1]))[:, 2]
+            at = apply_tf(view, moved[use])[:, :2]
+            coef = _robust_plane(at, deviation[use] / np.maximum(sign * n_z, 0.2))
+            a, b, c = coef
+            lift = make_tf(Rotation.from_rotvec([-c, b, 0.0]).as_matrix(), [0.0, 0.0, -a])
+            tf = unview @ lift @ view @ tf
+    seen = "from above the press" if tf_press_design is not None else "along the design's normal"
+    return tf, (f"outline fit ({seen}): turned {sum(turns):+.2f} deg and shifted {shifts[0]:.1f} mm in the plane"
+                + (f", then {', '.join(f'{s:.1f}' for s in shifts[1:])} mm" if len(shifts) > 1 else ""))
 
 
-def _fit_outline_2d(points, seg_a, seg_b, turn: bool) -> np.ndarray:
-    """(3, 3) 2-D transform fitting edge points to the outline segments (turn + shift, or shift only)."""
+def _fit_outline_2d(points, seg_a, seg_b, turn: bool, spacing_mm: float) -> np.ndarray:
+    """(3, 3) 2-D transform fitting a scan's edge to the outline segments (turn + shift, or shift only).
+
+    A scan's edge is not its outermost points one by one: the scanner samples the plate
+    at some spacing, so along an edge the outermost points stand up to a spacing in, and
+    a hidden stretch (a clamp, a shadow) leaves only points further in. So each outline
+    edge is cut into pieces about ``OUTLINE_PIECE_SPACINGS`` point spacings long, and the
+    scan's edge along a piece is the low ``OUTLINE_EDGE_QUANTILE`` of its points' insets
+    (distance inside the outline): the envelope of the points, not their mean. Pieces
+    whose envelope lies far from the others' (a hidden stretch, the rim of an occlusion)
+    are left out; the common inset of the rest (the sampling's) is removed; the pieces'
+    edge points are then fitted to the outline by least squares, weighted by their length.
+    """
+    inward = _inward_normals(seg_a, seg_b)
+    lengths = np.linalg.norm(seg_b - seg_a, axis=1)
+    piece_mm = max(OUTLINE_PIECE_SPACINGS * spacing_mm, 1e-6)
+    pieces_per_seg = np.maximum(np.ceil(lengths / piece_mm).astype(int), 1)
+    first_piece = np.concatenate([[0], np.cumsum(pieces_per_seg)[:-1]])
     total = np.eye(3)
+    rough, fine = True, 0
     for _ in range(OUTLINE_ITERATIONS):
         moved = points @ total[:2, :2].T + total[:2, 2]
-        target = _closest_on_segments(moved, seg_a, seg_b)
-        residual = np.linalg.norm(moved - target, axis=1)
-        keep = residual <= np.quantile(residual, 0.9)
-        step = _rigid_2d(moved[keep], target[keep])
+        foot, index = _closest_on_segments(moved, seg_a, seg_b, with_index=True)
+        inset = np.einsum("nd,nd->n", moved - foot, inward[index])  # > 0 inside the outline
+        along = np.linalg.norm(foot - seg_a[index], axis=1) / np.maximum(lengths[index], 1e-12)
+        piece = first_piece[index] + np.minimum((along * pieces_per_seg[index]).astype(int), pieces_per_seg[index] - 1)
+        src, dst, weight = [], [], []
+        for k in np.unique(piece):
+            members = piece == k
+            if members.sum() < 3:
+                continue
+            edge_inset = float(np.quantile(inset[members], OUTLINE_EDGE_QUANTILE))
+            seg = int(index[members][0])
+            mid = foot[members].mean(axis=0)  # on the (straight) segment
+            src.append(mid + edge_inset * inward[seg])  # the scan's edge along this piece
+            dst.append(mid)
+            weight.append(float(np.ptp(along[members]) * lengths[seg]) + spacing_mm)
+        if len(src) < 4:
+            break
+        src, dst, weight = np.asarray(src), np.asarray(dst), np.asarray(weight)
+        depth = np.einsum("nd,nd->n", src - dst, _inward_at(dst, seg_a, seg_b, inward))
+        # the edge is the scan's envelope: once roughly placed (all pieces used), pieces standing
+        # further in or out than most (their outer row of points missing, a hidden stretch, a
+        # stray point) are left out, with a band that narrows from a few spacings to about
+        # half a spacing around the outer quartile of the pieces' edges
+        if rough:
+            keep = np.ones(len(depth), dtype=bool)
+        else:
+            band = spacing_mm * max(OUTLINE_BAND_SPACINGS[1], OUTLINE_BAND_SPACINGS[0] * 0.7 ** fine)
+            keep = np.abs(depth - float(np.quantile(depth, 0.25))) <= band
+            fine += 1
+        if keep.sum() < 4:
+            break
+        centre = float(np.median(depth[keep]))
+        target = dst + centre * _inward_at(dst, seg_a, seg_b, inward)  # remove the sampling's common inset
+        step = _rigid_2d(src[keep], target[keep], weight[keep])
         if not turn:
             step = np.eye(3)
-            step[:2, 2] = (target[keep] - moved[keep]).mean(axis=0)
+            w = weight[keep] / weight[keep].sum()
+            step[:2, 2] = ((target[keep] - src[keep]) * w[:, None]).sum(axis=0)
         total = step @ total
-        if np.hypot(*step[:2, 2]) < 1e-3 and abs(np.arctan2(step[1, 0], step[0, 0])) < 1e-7:
+        small = np.hypot(*step[:2, 2]) < 1e-3 and abs(np.arctan2(step[1, 0], step[0, 0])) < 1e-7
+        if rough and (small or np.hypot(*step[:2, 2]) < 0.05 * spacing_mm):
+            rough = False  # roughly placed: from now on the envelope's outliers are left out
+        elif small and fine > 6:
             break
     return total
+
+
+def _inward_at(on_outline: np.ndarray, seg_a: np.ndarray, seg_b: np.ndarray, inward: np.ndarray) -> np.ndarray:
+    """Inward normals (n, 2) of the segments that points lying on the outline belong to."""
+    _, index = _closest_on_segments(on_outline, seg_a, seg_b, with_index=True)
+    return inward[index]
+
+
+def _inward_normals(seg_a: np.ndarray, seg_b: np.ndarray) -> np.ndarray:
+    """Unit normals (k, 2) of a closed polygon's edges a -> b, pointing into the polygon."""
+    ab = seg_b - seg_a
+    area2 = float(np.sum(seg_a[:, 0] * seg_b[:, 1] - seg_b[:, 0] * seg_a[:, 1]))  # > 0: counter-clockwise
+    left = np.column_stack([-ab[:, 1], ab[:, 0]]) * (1.0 if area2 > 0 else -1.0)
+    return left / np.maximum(np.linalg.norm(left, axis=1, keepdims=True), 1e-12)
 
 
 def _distance_to_polygon(points: np.ndarray, corners: np.ndarray) -> np.ndarray:
@@ -579,20 +701,23 @@ def _distance_to_polygon(points: np.ndarray, corners: np.ndarray) -> np.ndarray:
     return np.linalg.norm(points - closest, axis=1)
 
 
-def _closest_on_segments(points: np.ndarray, seg_a: np.ndarray, seg_b: np.ndarray) -> np.ndarray:
-    """Closest point (n, 2) on any of the segments a -> b (k, 2) for each 2-D point."""
+def _closest_on_segments(points: np.ndarray, seg_a: np.ndarray, seg_b: np.ndarray, with_index: bool = False):
+    """Closest point (n, 2) on any of the segments a -> b (k, 2) for each 2-D point (and the segment's index)."""
     ab = seg_b - seg_a
     t = np.einsum("nkd,kd->nk", points[:, None, :] - seg_a[None], ab) / np.maximum(np.einsum("kd,kd->k", ab, ab),
                                                                                        1e-12)
     foot = seg_a[None] + np.clip(t, 0.0, 1.0)[..., None] * ab[None]
     best = np.argmin(np.linalg.norm(points[:, None, :] - foot, axis=2), axis=1)
-    return foot[np.arange(len(points)), best]
+    closest = foot[np.arange(len(points)), best]
+    return (closest, best) if with_index else closest
 
 
-def _rigid_2d(source: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """(3, 3) homogeneous 2-D rigid transform best mapping source onto target (least squares)."""
-    mu_s, mu_t = source.mean(axis=0), target.mean(axis=0)
-    u, _, vt = np.linalg.svd((source - mu_s).T @ (target - mu_t))
+def _rigid_2d(source: np.ndarray, target: np.ndarray, weight: np.ndarray | None = None) -> np.ndarray:
+    """(3, 3) homogeneous 2-D rigid transform best mapping source onto target (weighted least squares)."""
+    w = np.ones(len(source)) if weight is None else np.asarray(weight, dtype=float)
+    w = w / w.sum()
+    mu_s, mu_t = w @ source, w @ target
+    u, _, vt = np.linalg.svd(((source - mu_s) * w[:, None]).T @ (target - mu_t))
     rot = vt.T @ u.T
     if np.linalg.det(rot) < 0:
         vt[-1] *= -1
@@ -652,11 +777,9 @@ def _choose_start(measured, target, rotation_hint, reference_mark, length_mm: fl
     candidates = principal_candidates(fit_frame(measured), fit_frame(target))
     fits, scores = [], []
     for start in candidates:
-        reg = register_icp(measured, target, method="plane", init=start, trim_fraction=TRIM_FRACTION,
-                           robust="huber", pin_outline=False, max_points=START_POINTS,
-                           max_iterations=START_ITERATIONS)
-        fits.append(reg.tf)
-        scores.append(reg.rms_mm)
+        tf, rms = _start_fit(measured, target, start)
+        fits.append(tf)
+        scores.append(rms)
     order = [int(i) for i in np.argsort(scores)]
     best, second = order[0], order[1]
     scored = ", ".join(f"{s:.2f}" for s in scores)
@@ -668,6 +791,16 @@ def _choose_start(measured, target, rotation_hint, reference_mark, length_mm: fl
             how = "the reference mark" + (" (it overruled the best fit)" if chosen != best else "")
             return fits[chosen], (f"start: {how}; converged RMS of the four principal-axes starts {scored} mm, "
                                   f"mark {miss[chosen]:.0f} mm from its place")
+        # the free fits slid away (a plate still far off its design fits a shifted, turned
+        # design about as well): fit again from each start with the mark held at its place
+        held = [_start_fit(measured, target, start, mark) for start in _held_starts(measured, target, candidates, mark)]
+        held_scores = [rms for _, rms in held]
+        chosen = int(np.argmin(held_scores))
+        # a mark picked in the wrong place holds the scan off the design: not taken
+        if held_scores[chosen] <= HELD_MAX_RMS_FRACTION * length_mm:
+            return held[chosen][0], (
+                f"start: the reference mark held in place (the free fits slid {min(miss):.0f} mm or more off it); "
+                f"RMS of the {len(held)} best turns so held {', '.join(f'{v:.1f}' for v in held_scores)} mm")
         note = (f"start: no start puts the reference mark near its place (nearest {min(miss):.0f} mm): "
                 "the best fit is used; check the mark")
         return fits[best], f"{note}; converged RMS {scored} mm"
@@ -677,6 +810,58 @@ def _choose_start(measured, target, rotation_hint, reference_mark, length_mm: fl
         return fits[chosen], f"start: tie of the best two starts broken by the rotation hint; converged RMS {scored} mm"
     tie = " (a tie of the best two: nearly symmetric plate, no hint)" if scores[second] <= TIE_RATIO * scores[best] else ""
     return fits[best], f"start: best converged fit{tie}; converged RMS {scored} mm"
+
+
+def _held_starts(measured, target, candidates, mark, keep: int = 3) -> list[np.ndarray]:
+    """Starts with the reference mark on its place: the ``keep`` best of a sweep of turns.
+
+    The principal axes of a scan with hidden parts may be tens of degrees off the design's;
+    so both ways up (the candidates' normal flipped or not), the scan is turned about the
+    design's normal through the mark in steps of ``HELD_TURN_STEP_DEG`` and each pose is
+    scored, without iterating, by the RMS distance of a subsample to its nearest design
+    points (clipped at a tenth of the design's size, so that a far corner does not rule).
+    """
+    normal = fit_frame(target).axes[2]
+    tree = cKDTree(target)
+    pick = np.random.default_rng(0).choice(len(measured), size=min(len(measured), START_POINTS), replace=False)
+    clip = 0.1 * float(np.ptp(target, axis=0).max())
+    poses, scores = [], []
+    for base in (candidates[0], candidates[2]):  # the two ways up
+        for turn in np.arange(0.0, 360.0, HELD_TURN_STEP_DEG):
+            tf = make_tf(Rotation.from_rotvec(np.radians(turn) * normal).as_matrix() @ base[:3, :3], np.zeros(3))
+            tf[:3, 3] = mark[1] - apply_tf(tf, mark[0][None])[0]
+            near, _ = tree.query(apply_tf(tf, measured[pick]))
+            poses.append(tf)
+            scores.append(float(np.sqrt(np.mean(np.minimum(near, clip) ** 2))))
+    return [poses[i] for i in np.argsort(scores)[:keep]]
+
+
+def _start_fit(measured, target, start, mark=None) -> tuple[np.ndarray, float]:
+    """A start converged by trimmed, Huber-weighted point-to-plane ICP on a subsample: (tf, RMS).
+
+    With ``mark`` (measured, design) the fit runs in ``MARK_HOLD_ROUNDS`` rounds, each
+    followed by the shift that puts the mark back on its place: the best fit with the mark
+    held (to within the few mm it was picked to); its score is then the RMS distance of the
+    subsample's points to their nearest design points.
+    """
+    if mark is None:
+        reg = register_icp(measured, target, method="plane", init=start, trim_fraction=TRIM_FRACTION,
+                           robust="huber", pin_outline=False, max_points=START_POINTS,
+                           max_iterations=START_ITERATIONS)
+        return reg.tf, reg.rms_mm
+    tf = np.array(start, dtype=float)
+    for _ in range(MARK_HOLD_ROUNDS):
+        tf[:3, 3] += mark[1] - apply_tf(tf, mark[0][None])[0]
+        reg = register_icp(measured, target, method="point", init=tf, trim_fraction=TRIM_FRACTION,
+                           pin_outline=False, max_points=START_POINTS,
+                           max_iterations=max(START_ITERATIONS // MARK_HOLD_ROUNDS, 1))
+        tf = np.array(reg.tf, dtype=float)
+    tf[:3, 3] += mark[1] - apply_tf(tf, mark[0][None])[0]
+    # scored by point-to-point distances: a pose held off the design by the mark leaves
+    # points beyond the design's edge, whose point-to-plane distances can still be small
+    pick = np.random.default_rng(0).choice(len(measured), size=min(len(measured), START_POINTS), replace=False)
+    near, _ = cKDTree(target).query(apply_tf(tf, measured[pick]))
+    return tf, float(np.sqrt(np.mean(near**2)))
 
 
 def _register(measured, target, fitted, uv_design, sign: float, offset_mm: float, init="principal",

