@@ -124,3 +124,13 @@ def test_reference_mark_is_picked_in_the_scan_and_written_beside_it(formed, tmp_
     assert not (tmp_path / ("plain.ply" + MARK_SUFFIX)).exists()
     SimulatedScanner(seed=4).scan(formed, tmp_path / "plain.ply")
     assert not (tmp_path / ("plain.ply" + MARK_SUFFIX)).exists()
+
+
+def test_sample_grid_is_centred_on_the_plate(formed):
+    """The rows and columns left over at the edges are the same on both sides (a grid from one
+    edge would sample that edge and stop up to a spacing short of the other)."""
+    for spacing in (20.0, 23.0, 37.0):
+        xy = formed.sample_xy(spacing)
+        lo, hi = formed.outline_xy_mm.min(axis=0), formed.outline_xy_mm.max(axis=0)
+        np.testing.assert_allclose(xy.min(axis=0) - lo, hi - xy.max(axis=0), atol=1e-6)
+        assert np.all(xy.min(axis=0) - lo < spacing)
