@@ -25,7 +25,7 @@ With the plate's nominal material (``material=``, the loop's default) the step i
 computed through the springback law (:func:`model_correction`): each curvature component of
 the error is divided by the slope of the springback map at the loaded curvature, so a twist
 error, which springs back much more than a bend, gets a larger step. See
-``docs/compare.md``, section "Compensation".
+``docs/compare.md``, section "The springback-model step and the secant gains".
 """
 
 from __future__ import annotations

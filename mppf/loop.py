@@ -33,12 +33,13 @@ from typing import Callable
 import numpy as np
 
 from mppf.compare import compare
-from mppf.compensate import PreviousCycle, compensate
+from mppf.compensate import Correction, PreviousCycle, compensate
 from mppf.errors import ConfigError, GeometryError, InputError, PressRefused
 from mppf.history import CycleRecord, History, PlateRecord, grid_from_json, grid_to_json
 from mppf.io import PointCloud, read_points
 from mppf.job import Job, StepStrokes, load_job, save_job
 from mppf.plan import plan_job
+from mppf.precompensate import MIN_EXPLAINED, calibrated_correction
 from mppf.press import PressConfig, press_from_dict
 from mppf.presslink import PressLink, StepResult
 from mppf.progress import NULL_REPORTER, Reporter
@@ -89,6 +90,11 @@ class LoopSettings:
         Trim margin the flat plate is cut with (mm, see :func:`mppf.plan.plan_job`); None =
         the press's ``[forming] margin_mm``. The scans carry it; the tolerance is judged on
         the net plate.
+    calibrate : bool
+        With ``model_gain``: fit the plate's effective yield stress to the measured cycles
+        and solve the next strokes on the calibrated plate model
+        (:func:`mppf.precompensate.calibrated_correction`); the model step of
+        :func:`mppf.compensate.compensate` when the fit explains too little.
     """
 
     tolerance_mm: float = 2.5
@@ -100,6 +106,7 @@ class LoopSettings:
     offset_mm: float | None = None
     model_gain: bool = True
     margin_mm: float | None = None
+    calibrate: bool = True
 
     def __post_init__(self):
         for name in ("tolerance_mm", "rms_tolerance_mm", "gain", "divergence_factor"):
@@ -535,10 +542,14 @@ def _plan_next(history: History, plate: PlateRecord, record: CycleRecord, press:
         previous = PreviousCycle(lower_mm=_last_step(before).lower_mm, punch_error_mm=before.punch_deviation_mm)
     job = _load_cycle_job(record)
     nominal = job.extra.get("material") if settings.model_gain else None
-    correction = compensate(
-        step.upper_mm, step.lower_mm, record.punch_deviation_mm, press=press, thickness_mm=plate.thickness_mm,
-        gain=settings.gain, previous=previous, material=None if not nominal else Material(**nominal),
-    )
+    correction = None
+    if nominal and settings.calibrate:
+        correction = _calibrated_correction(history, plate, record, press, job, Material(**nominal))
+    if correction is None:
+        correction = compensate(
+            step.upper_mm, step.lower_mm, record.punch_deviation_mm, press=press, thickness_mm=plate.thickness_mm,
+            gain=settings.gain, previous=previous, material=None if not nominal else Material(**nominal),
+        )
     active = step.active
     strokes = StepStrokes(np.where(active, correction.upper_mm, np.nan), np.where(active, correction.lower_mm, np.nan),
                           active)
@@ -551,6 +562,39 @@ def _plan_next(history: History, plate: PlateRecord, record: CycleRecord, press:
         plate.plate_id, record.cycle + 1, job_path=path.resolve(), job_sha256=job.sha256(), steps=[strokes],
         gain=float(np.nanmean(correction.gain)), correction=_correction_to_dict(correction), previous_decision="continue",
     )
+
+
+def _calibrated_correction(history: History, plate: PlateRecord, record: CycleRecord, press: PressConfig, job: Job,
+                           nominal: Material) -> Correction | None:
+    """The calibrated model's correction (:func:`mppf.precompensate.calibrated_correction`), or None.
+
+    None (the loop then takes the model step of :func:`mppf.compensate.compensate`) when
+    the job has no design heights at the punches (planned by an older version), a cycle
+    was interrupted (its plate does not show its strokes), or the fitted model explains
+    less than ``MIN_EXPLAINED`` of the measured deviations.
+    """
+    target = job.extra.get("design_mid_mm")
+    outline = job.extra.get("plate_outline_mm")
+    records = history.cycles(plate.plate_id)[: record.cycle]
+    if target is None or not outline or any(r.interrupted or r.punch_deviation_mm is None for r in records):
+        return None
+    step = _last_step(record)
+    if any(not np.array_equal(_last_step(r).active, step.active) for r in records):
+        return None
+    cycles = [(_last_step(r).upper_mm, _last_step(r).lower_mm, r.punch_deviation_mm) for r in records]
+    try:
+        refined, fit = calibrated_correction(press, cycles, step.active, np.asarray(grid_from_json(target), dtype=float),
+                                             np.asarray(outline, dtype=float), plate.thickness_mm, nominal)
+    except (InputError, GeometryError):
+        return None
+    if fit.explained < MIN_EXPLAINED:
+        return None
+    active = step.active
+    upper = np.where(active, refined.upper_mm, np.nan)
+    lower = np.where(active, refined.lower_mm, np.nan)
+    return Correction(upper_mm=upper, lower_mm=lower, gain=np.where(active, 1.0, np.nan),
+                      applied_mm=np.where(active, lower - step.lower_mm, 0.0), clipped=np.zeros(press.shape, dtype=bool),
+                      notes=list(refined.notes))
 
 
 def _correction_to_dict(correction) -> dict:

@@ -148,14 +148,16 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
     tf_press_design = pose.tf_adjust @ registration.tf
     net_outline = _outline(apply_tf(pose.tf_adjust, design_press))
     outline = offset_convex_polygon(net_outline, margin)
+    # the design's mid-surface height at each active punch axis, as the tips would hold it
+    # (the loop's calibrated correction aims at it, mppf.precompensate.calibrated_correction)
+    design_placed = PlacedSurface(fitted.surface, tf_press_design @ fitted.frame.tf_world_local)
+    up_d, lo_d = tip_heights(design_placed, gx[active], gy[active], tip_radius_mm=press.tip_radius_mm,
+                             thickness_mm=t)
+    target = np.full(press.shape, np.nan)
+    target[active] = 0.5 * (up_d.tip_mm + lo_d.tip_mm)
     if springback:
         # virtual press cycles on the plate model (nominal material) against the design
         reporter.info("refining the springback pre-compensation on the plate model")
-        design_placed = PlacedSurface(fitted.surface, tf_press_design @ fitted.frame.tf_world_local)
-        up_d, lo_d = tip_heights(design_placed, gx[active], gy[active], tip_radius_mm=press.tip_radius_mm,
-                                 thickness_mm=t)
-        target = np.full(press.shape, np.nan)
-        target[active] = 0.5 * (up_d.tip_mm + lo_d.tip_mm)
         refined = refine_strokes(press, upper, lower, active, target, outline, t, material)
         upper, lower = refined.upper_mm, refined.lower_mm
         springback_report["refinement"] = {"virtual_cycles": len(refined.history_mm) - 1,
@@ -193,6 +195,7 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
             "youngs_modulus_mpa": material.youngs_modulus_mpa, "poisson": material.poisson,
             "yield_stress_mpa": material.yield_stress_mpa},
         "springback": springback_report,
+        "design_mid_mm": [[None if not np.isfinite(v) else float(v) for v in row] for row in target],
     }
     return Job(press=press, thickness_mm=t, steps=step_list, tf_press_design=tf_press_design,
                tf_press_flat=placement.tf_press_flat, extra=extra)

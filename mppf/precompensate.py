@@ -20,7 +20,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.interpolate import RectBivariateSpline
+from scipy.interpolate import RBFInterpolator, RectBivariateSpline
+from scipy.optimize import minimize_scalar
 
 from mppf.compensate import compensate
 from mppf.errors import InputError
@@ -158,3 +159,170 @@ def refine_strokes(press: PressConfig, upper_mm, lower_mm, active, target_mid_mm
                  f"largest deviation at the punches {history[0]:.2f} -> {best[0]:.2f} mm")
     return Refinement(upper_mm=best[1], lower_mm=best[2], predicted_max_mm=best[0], history_mm=history,
                       notes=notes)
+
+
+YIELD_BOUNDS = (0.6, 1.6)
+"""Range of the fitted effective yield stress, as factors of the nominal one."""
+
+RESIDUAL_SMOOTHING = 10.0
+"""Smoothing of the thin-plate spline through the measured residual (mm^2 units of the spline)."""
+
+MIN_EXPLAINED = 0.25
+"""The loop uses the calibrated correction only when the fitted model explains at least this share
+of the measured deviations (:attr:`MaterialFit.explained`); else the model step of
+:func:`mppf.compensate.compensate`. Near tolerance the scan's noise and registration leave a
+good model about half of a 1 mm RMS unexplained; a model that explains less than a quarter is
+not trusted to solve the next strokes."""
+
+
+@dataclass(frozen=True)
+class MaterialFit:
+    """The plate's effective material, fitted to measured cycles through the plate model.
+
+    Attributes
+    ----------
+    material : Material
+        The nominal material with the fitted yield stress.
+    cost_nominal_mm2, cost_fit_mm2 : float
+        Sum of squared differences (mm^2) between the measured and the predicted punch
+        deviations over all cycles, with the nominal and with the fitted yield stress.
+    n_cycles : int
+    measured_mm2 : float
+        Sum of the squared measured deviations (each cycle's mean removed), mm^2.
+    """
+
+    material: Material
+    cost_nominal_mm2: float
+    cost_fit_mm2: float
+    n_cycles: int
+    measured_mm2: float = float("nan")
+
+    @property
+    def explained(self) -> float:
+        """Share of the measured deviations' squares (means removed) the fitted model explains."""
+        return 1.0 - self.cost_fit_mm2 / self.measured_mm2 if self.measured_mm2 > 0 else 0.0
+
+
+def _deviation(press: PressConfig, predicted, target, act) -> np.ndarray:
+    """Predicted minus target at the active punches, its best plane removed (NaN elsewhere)."""
+    px, py = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    plane = np.column_stack([np.ones(act.sum()), px[act], py[act]])
+    diff = (predicted - target)[act]
+    coef, *_ = np.linalg.lstsq(plane, diff, rcond=None)
+    out = np.full(press.shape, np.nan)
+    out[act] = diff - plane @ coef
+    return out
+
+
+def fit_yield_stress(press: PressConfig, cycles, active, target_mid_mm, outline_xy_mm, thickness_mm: float,
+                     nominal: Material) -> MaterialFit:
+    """The yield stress that makes the plate model best predict the measured deviations.
+
+    Springback depends on the material through ``c = sy' / (E' t)`` alone, so one number,
+    the effective yield stress at the nominal thickness, carries both the yield stress's
+    and the thickness's scatter. It is fitted (bounded scalar minimisation within
+    ``YIELD_BOUNDS`` of the nominal) to the punch deviations measured after every cycle so
+    far, each predicted from that cycle's strokes by :func:`predict_mid_heights`; each
+    cycle's difference has its mean removed (the plate's height is not measured).
+
+    Parameters
+    ----------
+    press : PressConfig
+    cycles : sequence of (upper_mm, lower_mm, punch_error_mm)
+        Each pressed cycle: tip heights (rows, cols; NaN where inactive) and the measured
+        deviation at the punches (NaN where unknown), plane removed.
+    active : (rows, cols) bool
+    target_mid_mm : (rows, cols) float
+        The design's mid-surface height at the punch axes (``Job.extra["design_mid_mm"]``).
+    outline_xy_mm : (k, 2) float
+        The plate as cut, on the press.
+    thickness_mm : float
+        Nominal thickness.
+    nominal : Material
+
+    Returns
+    -------
+    MaterialFit
+    """
+    act = np.asarray(active, dtype=bool)
+    target = np.asarray(target_mid_mm, dtype=float)
+    cycles = [(np.asarray(u, dtype=float), np.asarray(lo, dtype=float), np.asarray(e, dtype=float))
+              for u, lo, e in cycles]
+
+    def cost(yield_mpa: float) -> float:
+        material = Material(nominal.youngs_modulus_mpa, nominal.poisson, float(yield_mpa))
+        total = 0.0
+        for upper, lower, error in cycles:
+            predicted = _deviation(press, predict_mid_heights(press, upper, lower, act, outline_xy_mm, thickness_mm,
+                                                              material), target, act)
+            known = act & np.isfinite(error)
+            diff = (predicted - error)[known]
+            total += float(np.sum((diff - diff.mean()) ** 2)) if diff.size else 0.0
+        return total
+
+    lo, hi = (f * nominal.yield_stress_mpa for f in YIELD_BOUNDS)
+    best = minimize_scalar(cost, bounds=(lo, hi), method="bounded", options={"xatol": 0.5})
+    fitted = Material(nominal.youngs_modulus_mpa, nominal.poisson, float(best.x))
+    measured = 0.0
+    for _, _, error in cycles:
+        values = error[act & np.isfinite(error)]
+        measured += float(np.sum((values - values.mean()) ** 2)) if values.size else 0.0
+    return MaterialFit(fitted, cost(nominal.yield_stress_mpa), float(best.fun), len(cycles), measured)
+
+
+def calibrated_correction(press: PressConfig, cycles, active, target_mid_mm, outline_xy_mm, thickness_mm: float,
+                          nominal: Material, *, iterations: int = ITERATIONS) -> tuple[Refinement, MaterialFit]:
+    """Next strokes from the plate model calibrated on the measured cycles (model-based ILC).
+
+    1. The effective yield stress is fitted to all cycles so far (:func:`fit_yield_stress`).
+    2. The residual ``r`` the calibrated model does not explain (measured minus predicted
+       deviation of the last cycle: model-form error, measurement error) is spread over
+       the punch grid by a smoothing thin-plate spline.
+    3. The strokes are refined on the calibrated model (:func:`refine_strokes`, from the
+       last cycle's strokes) towards the design moved by ``-r``: so that the plate, which
+       lands ``r`` off what the model predicts, lands on the design.
+
+    Parameters
+    ----------
+    cycles : sequence of (upper_mm, lower_mm, punch_error_mm)
+        Every pressed cycle, the last one last (see :func:`fit_yield_stress`).
+    Other parameters as :func:`fit_yield_stress`; ``iterations`` as :func:`refine_strokes`.
+
+    Returns
+    -------
+    refinement : Refinement
+        The new strokes (NaN where inactive) and the predicted deviation against the
+        residual-corrected target.
+    fit : MaterialFit
+
+    Raises
+    ------
+    InputError
+        No cycle given, or too few measured punches (fewer than 6) in the last one.
+    """
+    if not cycles:
+        raise InputError("the calibrated correction needs at least one measured cycle")
+    act = np.asarray(active, dtype=bool)
+    target = np.asarray(target_mid_mm, dtype=float)
+    fit = fit_yield_stress(press, cycles, act, target, outline_xy_mm, thickness_mm, nominal)
+    upper, lower, error = (np.asarray(a, dtype=float) for a in cycles[-1])
+    known = act & np.isfinite(error)
+    if known.sum() < 6:
+        raise InputError(f"only {int(known.sum())} punches have a measured deviation; the calibrated "
+                         "correction needs at least 6")
+    predicted = _deviation(press, predict_mid_heights(press, upper, lower, act, outline_xy_mm, thickness_mm,
+                                                      fit.material), target, act)
+    px, py = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    residual = RBFInterpolator(np.column_stack([px[known], py[known]]), (error - predicted)[known],
+                               kernel="thin_plate_spline", smoothing=RESIDUAL_SMOOTHING)
+    spread = np.full(press.shape, np.nan)
+    spread[act] = residual(np.column_stack([px[act], py[act]]))
+    refinement = refine_strokes(press, upper, lower, act, target - spread, outline_xy_mm, thickness_mm, fit.material,
+                                iterations=iterations)
+    notes = [f"plate model calibrated on {fit.n_cycles} cycle(s): effective yield stress "
+             f"{fit.material.yield_stress_mpa:.0f} MPa (nominal {nominal.yield_stress_mpa:.0f}); squared misfit "
+             f"{fit.cost_nominal_mm2:.0f} -> {fit.cost_fit_mm2:.0f} mm^2, {100 * fit.explained:.0f} % of the "
+             f"measured deviations explained; residual the model does not explain "
+             f"up to {np.nanmax(np.abs(spread)):.2f} mm", *refinement.notes]
+    return Refinement(refinement.upper_mm, refinement.lower_mm, refinement.predicted_max_mm, refinement.history_mm,
+                      notes), fit

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from mppf.errors import InputError
-from mppf.precompensate import predict_mid_heights, refine_strokes
+from mppf.precompensate import _deviation, calibrated_correction, fit_yield_stress, predict_mid_heights, refine_strokes
 from mppf.press import example_press_path, load_press
 from mppf.springback import Material, unloaded_curvature
 
@@ -67,3 +67,46 @@ def test_bad_refinement_settings(iterations, tolerance):
     with pytest.raises(InputError, match="refinement"):
         refine_strokes(PRESS, target + T / 2, target - T / 2, active, target, outline, T, STEEL,
                        iterations=iterations, tolerance_mm=tolerance)
+
+
+def _softer_plate_pressed():
+    """Strokes refined for the nominal steel; the plate that took them is 15 % softer."""
+    px, py, active, outline = _grid()
+    target = np.where(active, py**2 / (2 * 6000.0) + px * py / 2.0e7, np.nan)
+    planned = refine_strokes(PRESS, target + T / 2, target - T / 2, active, target, outline, T, STEEL)
+    true = Material(yield_stress_mpa=0.85 * STEEL.yield_stress_mpa)
+    formed = predict_mid_heights(PRESS, planned.upper_mm, planned.lower_mm, active, outline, T, true)
+    measured = _deviation(PRESS, formed, target, active)
+    return px, py, active, outline, target, planned, true, measured
+
+
+def test_the_effective_yield_stress_is_found_from_one_measured_cycle():
+    px, py, active, outline, target, planned, true, measured = _softer_plate_pressed()
+    assert np.nanmax(np.abs(measured)) > 2.0  # the softer plate is measurably off
+    noisy = measured + np.where(active, np.random.default_rng(0).normal(0.0, 0.3, measured.shape), np.nan)
+    fit = fit_yield_stress(PRESS, [(planned.upper_mm, planned.lower_mm, noisy)], active, target, outline, T, STEEL)
+    assert fit.material.yield_stress_mpa == pytest.approx(true.yield_stress_mpa, abs=4.0)
+    assert fit.cost_fit_mm2 < 0.2 * fit.cost_nominal_mm2
+    assert fit.explained > 0.8
+
+
+def test_the_calibrated_correction_brings_the_true_plate_onto_the_design():
+    px, py, active, outline, target, planned, true, measured = _softer_plate_pressed()
+    refined, fit = calibrated_correction(PRESS, [(planned.upper_mm, planned.lower_mm, measured)], active, target,
+                                         outline, T, STEEL)
+    after = _deviation(PRESS, predict_mid_heights(PRESS, refined.upper_mm, refined.lower_mm, active, outline, T, true),
+                       target, active)
+    assert np.nanmax(np.abs(after)) < 0.25 * np.nanmax(np.abs(measured))
+    assert np.nanmax(np.abs(after)) < 0.5
+    assert "effective yield stress" in refined.notes[0]
+    np.testing.assert_allclose((refined.upper_mm - refined.lower_mm)[active], T)
+
+
+def test_the_calibrated_correction_needs_a_measured_cycle():
+    px, py, active, outline = _grid()
+    target = np.where(active, py**2 / (2 * 6000.0), np.nan)
+    with pytest.raises(InputError):
+        calibrated_correction(PRESS, [], active, target, outline, T, STEEL)
+    blind = np.full(PRESS.shape, np.nan)
+    with pytest.raises(InputError, match="measured deviation"):
+        calibrated_correction(PRESS, [(target + T / 2, target - T / 2, blind)], active, target, outline, T, STEEL)
