@@ -204,10 +204,7 @@ def compensate(
     smooth = np.where(known, smooth, 0.0)
 
     # 3. limits: dimpling (neighbour differences of the correction) and tip heights
-    lo = np.maximum(press.upper.min_mm - upper, press.lower.min_mm - lower)
-    hi = np.minimum(press.upper.max_mm - upper, press.lower.max_mm - lower)
-    applied = _limit(smooth, active, lo, hi, press.max_neighbour_diff_mm)
-    clipped = active & (np.abs(applied - smooth) > 1e-9)
+    applied, clipped = limit_correction(press, upper, lower, smooth)
     if clipped.any():
         notes.append(f"correction limited at {int(clipped.sum())} punches (dimpling limit "
                      f"{press.max_neighbour_diff_mm:g} mm or stroke limits)")
@@ -219,6 +216,38 @@ def compensate(
         clipped=clipped,
         notes=notes,
     )
+
+
+def limit_correction(press: PressConfig, upper_mm, lower_mm, correction_mm) -> tuple[np.ndarray, np.ndarray]:
+    """A correction of both matrices held to the press's limits.
+
+    Neighbouring corrections differ by at most the dimpling limit
+    (``press.max_neighbour_diff_mm``) and every corrected tip stays within its matrix's
+    height limits (alternating projections, :func:`_limit`).
+
+    Parameters
+    ----------
+    press : PressConfig
+    upper_mm, lower_mm : (rows, cols) float
+        Tip heights before the correction (NaN where inactive).
+    correction_mm : (rows, cols) float
+        Wanted change of both matrices (mm).
+
+    Returns
+    -------
+    applied_mm : (rows, cols) float
+        The correction applied (0 where inactive).
+    clipped : (rows, cols) bool
+        Where the limits reduced it.
+    """
+    upper = np.asarray(upper_mm, dtype=float)
+    lower = np.asarray(lower_mm, dtype=float)
+    active = np.isfinite(upper) & np.isfinite(lower)
+    wanted = np.where(active, np.asarray(correction_mm, dtype=float), 0.0)
+    lo = np.maximum(press.upper.min_mm - upper, press.lower.min_mm - lower)
+    hi = np.minimum(press.upper.max_mm - upper, press.lower.max_mm - lower)
+    applied = _limit(wanted, active, lo, hi, press.max_neighbour_diff_mm)
+    return np.where(active, applied, 0.0), active & (np.abs(applied - wanted) > 1e-9)
 
 
 def _grid(press: PressConfig, values, name: str) -> np.ndarray:

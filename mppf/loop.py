@@ -33,7 +33,7 @@ from typing import Callable
 import numpy as np
 
 from mppf.compare import compare
-from mppf.compensate import Correction, PreviousCycle, compensate
+from mppf.compensate import Correction, PreviousCycle, compensate, limit_correction
 from mppf.errors import ConfigError, GeometryError, InputError, PressRefused
 from mppf.history import CycleRecord, History, PlateRecord, grid_from_json, grid_to_json
 from mppf.io import PointCloud, read_points
@@ -590,11 +590,16 @@ def _calibrated_correction(history: History, plate: PlateRecord, record: CycleRe
     if fit.explained < MIN_EXPLAINED:
         return None
     active = step.active
-    upper = np.where(active, refined.upper_mm, np.nan)
-    lower = np.where(active, refined.lower_mm, np.nan)
-    return Correction(upper_mm=upper, lower_mm=lower, gain=np.where(active, 1.0, np.nan),
-                      applied_mm=np.where(active, lower - step.lower_mm, 0.0), clipped=np.zeros(press.shape, dtype=bool),
-                      notes=list(refined.notes))
+    # the change from the strokes just pressed, held to the dimpling and stroke limits
+    applied, clipped = limit_correction(press, np.where(active, step.upper_mm, np.nan),
+                                        np.where(active, step.lower_mm, np.nan), refined.lower_mm - step.lower_mm)
+    notes = list(refined.notes)
+    if clipped.any():
+        notes.append(f"correction limited at {int(clipped.sum())} punches (dimpling limit "
+                     f"{press.max_neighbour_diff_mm:g} mm or stroke limits)")
+    return Correction(upper_mm=np.where(active, step.upper_mm + applied, np.nan),
+                      lower_mm=np.where(active, step.lower_mm + applied, np.nan), gain=np.where(active, 1.0, np.nan),
+                      applied_mm=applied, clipped=clipped, notes=notes)
 
 
 def _correction_to_dict(correction) -> dict:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mppf.compensate import GAIN_RANGE, PreviousCycle, compensate
+from mppf.compensate import GAIN_RANGE, PreviousCycle, compensate, limit_correction
 from mppf.errors import InputError
 from mppf.press import example_press_path, load_press
 
@@ -216,3 +216,18 @@ def test_model_step_is_scaled_into_its_trust_region(press, grid):
     # the step still undoes the error: opposite sign at the corners
     corner = active & (np.abs(px) > 1000) & (np.abs(py) > 600)
     assert np.all(np.sign(applied[corner[active]]) == -np.sign(error[corner]))
+
+
+def test_limit_correction_holds_any_wanted_change_to_the_press_limits(press, grid):
+    """The loop's calibrated correction is held to the same limits as the model step."""
+    px, py, active, lower = grid
+    wanted = np.where(active, 0.0, np.nan)
+    spike = tuple(np.argwhere(active)[len(np.argwhere(active)) // 2])
+    wanted[spike] = -60.0  # one punch wildly lower
+    applied, clipped = limit_correction(press, lower + THICKNESS_MM, lower, wanted)
+    assert _neighbour_diffs(applied, active).max() <= press.max_neighbour_diff_mm + 1e-6
+    assert applied[spike] < -0.5 * press.max_neighbour_diff_mm and clipped[spike]
+    assert np.all(applied[~active] == 0.0)
+    high = np.where(active, 1000.0, np.nan)  # past the lower tips' top
+    applied, clipped = limit_correction(press, lower + THICKNESS_MM, lower, high)
+    assert np.all((lower + applied)[active] <= press.lower.max_mm + 1e-9) and clipped[active].all()
