@@ -129,7 +129,7 @@ HELD_MAX_RMS_FRACTION = 0.05
 length) to the design: a mark picked in the wrong place holds the scan off the design."""
 
 MARK_HOLD_ROUNDS = 5
-"""Rounds of a start fit with the reference mark held at its place (see :func:`_start_fit`)."""
+"""Rounds of a start fit with the reference mark held at its place (see :func:`_held_fit`)."""
 
 TIE_RATIO = 1.25
 """Two starts whose converged RMS are within this factor are a tie (a nearly symmetric plate)."""
@@ -554,10 +554,9 @@ def _outline_refit(fitted, uv_design, measured, tf, sign: float, offset_mm: floa
     scan shows too little edge or the outline fit wants an implausible move.
     """
     frame = fitted.frame
-    uv_hull = uv_design[ConvexHull(uv_design).vertices]
     if tf_press_design is None:
         view = frame.tf_local_world  # design world -> the design's frame
-        corners = offset_convex_polygon(uv_hull, margin_mm)
+        corners = offset_convex_polygon(uv_design[ConvexHull(uv_design).vertices], margin_mm)
     else:
         press_design = np.asarray(tf_press_design, dtype=float)
         # the measured skin of the net design, seen from above the press
@@ -638,21 +637,20 @@ def _fit_outline_2d(points, seg_a, seg_b, turn: bool, spacing_mm: float) -> np.n
         inset = np.einsum("nd,nd->n", moved - foot, inward[index])  # > 0 inside the outline
         along = np.linalg.norm(foot - seg_a[index], axis=1) / np.maximum(lengths[index], 1e-12)
         piece = first_piece[index] + np.minimum((along * pieces_per_seg[index]).astype(int), pieces_per_seg[index] - 1)
-        src, dst, weight = [], [], []
+        dst, depth, normal, weight = [], [], [], []
         for k in np.unique(piece):
             members = piece == k
             if members.sum() < 3:
                 continue
-            edge_inset = float(np.quantile(inset[members], OUTLINE_EDGE_QUANTILE))
             seg = int(index[members][0])
-            mid = foot[members].mean(axis=0)  # on the (straight) segment
-            src.append(mid + edge_inset * inward[seg])  # the scan's edge along this piece
-            dst.append(mid)
+            dst.append(foot[members].mean(axis=0))  # on the (straight) segment
+            depth.append(float(np.quantile(inset[members], OUTLINE_EDGE_QUANTILE)))  # the scan's edge there
+            normal.append(inward[seg])
             weight.append(float(np.ptp(along[members]) * lengths[seg]) + spacing_mm)
-        if len(src) < 4:
+        if len(dst) < 4:
             break
-        src, dst, weight = np.asarray(src), np.asarray(dst), np.asarray(weight)
-        depth = np.einsum("nd,nd->n", src - dst, _inward_at(dst, seg_a, seg_b, inward))
+        dst, depth, normal, weight = np.asarray(dst), np.asarray(depth), np.asarray(normal), np.asarray(weight)
+        src = dst + depth[:, None] * normal  # the scan's edge along each piece
         # the edge is the scan's envelope: once roughly placed (all pieces used), pieces standing
         # further in or out than most (their outer row of points missing, a hidden stretch, a
         # stray point) are left out, with a band that narrows from a few spacings to about
@@ -666,7 +664,7 @@ def _fit_outline_2d(points, seg_a, seg_b, turn: bool, spacing_mm: float) -> np.n
         if keep.sum() < 4:
             break
         centre = float(np.median(depth[keep]))
-        target = dst + centre * _inward_at(dst, seg_a, seg_b, inward)  # remove the sampling's common inset
+        target = dst + centre * normal  # remove the sampling's common inset
         step = _rigid_2d(src[keep], target[keep], weight[keep])
         if not turn:
             step = np.eye(3)
@@ -679,12 +677,6 @@ def _fit_outline_2d(points, seg_a, seg_b, turn: bool, spacing_mm: float) -> np.n
         elif small and fine > 6:
             break
     return total
-
-
-def _inward_at(on_outline: np.ndarray, seg_a: np.ndarray, seg_b: np.ndarray, inward: np.ndarray) -> np.ndarray:
-    """Inward normals (n, 2) of the segments that points lying on the outline belong to."""
-    _, index = _closest_on_segments(on_outline, seg_a, seg_b, with_index=True)
-    return inward[index]
 
 
 def _inward_normals(seg_a: np.ndarray, seg_b: np.ndarray) -> np.ndarray:
@@ -793,7 +785,11 @@ def _choose_start(measured, target, rotation_hint, reference_mark, length_mm: fl
                                   f"mark {miss[chosen]:.0f} mm from its place")
         # the free fits slid away (a plate still far off its design fits a shifted, turned
         # design about as well): fit again from each start with the mark held at its place
-        held = [_start_fit(measured, target, start, mark) for start in _held_starts(measured, target, candidates, mark)]
+        tree = cKDTree(target)
+        sample = measured[np.random.default_rng(0).choice(len(measured), size=min(len(measured), START_POINTS),
+                                                          replace=False)]
+        held = [_held_fit(measured, target, start, mark, tree, sample)
+                for start in _held_starts(target, candidates, mark, tree, sample)]
         held_scores = [rms for _, rms in held]
         chosen = int(np.argmin(held_scores))
         # a mark picked in the wrong place holds the scan off the design: not taken
@@ -812,43 +808,51 @@ def _choose_start(measured, target, rotation_hint, reference_mark, length_mm: fl
     return fits[best], f"start: best converged fit{tie}; converged RMS {scored} mm"
 
 
-def _held_starts(measured, target, candidates, mark, keep: int = 3) -> list[np.ndarray]:
+def _held_starts(target, candidates, mark, tree, sample, keep: int = 3) -> list[np.ndarray]:
     """Starts with the reference mark on its place: the ``keep`` best of a sweep of turns.
 
     The principal axes of a scan with hidden parts may be tens of degrees off the design's;
     so both ways up (the candidates' normal flipped or not), the scan is turned about the
     design's normal through the mark in steps of ``HELD_TURN_STEP_DEG`` and each pose is
-    scored, without iterating, by the RMS distance of a subsample to its nearest design
-    points (clipped at a tenth of the design's size, so that a far corner does not rule).
+    scored, without iterating, by :func:`_nearest_rms` of the scan's ``sample`` (clipped at
+    a tenth of the design's size, so that a far corner does not rule). ``tree`` is the
+    design skin's k-d tree.
     """
     normal = fit_frame(target).axes[2]
-    tree = cKDTree(target)
-    pick = np.random.default_rng(0).choice(len(measured), size=min(len(measured), START_POINTS), replace=False)
     clip = 0.1 * float(np.ptp(target, axis=0).max())
     poses, scores = [], []
     for base in (candidates[0], candidates[2]):  # the two ways up
         for turn in np.arange(0.0, 360.0, HELD_TURN_STEP_DEG):
             tf = make_tf(Rotation.from_rotvec(np.radians(turn) * normal).as_matrix() @ base[:3, :3], np.zeros(3))
             tf[:3, 3] = mark[1] - apply_tf(tf, mark[0][None])[0]
-            near, _ = tree.query(apply_tf(tf, measured[pick]))
             poses.append(tf)
-            scores.append(float(np.sqrt(np.mean(np.minimum(near, clip) ** 2))))
+            scores.append(_nearest_rms(tree, sample, tf, clip))
     return [poses[i] for i in np.argsort(scores)[:keep]]
 
 
-def _start_fit(measured, target, start, mark=None) -> tuple[np.ndarray, float]:
-    """A start converged by trimmed, Huber-weighted point-to-plane ICP on a subsample: (tf, RMS).
+def _nearest_rms(tree, points, tf, clip: float = np.inf) -> float:
+    """RMS distance (mm) of ``points`` moved by ``tf`` to their nearest design points, each clipped."""
+    near, _ = tree.query(apply_tf(tf, points))
+    return float(np.sqrt(np.mean(np.minimum(near, clip) ** 2)))
 
-    With ``mark`` (measured, design) the fit runs in ``MARK_HOLD_ROUNDS`` rounds, each
-    followed by the shift that puts the mark back on its place: the best fit with the mark
-    held (to within the few mm it was picked to); its score is then the RMS distance of the
-    subsample's points to their nearest design points.
+
+def _start_fit(measured, target, start) -> tuple[np.ndarray, float]:
+    """A start converged by trimmed, Huber-weighted point-to-plane ICP on a subsample: (tf, RMS)."""
+    reg = register_icp(measured, target, method="plane", init=start, trim_fraction=TRIM_FRACTION,
+                       robust="huber", pin_outline=False, max_points=START_POINTS,
+                       max_iterations=START_ITERATIONS)
+    return reg.tf, reg.rms_mm
+
+
+def _held_fit(measured, target, start, mark, tree, sample) -> tuple[np.ndarray, float]:
+    """A start fitted with the reference mark held at its place: (tf, RMS distance of ``sample``).
+
+    Point-to-point ICP on a subsample in ``MARK_HOLD_ROUNDS`` rounds, each followed by the
+    shift that puts the mark (measured, design) back on its place: the best fit with the
+    mark held (to within the few mm it was picked to). Scored by :func:`_nearest_rms`: a
+    pose held off the design by the mark leaves points beyond the design's edge, whose
+    point-to-plane distances can still be small.
     """
-    if mark is None:
-        reg = register_icp(measured, target, method="plane", init=start, trim_fraction=TRIM_FRACTION,
-                           robust="huber", pin_outline=False, max_points=START_POINTS,
-                           max_iterations=START_ITERATIONS)
-        return reg.tf, reg.rms_mm
     tf = np.array(start, dtype=float)
     for _ in range(MARK_HOLD_ROUNDS):
         tf[:3, 3] += mark[1] - apply_tf(tf, mark[0][None])[0]
@@ -857,11 +861,7 @@ def _start_fit(measured, target, start, mark=None) -> tuple[np.ndarray, float]:
                            max_iterations=max(START_ITERATIONS // MARK_HOLD_ROUNDS, 1))
         tf = np.array(reg.tf, dtype=float)
     tf[:3, 3] += mark[1] - apply_tf(tf, mark[0][None])[0]
-    # scored by point-to-point distances: a pose held off the design by the mark leaves
-    # points beyond the design's edge, whose point-to-plane distances can still be small
-    pick = np.random.default_rng(0).choice(len(measured), size=min(len(measured), START_POINTS), replace=False)
-    near, _ = cKDTree(target).query(apply_tf(tf, measured[pick]))
-    return tf, float(np.sqrt(np.mean(near**2)))
+    return tf, _nearest_rms(tree, sample, tf)
 
 
 def _register(measured, target, fitted, uv_design, sign: float, offset_mm: float, init="principal",

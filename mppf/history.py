@@ -22,7 +22,6 @@ Default location: ``$MPPF_HOME/history.sqlite`` when ``MPPF_HOME`` is set, else
 from __future__ import annotations
 
 import json
-import math
 import os
 import sqlite3
 import time
@@ -34,7 +33,7 @@ import numpy as np
 
 from mppf.errors import InputError
 from mppf.paths import data_dir
-from mppf.job import StepStrokes
+from mppf.job import StepStrokes, grid_from_json, grid_to_json
 
 SCHEMA_VERSION = 1
 
@@ -104,21 +103,6 @@ def default_history_path() -> Path:
 
 def _now_utc() -> str:
     return datetime.fromtimestamp(time.time(), tz=timezone.utc).isoformat(timespec="milliseconds")
-
-
-def grid_to_json(values) -> list | None:
-    """A (rows, cols) float grid as nested lists, NaN as None (None stays None)."""
-    if values is None:
-        return None
-    arr = np.asarray(values, dtype=float)
-    return [[round(float(v), 4) if math.isfinite(v) else None for v in row] for row in arr]
-
-
-def grid_from_json(rows) -> np.ndarray | None:
-    """Inverse of :func:`grid_to_json`."""
-    if rows is None:
-        return None
-    return np.array([[np.nan if v is None else v for v in row] for row in rows], dtype=float)
 
 
 def steps_to_json(steps: list[StepStrokes]) -> list[dict]:

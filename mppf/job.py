@@ -118,11 +118,23 @@ class Job:
         return hashlib.sha256(self.to_json().encode()).hexdigest()
 
 
+def grid_to_json(values) -> list | None:
+    """A (rows, cols) float grid as nested lists, NaN as None (None stays None)."""
+    if values is None:
+        return None
+    arr = np.asarray(values, dtype=float)
+    return [[round(float(v), 4) if math.isfinite(v) else None for v in row] for row in arr]
+
+
+def grid_from_json(rows) -> np.ndarray | None:
+    """Inverse of :func:`grid_to_json`."""
+    if rows is None:
+        return None
+    return np.array([[np.nan if v is None else v for v in row] for row in rows], dtype=float)
+
+
 def _grid_to_json(values: np.ndarray, active: np.ndarray) -> list:
-    return [
-        [round(float(v), 4) if a and math.isfinite(v) else None for v, a in zip(row, arow)]
-        for row, arow in zip(np.asarray(values, dtype=float), np.asarray(active, dtype=bool))
-    ]
+    return grid_to_json(np.where(np.asarray(active, dtype=bool), np.asarray(values, dtype=float), np.nan))
 
 
 def _grid_from_json(rows, shape, name: str, source: str) -> np.ndarray:

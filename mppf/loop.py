@@ -35,9 +35,9 @@ import numpy as np
 from mppf.compare import compare
 from mppf.compensate import Correction, PreviousCycle, compensate, limit_correction
 from mppf.errors import ConfigError, GeometryError, InputError, PressRefused
-from mppf.history import CycleRecord, History, PlateRecord, grid_from_json, grid_to_json
+from mppf.history import CycleRecord, History, PlateRecord
 from mppf.io import PointCloud, read_points
-from mppf.job import Job, StepStrokes, load_job, save_job
+from mppf.job import Job, StepStrokes, grid_from_json, grid_to_json, load_job, save_job
 from mppf.plan import plan_job
 from mppf.precompensate import MIN_EXPLAINED, calibrated_correction
 from mppf.press import PressConfig, press_from_dict

@@ -17,7 +17,7 @@ from scipy.spatial import ConvexHull
 
 from mppf.contact import PlacedSurface, tip_heights
 from mppf.errors import GeometryError, InputError, LimitError
-from mppf.job import Job
+from mppf.job import Job, grid_to_json
 from mppf.overbend import overbend
 from mppf.placement import (check_flat_belongs, design_area_mm2, distance_outside_mm, offset_convex_polygon,
                             optimise_pose, place_flat, register_design)
@@ -195,7 +195,7 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
             "youngs_modulus_mpa": material.youngs_modulus_mpa, "poisson": material.poisson,
             "yield_stress_mpa": material.yield_stress_mpa},
         "springback": springback_report,
-        "design_mid_mm": [[None if not np.isfinite(v) else float(v) for v in row] for row in target],
+        "design_mid_mm": grid_to_json(target),
     }
     return Job(press=press, thickness_mm=t, steps=step_list, tf_press_design=tf_press_design,
                tf_press_flat=placement.tf_press_flat, extra=extra)

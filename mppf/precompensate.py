@@ -93,6 +93,17 @@ def predict_mid_heights(press: PressConfig, upper_mm, lower_mm, active, outline_
     return spline.ev(py, px)
 
 
+def _deviation(press: PressConfig, predicted, target, act) -> np.ndarray:
+    """Predicted minus target at the active punches, its best plane removed (NaN elsewhere)."""
+    px, py = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    plane = np.column_stack([np.ones(act.sum()), px[act], py[act]])
+    diff = (predicted - target)[act]
+    coef, *_ = np.linalg.lstsq(plane, diff, rcond=None)
+    out = np.full(press.shape, np.nan)
+    out[act] = diff - plane @ coef
+    return out
+
+
 def refine_strokes(press: PressConfig, upper_mm, lower_mm, active, target_mid_mm, outline_xy_mm,
                    thickness_mm: float, material: Material, *, iterations: int = ITERATIONS,
                    tolerance_mm: float = TOLERANCE_MM) -> Refinement:
@@ -134,18 +145,13 @@ def refine_strokes(press: PressConfig, upper_mm, lower_mm, active, target_mid_mm
     upper = np.where(act, np.asarray(upper_mm, dtype=float), np.nan)
     lower = np.where(act, np.asarray(lower_mm, dtype=float), np.nan)
     target = np.asarray(target_mid_mm, dtype=float)
-    px, py = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
-    plane = np.column_stack([np.ones(act.sum()), px[act], py[act]])
     best = (np.inf, upper, lower)
     history: list[float] = []
     notes: list[str] = []
     for _ in range(iterations + 1):
         predicted = predict_mid_heights(press, upper, lower, act, outline_xy_mm, thickness_mm, material)
         # the deviation up to a rigid placement: the comparison of a scan removes its best plane
-        diff = (predicted - target)[act]
-        coef, *_ = np.linalg.lstsq(plane, diff, rcond=None)
-        error = np.full(press.shape, np.nan)
-        error[act] = diff - plane @ coef
+        error = _deviation(press, predicted, target, act)
         worst = float(np.max(np.abs(error[act])))
         history.append(worst)
         if worst < best[0]:
@@ -201,17 +207,6 @@ class MaterialFit:
     def explained(self) -> float:
         """Share of the measured deviations' squares (means removed) the fitted model explains."""
         return 1.0 - self.cost_fit_mm2 / self.measured_mm2 if self.measured_mm2 > 0 else 0.0
-
-
-def _deviation(press: PressConfig, predicted, target, act) -> np.ndarray:
-    """Predicted minus target at the active punches, its best plane removed (NaN elsewhere)."""
-    px, py = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
-    plane = np.column_stack([np.ones(act.sum()), px[act], py[act]])
-    diff = (predicted - target)[act]
-    coef, *_ = np.linalg.lstsq(plane, diff, rcond=None)
-    out = np.full(press.shape, np.nan)
-    out[act] = diff - plane @ coef
-    return out
 
 
 def fit_yield_stress(press: PressConfig, cycles, active, target_mid_mm, outline_xy_mm, thickness_mm: float,
