@@ -23,9 +23,9 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 import mppf  # noqa: E402
-from mppf.io import read_points  # noqa: E402
-from mppf.localize import foot_points  # noqa: E402
-from mppf.surface import fit_plate  # noqa: E402
+from mppf.geometry.io import read_points  # noqa: E402
+from mppf.geometry.localize import foot_points  # noqa: E402
+from mppf.geometry.surface import fit_plate  # noqa: E402
 
 PLATE = Path(mppf.__file__).parent / "examples" / "hull" / "P3_stern_saddle.csv"
 

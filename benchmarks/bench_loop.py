@@ -1,7 +1,7 @@
 """Benchmark: does the bend - measure - compare loop reach tolerance within 3 press cycles?
 
 For every real hull patch and seed: unfold the design, plan it (springback
-pre-compensation), run :func:`mppf.loop.run_loop` on the simulated PLC (real Modbus over
+pre-compensation), run :func:`mppf.loop.cycle.run_loop` on the simulated PLC (real Modbus over
 loopback, time-scaled motion) with a simulated plate (seeded true material) and scanner,
 and record the deviations of every cycle. Target (issue 6): in tolerance (largest
 absolute deviation <= 2.5 mm and RMS <= 1 mm) within 3 cycles in at least 90 % of runs;
@@ -25,15 +25,15 @@ from pathlib import Path
 import numpy as np
 
 from mppf.drivers.modbus import ModbusPress
-from mppf.errors import MppfError
-from mppf.history import History
-from mppf.io import read_points, write_points
-from mppf.job import load_job
-from mppf.loop import LoopSettings, run_loop, start_plate
-from mppf.press import example_press_path, load_press
+from mppf.core.errors import MppfError
+from mppf.loop.history import History
+from mppf.geometry.io import read_points, write_points
+from mppf.planning.job import load_job
+from mppf.loop.cycle import LoopSettings, run_loop, start_plate
+from mppf.planning.press import example_press_path, load_press
 from mppf.sim.plc import run_simulated_plc
 from mppf.sim.shop import SimulatedPlateScanner
-from mppf.unfold import unfold
+from mppf.geometry.unfold import unfold
 
 HULL = Path(__file__).resolve().parents[1] / "mppf" / "examples" / "hull"
 PLATES = ["P1_midbody_bilge_smooth", "P2_bow_flare_smooth", "P3_stern_saddle_smooth",

@@ -34,7 +34,7 @@ from pymodbus.pdu.register_message import ReadHoldingRegistersRequest, WriteMult
 from mppf.drivers import regmap as rm
 from mppf.drivers.modbus import ModbusPress
 from mppf.drivers.url import parse_plc_url
-from mppf.press import example_press_path, load_press, press_from_dict
+from mppf.planning.press import example_press_path, load_press, press_from_dict
 from mppf.sim.plc import start_simulated_plc
 from mppf.sim.serial_pty import wire_time_s
 

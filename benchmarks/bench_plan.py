@@ -4,9 +4,9 @@ Plans the real hull patch K3 (stern saddle, 61 x 41 points, 3.0 x 2.0 m, 20 mm) 
 presses of each size (pitch chosen so the plate fits the bed), and prints a table:
 
 - contact: the exact ball contact of every punch of both matrices (one solve),
-- plan: :func:`mppf.plan.plan_job` from design and flat points (surface fit,
+- plan: :func:`mppf.planning.plan.plan_job` from design and flat points (surface fit,
   registration, contact with offset/tilt optimisation, steps, validation),
-- plan + unfold: the same including :func:`mppf.unfold.unfold` of the design.
+- plan + unfold: the same including :func:`mppf.geometry.unfold.unfold` of the design.
 
 File reading is excluded. Best of ``--repeat`` runs, wall clock and CPU time of this
 process (the CPU figure is the one to compare on a machine shared with other work).
@@ -25,12 +25,12 @@ from pathlib import Path
 import numpy as np
 
 import mppf
-from mppf.contact import PlacedSurface, tip_heights
-from mppf.io import read_points
-from mppf.plan import plan_job
-from mppf.press import load_press, example_press_path, press_from_dict
-from mppf.surface import fit_plate
-from mppf.unfold import unfold
+from mppf.planning.contact import PlacedSurface, tip_heights
+from mppf.geometry.io import read_points
+from mppf.planning.plan import plan_job
+from mppf.planning.press import load_press, example_press_path, press_from_dict
+from mppf.geometry.surface import fit_plate
+from mppf.geometry.unfold import unfold
 
 PLATE = Path(mppf.__file__).parent / "examples" / "hull" / "K3_stern_saddle.csv"
 THICKNESS_MM = 20.0

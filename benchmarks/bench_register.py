@@ -30,10 +30,10 @@ from rich.console import Console
 from rich.table import Table
 from scipy.spatial.transform import Rotation
 
-from mppf.frame import fit_frame
-from mppf.io import read_points, write_points
-from mppf.register import principal_candidates, register_icp
-from mppf.transform import apply_tf, invert_tf, make_tf, rotation_angle_deg
+from mppf.geometry.frame import fit_frame
+from mppf.geometry.io import read_points, write_points
+from mppf.registration.register import principal_candidates, register_icp
+from mppf.core.transform import apply_tf, invert_tf, make_tf, rotation_angle_deg
 
 NOISE_MM = 0.5
 POSE = make_tf(Rotation.from_euler("xyz", [12.0, -8.0, 20.0], degrees=True).as_matrix(), [250.0, -150.0, 400.0])

@@ -1,4 +1,4 @@
-"""Benchmark of ``mppf.unfold``: the real hull patches and a 200 x 200 grid.
+"""Benchmark of ``mppf.geometry.unfold``: the real hull patches and a 200 x 200 grid.
 
 Run: ``python benchmarks/bench_unfold.py [--repeat N]``. Prints one row per plate:
 points, triangles, wall and CPU time (best of N; CPU time is the fairer figure on a
@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mppf.io import read_points
-from mppf.unfold import unfold
+from mppf.geometry.io import read_points
+from mppf.geometry.unfold import unfold
 
 HULL = Path(__file__).resolve().parents[1] / "mppf" / "examples" / "hull"
 

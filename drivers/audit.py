@@ -22,8 +22,9 @@ from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 
-from mppf.errors import InputError
-from mppf.paths import data_dir
+from mppf.core.errors import InputError
+from mppf.core.db import open_sqlite
+from mppf.core.paths import data_dir
 
 SCHEMA_VERSION = 1
 _SCHEMA = """
@@ -94,18 +95,8 @@ class AuditLog:
         self._lock = threading.Lock()
         self._host = socket.gethostname()
         self._user = _user()
-        try:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            self._db = sqlite3.connect(self.path, timeout=10.0, check_same_thread=False, isolation_level=None)
-            self._db.execute("PRAGMA journal_mode=WAL")
-            self._db.execute("PRAGMA synchronous=NORMAL")
-            self._db.executescript(_SCHEMA)
-            self._db.execute(f"PRAGMA user_version={SCHEMA_VERSION}")
-        except (OSError, sqlite3.DatabaseError) as exc:
-            raise InputError(
-                f"cannot open the audit log {self.path}: {exc}",
-                hint="give a writable path with --audit or set MPPF_HOME",
-            ) from None
+        self._db = open_sqlite(self.path, "the audit log", _SCHEMA, SCHEMA_VERSION, threads=True,
+                               hint="give a writable path with --audit or set MPPF_HOME")
 
     def record(
         self,

@@ -1,6 +1,6 @@
 """The Modbus press driver: sends one press step to the PLC safely and follows it.
 
-:class:`ModbusPress` implements :class:`mppf.presslink.PressLink` over Modbus TCP or
+:class:`ModbusPress` implements :class:`mppf.core.presslink.PressLink` over Modbus TCP or
 RTU, on the register map of ``drivers/register_map.toml`` (no register number appears
 here). One press step (:meth:`ModbusPress.run_step`) is:
 
@@ -35,11 +35,11 @@ from mppf.drivers import regmap as rm
 from mppf.drivers.audit import NULL_AUDIT
 from mppf.drivers.modbus_adapter import ModbusAdapter
 from mppf.drivers.url import PlcUrl, parse_plc_url
-from mppf.errors import (Cancelled, ConfigError, InputError, LimitError, LinkError, MppfError, PlcError,
+from mppf.core.errors import (Cancelled, ConfigError, InputError, LimitError, LinkError, MppfError, PlcError,
                          PressFault, PressRefused)
-from mppf.press import PressConfig
-from mppf.presslink import PressStatus, StepResult
-from mppf.progress import NULL_REPORTER, Reporter
+from mppf.planning.press import PressConfig
+from mppf.core.presslink import PressStatus, StepResult
+from mppf.core.progress import NULL_REPORTER, Reporter
 
 SIDES = ("upper", "lower")
 MAX_LISTED = 8  # punches named in one error message
@@ -78,7 +78,7 @@ def motion_time_s(distance_mm: float, speed_mm_s: float, accel_mm_s2: float) -> 
 
 
 class ModbusPress:
-    """A press PLC on Modbus TCP or RTU (a :class:`mppf.presslink.PressLink`).
+    """A press PLC on Modbus TCP or RTU (a :class:`mppf.core.presslink.PressLink`).
 
     Connects on construction: reads the magic (word order), map version, matrix size and
     the PLC's stroke limits, and starts the heartbeat.
@@ -248,7 +248,7 @@ class ModbusPress:
             self._hb_value = (self._hb_value + 1) & 0xFFFF
             try:
                 self._io.write_command(addr, [self._hb_value])
-            except LinkError as exc:  # the main thread sees the link failure on its next request
+            except (LinkError, PlcError) as exc:  # the main thread sees the link failure on its next request
                 self.heartbeat_errors += 1
                 self.last_heartbeat_error = exc
             if self._hb_stop.wait(self.heartbeat_s):
@@ -333,7 +333,7 @@ class ModbusPress:
     def _refusal_text(self) -> str:
         try:
             code = self._read_field("refusal_code")[0]
-        except LinkError:
+        except (LinkError, PlcError):
             return "reason unknown (refusal_code could not be read)"
         return self.map.fault_text(code)
 
@@ -347,7 +347,7 @@ class ModbusPress:
         """
         try:
             self._command("STOP")
-        except LinkError as exc:
+        except (LinkError, PlcError) as exc:
             self._record("stop", "failed", sequence=self._last_sequence or None, detail=f"{reason}: {exc}")
             raise
         self._record("stop", "ok", sequence=self._last_sequence or None, detail=reason)
@@ -516,7 +516,7 @@ class ModbusPress:
             reporter.finish()
             self._stop_after_trouble("cancelled by the operator", fresh=True)
             raise Cancelled("cancelled by the operator; STOP was sent to the press") from None
-        except LinkError as exc:
+        except (LinkError, PlcError) as exc:
             if isinstance(exc, PlcError) and not go_sent:
                 raise
             reporter.finish()
@@ -547,7 +547,7 @@ class ModbusPress:
         """
         try:
             return self._prepare(upper_mm, lower_mm, reporter)[0]
-        except LinkError as exc:
+        except (LinkError, PlcError) as exc:
             if isinstance(exc, PlcError):
                 raise
             reporter.finish()
@@ -574,7 +574,7 @@ class ModbusPress:
             try:
                 self._io.write_registers(addr, blocks[side], max_chunk=self.map.max_write_registers,
                                          on_chunk=reporter.advance)
-            except LinkError as exc:
+            except (LinkError, PlcError) as exc:
                 self._record("upload", "failed", sequence=seq, detail=f"{side}: {exc}")
                 raise
         self._record("upload", "ok", sequence=seq, detail=f"{n} registers, word order {self.identity.word_order}")
@@ -749,7 +749,7 @@ class ModbusPress:
                      for side in SIDES for r, c in np.argwhere(bits[side])]
             if named:
                 details = f"; faulted punches: {self._list(named)}"
-        except LinkError:
+        except (LinkError, PlcError):
             details = "; the per-punch fault bits could not be read"
         self._record("complete", "fault", sequence=seq, detail=f"{st.fault_text}{details}")
         return PressFault(
@@ -765,7 +765,7 @@ class ModbusPress:
             try:
                 self._io.connect()
                 return
-            except LinkError:
+            except (LinkError, PlcError):
                 if time.monotonic() >= deadline:
                     raise
                 time.sleep(0.1)
@@ -782,7 +782,7 @@ class ModbusPress:
                     self._reconnect()
                 self.stop(reason)
                 return
-            except LinkError:
+            except (LinkError, PlcError):
                 return  # recorded by stop(); the caller raises the original trouble
             except KeyboardInterrupt:
                 # Ctrl-C again while STOP was on its way: the operator wants the press stopped,
@@ -808,9 +808,9 @@ class ModbusPress:
                 if seq is not None and st.acknowledged_sequence != seq:
                     state += (f"; the PLC restarted (it no longer knows job {seq}: acknowledged sequence "
                               f"{st.acknowledged_sequence}, PLC heartbeat {st.plc_heartbeat})")
-            except LinkError:
+            except (LinkError, PlcError):
                 pass
-        except LinkError:
+        except (LinkError, PlcError):
             self._record("stop", "failed", sequence=seq, detail=f"no link: {exc.message}")
             state = "STOP could not be sent: stop the press at the machine"
         return LinkError(f"link to the PLC lost during job {seq} after GO: {exc.message}; {state}",

@@ -3,10 +3,10 @@
 :class:`ModbusAdapter` wraps a synchronous pymodbus client (``ModbusTcpClient`` or
 ``ModbusSerialClient`` in RTU framing) and speaks the project's language:
 
-- a Modbus exception reply becomes :class:`mppf.errors.PlcError` (with the function,
+- a Modbus exception reply becomes :class:`mppf.core.errors.PlcError` (with the function,
   address and exception code);
 - a timeout, a refused or dropped connection or a garbled reply becomes
-  :class:`mppf.errors.LinkError`;
+  :class:`mppf.core.errors.LinkError`;
 - reads are chunked at 125 registers (FC3), writes at 122 (FC16), so that a block that
   starts on an int32 boundary never has a value split between two frames;
 - retries (after a timeout only) are done here, never by pymodbus (its client is made
@@ -35,7 +35,7 @@ from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOEx
 
 from mppf.drivers.regmap import chunks
 from mppf.drivers.url import PlcUrl
-from mppf.errors import LinkError, PlcError
+from mppf.core.errors import LinkError, PlcError
 
 # pymodbus logs every failed connection and dumps the last frames at ERROR level; with no
 # handler configured Python would print them on stderr beside our own message. The errors

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mppf.errors import ConfigError, InputError, LimitError
+from mppf.core.errors import ConfigError, InputError, LimitError
 
 WORD_ORDERS = ("ABCD", "CDAB")
 INT32_MIN = -(2**31)

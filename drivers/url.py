@@ -16,7 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from urllib.parse import parse_qs, urlsplit
 
-from mppf.errors import InputError
+from mppf.core.errors import InputError
 
 DEFAULT_TCP_PORT = 502
 _HINT = "write tcp://HOST:PORT?unit=1 or rtu:///dev/ttyUSB0?baud=115200&parity=E&unit=1"

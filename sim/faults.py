@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from mppf.errors import InputError
+from mppf.core.errors import InputError
 
 KINDS = ("stuck", "estop", "overpressure", "freeze", "slow", "drop", "restart")
 GRAMMAR = (

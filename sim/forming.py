@@ -12,12 +12,12 @@ The model, in three steps (see ``docs/compare.md``, section "The simulated plate
 3. **Springback.** The loaded surface's deviation ``w`` from its best-fit plane has the
    curvature tensor ``H`` (the Hessian of ``w``, small-slope approximation). Each principal
    curvature ``k_i`` is scaled by the elastic-plastic ratio ``R_i/R_f = 4x^3 - 3x + 1``,
-   ``x = R_i sy' / (E' t)`` (:func:`mppf.springback.springback_ratio`) with the plate's
+   ``x = R_i sy' / (E' t)`` (:func:`mppf.forming.springback.springback_ratio`) with the plate's
    TRUE material and thickness. The scaled tensor field is integrated back to heights by
    sparse least squares; the unloaded plate keeps the loaded plate's best-fit plane.
 
-Steps 2 and 3 are :mod:`mppf.plate_model`, the plate model the planner also uses for its
-springback pre-compensation (:mod:`mppf.precompensate`) - there with the NOMINAL
+Steps 2 and 3 are :mod:`mppf.forming.plate_model`, the plate model the planner also uses for its
+springback pre-compensation (:mod:`mppf.forming.precompensate`) - there with the NOMINAL
 material, here with the plate's true one, which the planner does not know.
 
 Each press step is modelled on its own: the plate takes the shape the punches of that
@@ -31,13 +31,13 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from matplotlib.path import Path as PolygonPath
 from scipy.interpolate import RectBivariateSpline
 
-from mppf.errors import GeometryError, InputError
-from mppf.plate_model import grid_axes, loaded_surface, spring_back
-from mppf.press import PressConfig
-from mppf.springback import Material
+from mppf.core.polygon import contains
+from mppf.core.errors import GeometryError, InputError
+from mppf.forming.plate_model import grid_axes, loaded_surface, spring_back
+from mppf.planning.press import PressConfig
+from mppf.forming.material import Material
 
 GRID_SPACING_MM = 20.0
 """Spacing of the internal grid on which the loaded and unloaded surfaces are computed."""
@@ -175,7 +175,7 @@ class FormedPlate:
         ys = start[1] + spacing_mm * np.arange(count[1] + 1)
         xx, yy = np.meshgrid(xs, ys)
         xy = np.column_stack([xx.ravel(), yy.ravel()])
-        inside = PolygonPath(self.outline_xy_mm).contains_points(xy, radius=1e-6)
+        inside = contains(self.outline_xy_mm, xy, tolerance_mm=1e-6)
         return xy[inside]
 
     def mid_surface_points(self, spacing_mm: float = GRID_SPACING_MM, *, loaded: bool = False) -> np.ndarray:

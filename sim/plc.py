@@ -39,8 +39,8 @@ from mppf.drivers.regmap import (
     pack_bits,
     setpoint_crc32,
 )
-from mppf.errors import InputError, LinkError
-from mppf.press import PressConfig, example_press_path, load_press
+from mppf.core.errors import InputError, LinkError
+from mppf.planning.press import PressConfig, example_press_path, load_press
 from mppf.sim.faults import FaultSpec
 from mppf.sim.hydraulics import Hydraulics
 from mppf.sim.serial_pty import PtyPair

@@ -15,7 +15,7 @@ A scan (see ``docs/compare.md``, section "The simulated scanner") is
 - optionally with the plate's reference-corner mark picked in the scan (``mark_xy_mm``):
   its position in the scanner's coordinates, as the operator would click it in the
   scanner software (within a few mm), written next to the scan as
-  ``<scan file>.mark.json`` (:data:`mppf.loop.MARK_SUFFIX`). The pose stays arbitrary.
+  ``<scan file>.mark.json`` (:data:`mppf.loop.cycle.MARK_SUFFIX`). The pose stays arbitrary.
 
 The scanner owns one seeded random generator: successive scans differ, the sequence is
 reproducible. Build a new scanner with the same seed to repeat a scan.
@@ -28,14 +28,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from matplotlib.path import Path as PolygonPath
 from scipy.spatial.transform import Rotation
 
-from mppf.errors import InputError
-from mppf.io import write_points
-from mppf.loop import MARK_SUFFIX
+from mppf.core.polygon import contains
+from mppf.core.errors import InputError
+from mppf.geometry.io import write_points
+from mppf.measure.mark import MARK_SUFFIX
 from mppf.sim.forming import FormedPlate
-from mppf.transform import apply_tf, make_tf
+from mppf.core.transform import apply_tf, make_tf
 
 OUTLIER_OFFSET_MM = (5.0, 50.0)
 """Range of the distance of outliers from the surface."""
@@ -146,7 +146,7 @@ class SimulatedScanner:
         xy = formed.sample_xy(self.spacing_mm)
         xy = xy + rng.uniform(-0.5, 0.5, xy.shape) * self.spacing_mm
         # the jitter must not carry a point past the plate's edge (there is no plate there)
-        xy = xy[PolygonPath(formed.outline_xy_mm).contains_points(xy)]
+        xy = xy[contains(formed.outline_xy_mm, xy)]
         # 2. occlusion: drop the points nearest to one or two random blob centres
         keep, n_blobs = self._occlusion_mask(xy, rng)
         occluded = 1.0 - keep.mean()

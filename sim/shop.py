@@ -1,6 +1,6 @@
 """The dry-run shop floor: a simulated plate measured by a simulated scanner.
 
-:class:`SimulatedPlateScanner` implements :class:`mppf.scanners.Scanner` for dry runs:
+:class:`SimulatedPlateScanner` implements :class:`mppf.loop.scanners.Scanner` for dry runs:
 for each cycle it forms the simulated plate (:func:`mppf.sim.forming.form_plate`) from
 the tip positions the press reported for the cycle's last step (the PLC's actual
 positions, read back by the driver), lets it spring back with the plate's true,
@@ -19,23 +19,21 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial import ConvexHull
 
-from mppf.errors import GeometryError
-from mppf.job import Job
-from mppf.loop import net_outline_xy, reference_corner_xy
-from mppf.scanners import ScanContext
+from mppf.core.polygon import convex_outline
+from mppf.planning.job import Job, reference_corner_xy
+from mppf.core.scanner import ScanContext
 from mppf.sim.forming import form_plate, sample_plate
 from mppf.sim.scanner import SimulatedScanner
-from mppf.springback import Material
-from mppf.transform import apply_tf
+from mppf.forming.material import Material
+from mppf.core.transform import apply_tf
 
 
 def plate_outline_xy(job: Job, flat_points) -> np.ndarray:
     """The plate's outline in press x, y.
 
-    The planner's ``plate_outline_mm`` (the design seen from above on the press, grown by
-    the trim margin the plate is cut with) when the job has it, else the convex hull of the
+    The layout's ``outline_mm`` (the design seen from above on the press, grown by the
+    trim margin the plate is cut with) when the job has it, else the convex hull of the
     flat points placed by ``tf_press_flat``.
 
     Parameters
@@ -50,18 +48,13 @@ def plate_outline_xy(job: Job, flat_points) -> np.ndarray:
     (k, 2) float
         Polygon, counter-clockwise, mm.
     """
-    if job.extra.get("plate_outline_mm"):
-        return np.asarray(job.extra["plate_outline_mm"], dtype=float)
-    xy = apply_tf(job.tf_press_flat, flat_points)[:, :2]
-    try:
-        hull = ConvexHull(xy)
-    except Exception as exc:  # scipy's QhullError: degenerate outline
-        raise GeometryError(f"the flat plate has no area on the press: {exc}") from None
-    return xy[hull.vertices]
+    if job.layout is not None:
+        return job.layout.outline_mm
+    return convex_outline(apply_tf(job.tf_press_flat, flat_points)[:, :2], "the flat plate on the press")
 
 
 class SimulatedPlateScanner:
-    """A :class:`mppf.scanners.Scanner` that forms and scans a simulated plate.
+    """A :class:`mppf.loop.scanners.Scanner` that forms and scans a simulated plate.
 
     Parameters
     ----------
@@ -79,7 +72,7 @@ class SimulatedPlateScanner:
     suffix : str
         Scan file format (".ply" or ".csv").
     reference_mark : bool
-        Pick the plate's reference-corner mark (:func:`mppf.loop.reference_corner_xy` of the
+        Pick the plate's reference-corner mark (:func:`mppf.planning.job.reference_corner_xy` of the
         net outline) in every scan and write it next to the scan (``<scan>.mark.json``), as
         the operator does on the shop floor; the scan's pose stays arbitrary.
     net_outline_xy_mm : (j, 2) float, optional
@@ -119,8 +112,8 @@ class SimulatedPlateScanner:
         **options
             Further keyword arguments of the constructor (``seed``, ``material``...).
         """
-        return cls(press, thickness_mm, plate_outline_xy(job, flat_points), net_outline_xy_mm=net_outline_xy(job),
-                   **options)
+        net = None if job.layout is None else job.layout.net_outline_mm
+        return cls(press, thickness_mm, plate_outline_xy(job, flat_points), net_outline_xy_mm=net, **options)
 
     def acquire(self, cycle: int, context: ScanContext) -> Path:
         """Form the plate from the cycle's last tip positions and scan it into the work folder."""

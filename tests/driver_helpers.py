@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from mppf.job import Job, StepStrokes
-from mppf.press import example_press_path, load_press, press_from_dict
+from mppf.planning.job import Job, StepStrokes
+from mppf.planning.press import example_press_path, load_press, press_from_dict
 
 
 def small_press(rows: int = 4, cols: int = 6, **forming):

@@ -1,7 +1,7 @@
 """The ``mppf`` command line: thin wrappers over the library, one error handler.
 
 Each sub-module registers its commands; :func:`main` maps errors to exit codes
-(see :mod:`mppf.errors`) and prints one clear message, with a traceback only under
+(see :mod:`mppf.core.errors`) and prints one clear message, with a traceback only under
 ``--debug``.
 """
 
@@ -15,7 +15,7 @@ from rich.markup import escape
 
 from mppf import __version__
 from mppf.cli._common import err_console
-from mppf.errors import EXIT_BUG, EXIT_CANCELLED, MppfError
+from mppf.core.errors import EXIT_BUG, EXIT_CANCELLED, MppfError
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})

@@ -7,11 +7,30 @@ import math
 
 import click
 import numpy as np
-from rich.console import Console
+from rich.console import Console, ConsoleDimensions
 from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn
 
-console = Console(highlight=False)
-err_console = Console(stderr=True, highlight=False)
+PIPE_WIDTH = 100_000
+"""Line width when the output is not a terminal: a log or a pipe gets whole lines, never hard-wrapped."""
+
+
+class LogFriendlyConsole(Console):
+    """A rich console that wraps lines only on a terminal.
+
+    Written to a file or a pipe (a log, a test's captured stream), rich would wrap every
+    line at 80 columns, splitting paths and plate ids; here the width is then
+    :data:`PIPE_WIDTH`, so each message stays on one line. The check is made at each
+    print, so a console created before its stream was redirected still does the right thing.
+    """
+
+    @property
+    def size(self) -> ConsoleDimensions:
+        size = super().size
+        return size if self.is_terminal else ConsoleDimensions(PIPE_WIDTH, size.height)
+
+
+console = LogFriendlyConsole(highlight=False)
+err_console = LogFriendlyConsole(stderr=True, highlight=False)
 
 units_option = click.option(
     "--units",
@@ -45,7 +64,7 @@ def print_json(obj) -> None:
 
 
 class RichReporter:
-    """A :class:`mppf.progress.Reporter` drawing rich progress bars on stderr."""
+    """A :class:`mppf.core.progress.Reporter` drawing rich progress bars on stderr."""
 
     def __init__(self, enabled: bool = True):
         self._enabled = enabled
@@ -115,7 +134,7 @@ def check_output_path(path, what: str, suffixes=None, kind: str = "file"):
     import os
     from pathlib import Path
 
-    from mppf.errors import InputError
+    from mppf.core.errors import InputError
 
     path = Path(path)
     if suffixes is not None and path.suffix.lower() not in suffixes:

@@ -8,7 +8,7 @@ import click
 import numpy as np
 
 from mppf.cli._common import PICTURE_SUFFIXES, check_output_path, console, err_console, print_json, units_option
-from mppf.errors import InputError
+from mppf.core.errors import InputError
 
 SKIN_SIDE = {"top": 1.0, "mid": 0.0, "bottom": -1.0}
 """Offset of the measured skin from the design mid-surface, in half thicknesses."""
@@ -60,8 +60,8 @@ def compare_command(design: str, measured: str, tolerance: float, thickness: flo
     Both files are point or mesh files (.csv .txt .xyz .ply .stl .obj).
     Exit code 2 for unreadable files or a scan that does not match the design.
     """
-    from mppf.compare import compare
-    from mppf.io import read_points
+    from mppf.measure.compare import compare
+    from mppf.geometry.io import read_points
 
     if not (np.isfinite(tolerance) and tolerance > 0):
         raise InputError(f"--tolerance must be a positive length in mm, got {tolerance}")
@@ -77,11 +77,11 @@ def compare_command(design: str, measured: str, tolerance: float, thickness: flo
     result = compare(design_cloud.points, measured_cloud.points, tolerance_mm=tolerance, offset_mm=offset,
                      design_faces=design_cloud.faces, margin_mm=margin)
     if plot:
-        from mppf.viz.compare import plot_deviation
+        from mppf.report.deviation import plot_deviation
 
         _writing(plot, lambda: plot_deviation(result, plot))
     if report:
-        from mppf.report import comparison_report
+        from mppf.report.html import comparison_report
 
         page = comparison_report(
             result,

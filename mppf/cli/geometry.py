@@ -28,8 +28,8 @@ def fit_command(file: str, degree: str, kind: str, smoothing: float | None, unit
     residual (RMS and largest), degree, kind, point count and the local frame
     (origin and u, v, n axes in the file's coordinates).
     """
-    from mppf.io import read_points
-    from mppf.surface import fit_plate
+    from mppf.geometry.io import read_points
+    from mppf.geometry.surface import fit_plate
 
     cloud = read_points(file, units=units)
     plate = fit_plate(cloud.points, degree=_degree(degree), kind=kind, smoothing=smoothing,

@@ -1,6 +1,6 @@
 """``mppf loop``, ``mppf history`` and ``mppf demo``: the bend - measure - compare loop.
 
-Thin wrappers: the loop itself is :mod:`mppf.loop`, the history :mod:`mppf.history`.
+Thin wrappers: the loop itself is :mod:`mppf.loop.cycle`, the history :mod:`mppf.loop.history`.
 Dry runs (no ``--plc``) start the simulated PLC in this process and talk to it over
 loopback Modbus through the real driver; the simulated plate and scanner come from
 :mod:`mppf.sim.shop`.
@@ -18,7 +18,7 @@ from rich.table import Table
 
 from mppf.cli._common import RichReporter, console, err_console, print_json, units_option
 from mppf.cli.plan_cmd import MATERIALS
-from mppf.errors import InputError
+from mppf.core.errors import InputError
 
 DEFAULT_TIME_SCALE = 50.0
 """Dry runs move the simulated punches this many times faster than the real press."""
@@ -33,7 +33,7 @@ SCAN_SIM = "sim"
 
 
 def _history(path):
-    from mppf.history import History
+    from mppf.loop.history import History
 
     return History(path)
 
@@ -66,10 +66,10 @@ def _press_link(press, plc_url: str | None, audit, time_scale: float, reporter):
 def _scanner(spec: str, press, plate, history_plate_cycle1_job, seed: int, scan_timeout_s: float):
     """The Scanner named by ``--scanner``: "sim" or a folder."""
     if spec != SCAN_SIM:
-        from mppf.scanners import DirectoryScanner
+        from mppf.loop.scanners import DirectoryScanner
 
         return DirectoryScanner(spec, timeout_s=scan_timeout_s)
-    from mppf.io import read_points
+    from mppf.geometry.io import read_points
     from mppf.sim.shop import SimulatedPlateScanner
 
     flat = read_points(plate.flat_path, units=plate.settings.get("units", "mm"))
@@ -85,7 +85,7 @@ def _check_link_and_scanner(plc_url: str | None, scanner_spec: str) -> None:
 
         parse_plc_url(plc_url)
     if scanner_spec != SCAN_SIM:
-        from mppf.scanners import DirectoryScanner
+        from mppf.loop.scanners import DirectoryScanner
 
         DirectoryScanner(scanner_spec)
 
@@ -136,9 +136,9 @@ def _pick_plate(history, plate_id: str | None):
 def run_plate(history, plate, *, plc_url, scanner_spec, time_scale, audit, reporter, scan_timeout_s,
               on_cycle=_print_cycle):
     """Connect the press and scanner recorded for ``plate`` and run its loop to the end."""
-    from mppf.job import load_job
-    from mppf.loop import run_loop
-    from mppf.press import press_from_dict
+    from mppf.planning.job import load_job
+    from mppf.loop.cycle import run_loop
+    from mppf.planning.press import press_from_dict
 
     press = press_from_dict(plate.press, source=f"history of plate {plate.plate_id}")
     first_job = load_job(history.cycle(plate.plate_id, 1).job_path)
@@ -199,9 +199,9 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
     Without --plc this is a dry run: the simulated PLC (real Modbus over loopback), a
     simulated plate and a simulated scanner.
     """
-    from mppf.io import read_points
-    from mppf.loop import LoopSettings, new_plate_id, start_plate
-    from mppf.press import load_press
+    from mppf.geometry.io import read_points
+    from mppf.loop.cycle import LoopSettings, new_plate_id, start_plate
+    from mppf.planning.press import load_press
 
     reporter = RichReporter(enabled=not as_json)
     with _history(history_path) as history:
@@ -297,16 +297,16 @@ DEMO_THICKNESS_MM = 20.0
 def _run_demo(out: Path, plate_name: str, seed: int, thickness_mm: float, time_scale: float, reporter) -> dict:
     """Unfold, plan, press, scan, compare and loop on a bundled plate; pictures into ``out``."""
     import mppf
-    from mppf.io import read_points, write_points
-    from mppf.job import load_job
-    from mppf.loop import LoopSettings, run_loop, start_plate
-    from mppf.press import example_press_path, load_press
+    from mppf.geometry.io import read_points, write_points
+    from mppf.planning.job import load_job
+    from mppf.loop.cycle import LoopSettings, run_loop, start_plate
+    from mppf.planning.press import example_press_path, load_press
     from mppf.sim.shop import SimulatedPlateScanner
-    from mppf.unfold import unfold
-    from mppf.viz.compare import plot_deviation
-    from mppf.viz.loop import loop_report, plot_convergence, plot_punch_deviation
-    from mppf.viz.plan import plot_strokes
-    from mppf.viz.unfold import plot_strain
+    from mppf.geometry.unfold import unfold
+    from mppf.report.deviation import plot_deviation
+    from mppf.report.convergence import loop_report, plot_convergence, plot_punch_deviation
+    from mppf.report.strokes import plot_strokes
+    from mppf.report.strain import plot_strain
 
     hull = Path(mppf.__file__).parent / "examples" / "hull"
     design_path = hull / f"{plate_name}.csv"

@@ -10,17 +10,12 @@ from rich.table import Table
 
 from mppf.cli._common import (PICTURE_SUFFIXES, RichReporter, check_output_path, console, print_json,
                               units_option)
-from mppf.errors import InputError
-from mppf.io import read_points
-from mppf.job import save_job
-from mppf.plan import plan_job, plan_summary
-from mppf.press import example_press_path, load_press
-from mppf.springback import Material
-
-MATERIALS = {
-    "steel": Material(youngs_modulus_mpa=206000.0, poisson=0.3, yield_stress_mpa=235.0),
-    "ah36": Material(youngs_modulus_mpa=206000.0, poisson=0.3, yield_stress_mpa=355.0),
-}
+from mppf.core.errors import InputError
+from mppf.geometry.io import read_points
+from mppf.planning.job import save_job
+from mppf.planning.plan import plan_job, plan_summary
+from mppf.planning.press import example_press_path, load_press
+from mppf.forming.material import MATERIALS, Material
 
 
 def _material(name, youngs, poisson, yield_mpa) -> Material | None:
@@ -146,7 +141,7 @@ def plan_command(design, flat, press_path, thickness_mm, steps, springback, marg
                    margin_mm=margin_mm)
     reporter.finish()
     if plot:  # the picture first: a job file exists only when the whole command succeeded
-        from mppf.viz.plan import plot_strokes
+        from mppf.report.strokes import plot_strokes
 
         plot_strokes(job, plot)
     if output:

@@ -17,7 +17,7 @@ import numpy as np
 from rich.table import Table
 
 from mppf.cli._common import RichReporter, console, err_console, print_json
-from mppf.errors import InputError, PressRefused
+from mppf.core.errors import InputError, PressRefused
 
 DRY_RUN_TIME_SCALE = 20.0
 DRY_RUN_REPLY_TIMEOUT_S = 5.0  # the in-process simulator shares this process's CPU: be patient
@@ -130,7 +130,7 @@ def press_command(job_path, plc_url, step, yes, audit_path, timeout_s, word_orde
     4 press fault or refusal (also: no confirmation), 130 cancelled by Ctrl-C or SIGTERM
     (STOP was sent).
     """
-    from mppf.job import load_job
+    from mppf.planning.job import load_job
 
     if timeout_s is not None and not math.isfinite(timeout_s):
         raise InputError(f"--timeout must be a finite number of seconds, got {timeout_s}",

@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from mppf.cli._common import RichReporter, check_output_path, console, err_console, print_json, units_option
-from mppf.errors import MppfError
+from mppf.core.errors import MppfError
 
 
 @click.command("register")
@@ -37,10 +37,10 @@ def register_command(source: str, target: str, method: str, init: str, robust: s
     the same number of points, in corresponding order.
     """
 
-    from mppf.errors import InputError
-    from mppf.io import WRITE_SUFFIXES, read_points, write_points
-    from mppf.register import register_icp, register_paired
-    from mppf.transform import apply_tf
+    from mppf.core.errors import InputError
+    from mppf.geometry.io import WRITE_SUFFIXES, read_points, write_points
+    from mppf.registration.register import register_icp, register_paired
+    from mppf.core.transform import apply_tf
 
     if method == "paired":
         ctx = click.get_current_context()

@@ -8,8 +8,8 @@ import time
 import click
 
 from mppf.cli._common import console
-from mppf.errors import InputError
-from mppf.press import example_press_path, load_press
+from mppf.core.errors import InputError
+from mppf.planning.press import example_press_path, load_press
 
 
 def _status_line(sim) -> str:

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from mppf.cli._common import PICTURE_SUFFIXES, check_output_path, console, print_json, units_option
-from mppf.unfold import STRAIN_LIMIT_PCT
+from mppf.geometry.unfold import STRAIN_LIMIT_PCT
 
 
 @click.command("unfold")
@@ -31,8 +31,8 @@ def unfold_command(design: str, output: str, units: str, strain_limit_pct: float
     paired', the planner). Prints the in-plane strain (RMS, max), the area and outline
     length changes and a warning when the strain exceeds --strain-limit.
     """
-    from mppf.io import read_points, write_points
-    from mppf.unfold import unfold
+    from mppf.geometry.io import read_points, write_points
+    from mppf.geometry.unfold import unfold
 
     out = _writable(output, plot_path)
     cloud = read_points(design, units=units)
@@ -40,7 +40,7 @@ def unfold_command(design: str, output: str, units: str, strain_limit_pct: float
     header = (f"x_mm,y_mm,z_mm  flat (unfolded) shape of {Path(design).name}; point k = design point k; "
               f"strain RMS {result.rms_strain_pct:.4f} %, max {result.max_strain_pct:.4f} %")
     if plot_path is not None:  # the picture first: the flat file exists only when everything succeeded
-        from mppf.viz.unfold import plot_strain
+        from mppf.report.strain import plot_strain
 
         plot_strain(result, plot_path)
     write_points(out, result.flat, header=header,
@@ -63,7 +63,7 @@ def unfold_command(design: str, output: str, units: str, strain_limit_pct: float
 
 def _writable(output: str, plot_path: str | None) -> Path:
     """Refuse output paths that cannot be written, before the work is done."""
-    from mppf.io import WRITE_SUFFIXES
+    from mppf.geometry.io import WRITE_SUFFIXES
 
     path = check_output_path(output, "the flat file", WRITE_SUFFIXES, kind="point file")
     if plot_path is not None:

@@ -1,0 +1,1 @@
+"""Shared foundations: errors, units-safe transforms, rigid fits, polygons, grids, validators, the press interface."""

@@ -1,0 +1,62 @@
+"""The one interface of "a scanner": what the loop needs to get a measurement of the formed plate.
+
+The loop (:mod:`mppf.loop.cycle`) takes a :class:`Scanner`; :class:`mppf.loop.scanners.DirectoryScanner`
+waits for the files of a real scanner station, the simulated plate and scanner of
+``mppf.sim.shop`` make one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+
+from mppf.core.progress import NULL_REPORTER, Reporter
+
+
+@dataclass(frozen=True)
+class ScanContext:
+    """What a scanner may want to know about the cycle to measure.
+
+    Attributes
+    ----------
+    plate_id : str
+    work_dir : Path
+        The plate's work folder (job files, simulated scans).
+    since_s : float
+        Unix time (s) when the cycle was planned: a scan file must be newer.
+    used_paths : tuple of str
+        Scan files already used by earlier cycles of this plate (never taken again).
+    upper_mm, lower_mm : (rows, cols) float
+        Tip heights of the last press step of the cycle as read back from the press
+        (its setpoints when the read-back was lost in a crash), parking heights where
+        inactive.
+    active : (rows, cols) bool
+        Punches acting on the plate in that step.
+    reporter : Reporter
+        Progress of a long wait.
+    """
+
+    plate_id: str
+    work_dir: Path
+    since_s: float
+    upper_mm: np.ndarray
+    lower_mm: np.ndarray
+    active: np.ndarray
+    used_paths: tuple[str, ...] = ()
+    reporter: Reporter = field(default=NULL_REPORTER)
+
+
+class Scanner(Protocol):
+    """A source of scans of the formed plate."""
+
+    def acquire(self, cycle: int, context: ScanContext) -> Path:
+        """Return the path of the scan of the plate after press cycle ``cycle``.
+
+        Raises
+        ------
+        InputError
+            No usable scan arrived (the message says where it was expected).
+        """

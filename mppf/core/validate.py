@@ -1,0 +1,92 @@
+"""The one numeric validator: every option, setting and file value that must be a number.
+
+Messages follow the project's rule: what was wrong (the name), the value seen, the
+allowed range, and (``hint``) what to do.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+
+from mppf.core.errors import InputError
+
+
+def _range_text(low, high, low_open: bool, high_open: bool, unit: str) -> str:
+    u = f" {unit}" if unit else ""
+    if low is not None and high is not None:
+        return f"from {low:g} to {high:g}{u}" if not (low_open or high_open) else \
+            f"{'above' if low_open else 'at least'} {low:g} and {'below' if high_open else 'at most'} {high:g}{u}"
+    if low is not None:
+        return f"{'above' if low_open else 'at least'} {low:g}{u}"
+    if high is not None:
+        return f"{'below' if high_open else 'at most'} {high:g}{u}"
+    return "finite"
+
+
+def check_number(
+    name: str,
+    value,
+    *,
+    low: float | None = None,
+    high: float | None = None,
+    low_open: bool = False,
+    high_open: bool = False,
+    integer: bool = False,
+    unit: str = "",
+    hint: str | None = None,
+    error=InputError,
+) -> float | int:
+    """``value`` as a finite float (or int) within the range, or a clear error.
+
+    Booleans and strings are refused even where Python would read them as numbers
+    (``True`` is not a 1 mm stroke).
+
+    Parameters
+    ----------
+    name : str
+        What the value is, as the user knows it (``"--tolerance"``, ``"[press] rows"``).
+    value : object
+    low, high : float, optional
+        Bounds; inclusive unless ``low_open`` / ``high_open``.
+    integer : bool
+        A whole number is required (returned as int).
+    unit : str
+        Unit named in the message ("mm", "s").
+    hint : str, optional
+        What to do; default: the allowed range.
+    error : type
+        The :class:`~mppf.core.errors.InputError` subclass to raise (``ConfigError`` for files).
+
+    Returns
+    -------
+    float or int
+
+    Raises
+    ------
+    InputError (or ``error``)
+    """
+    allowed = _range_text(low, high, low_open, high_open, unit)
+    what = "a whole number" if integer else "a number"
+    if hint is None:
+        hint = f"give {what} {allowed}" if allowed != "finite" else f"give a finite {what[2:]}"
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise error(f"{name} must be {what}, got {value!r}", hint=hint)
+    number = float(value)
+    if not math.isfinite(number):
+        raise error(f"{name} must be a finite number, got {value!r}", hint=hint)
+    if integer:
+        if number != int(number):
+            raise error(f"{name} must be a whole number, got {value!r}", hint=hint)
+        number = int(number)
+    below = low is not None and (number <= low if low_open else number < low)
+    above = high is not None and (number >= high if high_open else number > high)
+    if below or above:
+        unit_text = f" {unit}" if unit else ""
+        raise error(f"{name} must be {allowed}, got {value!r}{unit_text}", hint=hint)
+    return number
+
+
+def check_positive(name: str, value, *, unit: str = "", hint: str | None = None, error=InputError) -> float:
+    """``value`` as a finite float > 0 (see :func:`check_number`)."""
+    return check_number(name, value, low=0.0, low_open=True, unit=unit, hint=hint, error=error)

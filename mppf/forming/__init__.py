@@ -1,0 +1,1 @@
+"""Forming: material, springback, the planner's plate model and springback pre-compensation."""

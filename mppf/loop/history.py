@@ -1,0 +1,594 @@
+"""The plate history: every bend - measure - compare cycle of every plate, in SQLite.
+
+One row per plate (input files and their SHA-256, press, thickness, loop settings,
+status) and one row per press cycle. A cycle moves through the states
+
+    planned -> pressing -> pressed -> scanned -> compared -> corrected | done
+
+(a rejected scan takes "scanned" back to "pressed"), and each move is committed at once (WAL journal, ``synchronous=FULL``), so a crash or a
+power cut loses at most the step that was running. Moves are conditional
+(``UPDATE ... WHERE state = <expected>``): a cycle can enter "pressing" only once, which
+is what keeps ``mppf loop --resume`` from ever pressing a cycle twice, even when two
+processes race for the same plate. Every move is also appended to the ``events`` table.
+
+The strokes sent, the press read-back, the scan file and its hash, the deviation
+statistics and the per-punch deviation grid are stored in the database itself, so the
+history is complete without the job and scan files (which it also names).
+
+Default location: ``$MPPF_HOME/history.sqlite`` when ``MPPF_HOME`` is set, else
+``~/.local/share/mppf/history.sqlite``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sqlite3
+import time
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+from mppf.core.errors import InputError
+from mppf.core.db import open_sqlite
+from mppf.core.paths import data_dir
+from mppf.planning.job import StepStrokes, grid_from_json, grid_to_json
+
+SCHEMA_VERSION = 1
+
+#: Cycle states in order; "corrected" and "done" are the two ends.
+STATES = ("planned", "pressing", "pressed", "scanned", "compared", "corrected", "done")
+
+#: Plate statuses: "active" while the loop runs, else why it stopped.
+PLATE_STATUSES = ("active", "in_tolerance", "max_cycles", "diverged")
+
+_SCHEMA = """
+CREATE TABLE IF NOT EXISTS plates (
+    plate_id       TEXT PRIMARY KEY,
+    created_utc    TEXT NOT NULL,
+    updated_utc    TEXT NOT NULL,
+    status         TEXT NOT NULL,      -- active, in_tolerance, max_cycles, diverged
+    design_path    TEXT NOT NULL,
+    design_sha256  TEXT NOT NULL,
+    flat_path      TEXT NOT NULL,
+    flat_sha256    TEXT NOT NULL,
+    thickness_mm   REAL NOT NULL,
+    press_json     TEXT NOT NULL,      -- the press description (TOML layout)
+    settings_json  TEXT NOT NULL,      -- loop settings, scanner, PLC URL, seed, work folder
+    note           TEXT NOT NULL DEFAULT ''
+);
+CREATE TABLE IF NOT EXISTS cycles (
+    plate_id       TEXT NOT NULL REFERENCES plates (plate_id),
+    cycle          INTEGER NOT NULL,   -- 1, 2, ...
+    state          TEXT NOT NULL,      -- planned, pressing, pressed, scanned, compared, corrected, done
+    created_utc    TEXT NOT NULL,
+    updated_utc    TEXT NOT NULL,
+    job_path       TEXT NOT NULL,      -- job file of the strokes of this cycle
+    job_sha256     TEXT NOT NULL,
+    steps_json     TEXT NOT NULL,      -- the strokes: [{upper_mm, lower_mm, active}] (null = inactive)
+    step_started   INTEGER NOT NULL DEFAULT 0,  -- last step whose upload/GO began (1-based)
+    steps_done     INTEGER NOT NULL DEFAULT 0,  -- steps finished in position
+    results_json   TEXT NOT NULL DEFAULT '[]', -- per step: sequence, read-back, max error, duration
+    interrupted    INTEGER NOT NULL DEFAULT 0,  -- 1 when resumed from "pressing" (not pressed again)
+    scan_path      TEXT,
+    scan_sha256    TEXT,
+    rms_mm         REAL,
+    max_abs_mm     REAL,
+    within_pct     REAL,
+    deviation_json TEXT,               -- per-punch deviation grid (rows, cols), null = no data
+    compare_json   TEXT,               -- the full comparison summary
+    gain           REAL,               -- gain of the correction that made these strokes
+    correction_json TEXT,              -- that correction (applied mm, clipped, notes)
+    decision       TEXT,               -- continue, in_tolerance, max_cycles, diverged
+    rejected_json  TEXT NOT NULL DEFAULT '[]',  -- scans refused for this cycle: [{path, sha256, reason}]
+    PRIMARY KEY (plate_id, cycle)
+);
+CREATE TABLE IF NOT EXISTS events (
+    id        INTEGER PRIMARY KEY AUTOINCREMENT,
+    time_utc  TEXT NOT NULL,
+    plate_id  TEXT NOT NULL,
+    cycle     INTEGER,
+    state     TEXT NOT NULL,
+    pid       INTEGER NOT NULL,
+    detail    TEXT NOT NULL DEFAULT ''
+);
+"""
+
+
+def default_history_path() -> Path:
+    """``$MPPF_HOME/history.sqlite``, else ``~/.local/share/mppf/history.sqlite``."""
+    return data_dir() / "history.sqlite"
+
+
+def _now_utc() -> str:
+    return datetime.fromtimestamp(time.time(), tz=timezone.utc).isoformat(timespec="milliseconds")
+
+
+def steps_to_json(steps: list[StepStrokes]) -> list[dict]:
+    """Strokes of a cycle as JSON-ready dicts."""
+    return [
+        {
+            "upper_mm": grid_to_json(np.where(s.active, s.upper_mm, np.nan)),
+            "lower_mm": grid_to_json(np.where(s.active, s.lower_mm, np.nan)),
+            "active": np.asarray(s.active, dtype=bool).tolist(),
+        }
+        for s in steps
+    ]
+
+
+def steps_from_json(doc: list[dict]) -> list[StepStrokes]:
+    """Inverse of :func:`steps_to_json`."""
+    return [
+        StepStrokes(
+            upper_mm=grid_from_json(s["upper_mm"]),
+            lower_mm=grid_from_json(s["lower_mm"]),
+            active=np.asarray(s["active"], dtype=bool),
+        )
+        for s in doc
+    ]
+
+
+@dataclass(frozen=True)
+class PlateRecord:
+    """One plate of the history (see the ``plates`` table)."""
+
+    plate_id: str
+    created_utc: str
+    updated_utc: str
+    status: str
+    design_path: str
+    design_sha256: str
+    flat_path: str
+    flat_sha256: str
+    thickness_mm: float
+    press: dict
+    settings: dict
+    note: str = ""
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict."""
+        return dict(self.__dict__)
+
+
+@dataclass(frozen=True)
+class CycleRecord:
+    """One press cycle of a plate (see the ``cycles`` table).
+
+    Attributes
+    ----------
+    steps : list of StepStrokes
+        The strokes of this cycle (NaN where inactive).
+    punch_deviation_mm : (rows, cols) float or None
+        Deviation at each punch after this cycle (NaN where not measured).
+    """
+
+    plate_id: str
+    cycle: int
+    state: str
+    created_utc: str
+    updated_utc: str
+    job_path: str
+    job_sha256: str
+    steps: list
+    step_started: int
+    steps_done: int
+    results: list
+    interrupted: bool
+    scan_path: str | None
+    scan_sha256: str | None
+    rms_mm: float | None
+    max_abs_mm: float | None
+    within_pct: float | None
+    punch_deviation_mm: np.ndarray | None
+    comparison: dict | None
+    gain: float | None
+    correction: dict | None
+    decision: str | None
+    rejected_scans: list = field(default_factory=list)
+
+    def to_dict(self, *, grids: bool = True) -> dict:
+        """JSON-ready dict (strokes and deviation grid included when ``grids``)."""
+        out = {k: v for k, v in self.__dict__.items() if k not in ("steps", "punch_deviation_mm")}
+        if grids:
+            out["steps"] = steps_to_json(self.steps)
+            out["punch_deviation_mm"] = grid_to_json(self.punch_deviation_mm)
+        return out
+
+
+@dataclass(frozen=True)
+class Event:
+    """One state change."""
+
+    id: int
+    time_utc: str
+    plate_id: str
+    cycle: int | None
+    state: str
+    pid: int
+    detail: str = field(default="")
+
+
+def _loads(text):
+    return None if text is None else json.loads(text)
+
+
+def _dumps(value) -> str:
+    return json.dumps(value, allow_nan=False)
+
+
+class History:
+    """The SQLite plate history.
+
+    Parameters
+    ----------
+    path : path-like, optional
+        Database file (created with its folder). Default :func:`default_history_path`.
+
+    Raises
+    ------
+    InputError
+        The file cannot be created or is not an mppf history database.
+    """
+
+    def __init__(self, path=None):
+        self.path = Path(path) if path is not None else default_history_path()
+        self._db = open_sqlite(self.path, "the plate history", _SCHEMA, SCHEMA_VERSION,
+                               hint="give a writable SQLite file with --history or set MPPF_HOME")
+
+    # -- plates -------------------------------------------------------------------------
+
+    def create_plate(
+        self,
+        plate_id: str,
+        *,
+        design_path,
+        design_sha256: str,
+        flat_path,
+        flat_sha256: str,
+        thickness_mm: float,
+        press: dict,
+        settings: dict,
+        note: str = "",
+    ) -> PlateRecord:
+        """Add a new plate (status "active").
+
+        Raises
+        ------
+        InputError
+            A plate with this id is already in the history.
+        """
+        self.check_new_plate(plate_id)
+        now = _now_utc()
+        try:
+            with self._transaction():
+                self._db.execute(
+                    "INSERT INTO plates VALUES (?, ?, ?, 'active', ?, ?, ?, ?, ?, ?, ?, ?)",
+                    (plate_id, now, now, str(design_path), design_sha256, str(flat_path), flat_sha256,
+                     float(thickness_mm), _dumps(press), _dumps(settings), note),
+                )
+                self._event(plate_id, None, "created", f"design {design_path}")
+        except sqlite3.IntegrityError:  # created by another process meanwhile
+            self.check_new_plate(plate_id)
+            raise
+        return self.plate(plate_id)
+
+    def check_new_plate(self, plate_id: str) -> None:
+        """Raise InputError when ``plate_id`` is empty or already in the history."""
+        if not plate_id or not isinstance(plate_id, str):
+            raise InputError(f"a plate id must be a non-empty text, got {plate_id!r}")
+        row = self._db.execute("SELECT status FROM plates WHERE plate_id = ?", (plate_id,)).fetchone()
+        if row is not None:
+            raise InputError(
+                f"plate {plate_id!r} is already in the history {self.path} (status {row[0]})",
+                hint="choose another --plate-id, or continue it with 'mppf loop --resume --plate-id "
+                f"{plate_id}'",
+            )
+
+    def plate(self, plate_id: str) -> PlateRecord:
+        """The plate ``plate_id``.
+
+        Raises
+        ------
+        InputError
+            No such plate.
+        """
+        row = self._db.execute("SELECT * FROM plates WHERE plate_id = ?", (plate_id,)).fetchone()
+        if row is None:
+            known = [p.plate_id for p in self.plates()][-5:]
+            raise InputError(
+                f"plate {plate_id!r} is not in the history {self.path}",
+                hint=f"known plates: {', '.join(known) or 'none'} (see 'mppf history')",
+            )
+        return self._plate(row)
+
+    def plates(self) -> list[PlateRecord]:
+        """All plates, oldest first."""
+        rows = self._db.execute("SELECT * FROM plates ORDER BY created_utc, plate_id").fetchall()
+        return [self._plate(r) for r in rows]
+
+    def active_plates(self) -> list[PlateRecord]:
+        """Plates whose loop has not finished, oldest first."""
+        return [p for p in self.plates() if p.status == "active"]
+
+    def set_plate_status(self, plate_id: str, status: str) -> None:
+        """Set why the plate's loop stopped (or "active")."""
+        if status not in PLATE_STATUSES:
+            raise ValueError(f"unknown plate status {status!r}")
+        with self._transaction():
+            self._db.execute(
+                "UPDATE plates SET status = ?, updated_utc = ? WHERE plate_id = ?", (status, _now_utc(), plate_id)
+            )
+            self._event(plate_id, None, status, "plate status")
+
+    # -- cycles -------------------------------------------------------------------------
+
+    def add_cycle(
+        self,
+        plate_id: str,
+        cycle: int,
+        *,
+        job_path,
+        job_sha256: str,
+        steps: list[StepStrokes],
+        gain: float | None = None,
+        correction: dict | None = None,
+        previous_decision: str | None = None,
+    ) -> CycleRecord:
+        """Record a new cycle in state "planned".
+
+        When ``previous_decision`` is given, the previous cycle (``cycle - 1``, which
+        must be "compared") is moved to "corrected" in the same transaction, so a crash
+        never leaves a corrected cycle without its successor or the other way round.
+        """
+        now = _now_utc()
+        with self._transaction():
+            if previous_decision is not None:
+                self._move(plate_id, cycle - 1, ("compared",), "corrected", decision=previous_decision)
+            self._db.execute(
+                "INSERT INTO cycles (plate_id, cycle, state, created_utc, updated_utc, job_path, job_sha256, "
+                "steps_json, gain, correction_json) VALUES (?, ?, 'planned', ?, ?, ?, ?, ?, ?, ?)",
+                (plate_id, int(cycle), now, now, str(job_path), job_sha256, _dumps(steps_to_json(steps)),
+                 None if gain is None else float(gain), None if correction is None else _dumps(correction)),
+            )
+            self._event(plate_id, cycle, "planned", f"job {job_path} sha256 {job_sha256[:12]}")
+        return self.cycle(plate_id, cycle)
+
+    def mark_step_started(self, plate_id: str, cycle: int, step: int) -> None:
+        """Record that step ``step`` (1-based) is about to be uploaded and started.
+
+        The first step moves the cycle from "planned" to "pressing"; later steps need
+        the previous step done. Committed before anything is sent to the press.
+
+        Raises
+        ------
+        InputError
+            The cycle is not in a state where this step may start (it was already
+            started, possibly by another process): nothing may be sent.
+        """
+        with self._transaction():
+            if step == 1:
+                self._move(plate_id, cycle, ("planned",), "pressing", step_started=1, detail="step 1 started")
+                return
+            else:
+                cur = self._db.execute(
+                    "UPDATE cycles SET step_started = ?, updated_utc = ? WHERE plate_id = ? AND cycle = ? "
+                    "AND state = 'pressing' AND step_started = ? AND steps_done = ?",
+                    (step, _now_utc(), plate_id, cycle, step - 1, step - 1),
+                )
+                if cur.rowcount != 1:
+                    self._refuse(plate_id, cycle, f"start step {step}")
+            self._event(plate_id, cycle, "pressing", f"step {step} started")
+
+    def mark_step_not_started(self, plate_id: str, cycle: int, step: int, reason: str) -> None:
+        """Undo :meth:`mark_step_started` for a step the press provably never started.
+
+        Only for refusals that guarantee nothing moved (the PLC or the driver refused the
+        upload or GO): the step may then be pressed later. The first step takes the cycle
+        back to "planned".
+        """
+        with self._transaction():
+            if step == 1:
+                self._move(plate_id, cycle, ("pressing",), "planned", step_started=0,
+                           detail=f"step 1 not started: {reason}")
+                return
+            cur = self._db.execute(
+                "UPDATE cycles SET step_started = ?, updated_utc = ? WHERE plate_id = ? AND cycle = ? "
+                "AND state = 'pressing' AND step_started = ? AND steps_done = ?",
+                (step - 1, _now_utc(), plate_id, cycle, step, step - 1),
+            )
+            if cur.rowcount != 1:
+                self._refuse(plate_id, cycle, f"undo the start of step {step}")
+            self._event(plate_id, cycle, "pressing", f"step {step} not started: {reason}")
+
+    def mark_step_done(self, plate_id: str, cycle: int, step: int, result: dict) -> None:
+        """Record the read-back of a finished step (``result`` is JSON-ready)."""
+        with self._transaction():
+            record = self.cycle(plate_id, cycle)
+            results = list(record.results) + [result]
+            cur = self._db.execute(
+                "UPDATE cycles SET steps_done = ?, results_json = ?, updated_utc = ? WHERE plate_id = ? AND "
+                "cycle = ? AND state = 'pressing' AND step_started = ? AND steps_done = ?",
+                (step, _dumps(results), _now_utc(), plate_id, cycle, step, step - 1),
+            )
+            if cur.rowcount != 1:
+                self._refuse(plate_id, cycle, f"finish step {step}")
+            self._event(plate_id, cycle, "pressing", f"step {step} done, max error {result.get('max_error_mm')}")
+
+    def mark_pressed(self, plate_id: str, cycle: int, *, interrupted: bool = False, detail: str = "") -> None:
+        """Move the cycle from "pressing" to "pressed".
+
+        ``interrupted`` marks a cycle found in "pressing" after a crash: it is not pressed
+        again but measured as it is.
+        """
+        with self._transaction():
+            self._move(plate_id, cycle, ("pressing",), "pressed", interrupted=int(interrupted), detail=detail)
+
+    def mark_scanned(self, plate_id: str, cycle: int, scan_path, scan_sha256: str) -> None:
+        """Move the cycle from "pressed" to "scanned" with its scan file."""
+        with self._transaction():
+            self._move(plate_id, cycle, ("pressed",), "scanned", scan_path=str(scan_path), scan_sha256=scan_sha256,
+                       detail=f"scan {scan_path} sha256 {scan_sha256[:12]}")
+
+    def reject_scan(self, plate_id: str, cycle: int, scan_path, scan_sha256: str, reason: str) -> None:
+        """Refuse a scan of the cycle (unreadable, or not matching the design).
+
+        The scan is added to the cycle's rejected scans (never taken again) and a cycle in
+        "scanned" goes back to "pressed", so the next run waits for a new scan.
+        """
+        with self._transaction():
+            record = self.cycle(plate_id, cycle)
+            rejected = list(record.rejected_scans) + [
+                {"path": str(scan_path), "sha256": scan_sha256, "reason": reason}]
+            self._move(plate_id, cycle, ("pressed", "scanned"), "pressed", scan_path=None, scan_sha256=None,
+                       rejected_json=_dumps(rejected), detail=f"scan {scan_path} rejected: {reason}")
+
+    def mark_compared(
+        self,
+        plate_id: str,
+        cycle: int,
+        *,
+        rms_mm: float,
+        max_abs_mm: float,
+        within_pct: float,
+        punch_deviation_mm,
+        comparison: dict,
+        decision: str,
+    ) -> None:
+        """Move the cycle from "scanned" to "compared" with its deviations and decision."""
+        with self._transaction():
+            self._move(
+                plate_id, cycle, ("scanned",), "compared",
+                rms_mm=float(rms_mm), max_abs_mm=float(max_abs_mm), within_pct=float(within_pct),
+                deviation_json=_dumps(grid_to_json(punch_deviation_mm)), compare_json=_dumps(comparison),
+                decision=decision, detail=f"max |dev| {max_abs_mm:.2f} mm, RMS {rms_mm:.2f} mm -> {decision}",
+            )
+
+    def mark_done(self, plate_id: str, cycle: int, decision: str) -> None:
+        """End the loop at this cycle: the cycle becomes "done", the plate gets ``decision``."""
+        with self._transaction():
+            self._move(plate_id, cycle, ("compared",), "done", decision=decision)
+            self._db.execute(
+                "UPDATE plates SET status = ?, updated_utc = ? WHERE plate_id = ?", (decision, _now_utc(), plate_id)
+            )
+            self._event(plate_id, None, decision, f"loop ended after cycle {cycle}")
+
+    def cycle(self, plate_id: str, cycle: int) -> CycleRecord:
+        """One cycle (InputError when missing)."""
+        row = self._db.execute(
+            f"SELECT {_CYCLE_COLUMNS} FROM cycles WHERE plate_id = ? AND cycle = ?", (plate_id, int(cycle))
+        ).fetchone()
+        if row is None:
+            raise InputError(f"plate {plate_id!r} has no cycle {cycle} in the history {self.path}")
+        return self._cycle(row)
+
+    def cycles(self, plate_id: str) -> list[CycleRecord]:
+        """The cycles of a plate in order."""
+        rows = self._db.execute(
+            f"SELECT {_CYCLE_COLUMNS} FROM cycles WHERE plate_id = ? ORDER BY cycle", (plate_id,)
+        ).fetchall()
+        return [self._cycle(r) for r in rows]
+
+    def events(self, plate_id: str | None = None) -> list[Event]:
+        """State changes in order (of one plate or all)."""
+        if plate_id is None:
+            rows = self._db.execute("SELECT * FROM events ORDER BY id").fetchall()
+        else:
+            rows = self._db.execute("SELECT * FROM events WHERE plate_id = ? ORDER BY id", (plate_id,)).fetchall()
+        return [Event(*r) for r in rows]
+
+    def close(self) -> None:
+        """Close the database."""
+        self._db.close()
+
+    def __enter__(self) -> History:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # -- internals ----------------------------------------------------------------------
+
+    def _transaction(self):
+        return _Transaction(self._db)
+
+    def _event(self, plate_id, cycle, state, detail=""):
+        self._db.execute(
+            "INSERT INTO events (time_utc, plate_id, cycle, state, pid, detail) VALUES (?, ?, ?, ?, ?, ?)",
+            (_now_utc(), plate_id, cycle, state, os.getpid(), detail),
+        )
+
+    def _move(self, plate_id, cycle, from_states, to_state, *, detail="", **columns):
+        sets = ", ".join([f"{k} = ?" for k in columns] + ["state = ?", "updated_utc = ?"])
+        marks = ", ".join("?" for _ in from_states)
+        cur = self._db.execute(
+            f"UPDATE cycles SET {sets} WHERE plate_id = ? AND cycle = ? AND state IN ({marks})",
+            (*columns.values(), to_state, _now_utc(), plate_id, int(cycle), *from_states),
+        )
+        if cur.rowcount != 1:
+            self._refuse(plate_id, cycle, f"move to '{to_state}'")
+        self._event(plate_id, cycle, to_state, detail)
+
+    def _refuse(self, plate_id, cycle, what):
+        row = self._db.execute(
+            "SELECT state, step_started, steps_done FROM cycles WHERE plate_id = ? AND cycle = ?", (plate_id, cycle)
+        ).fetchone()
+        seen = "missing" if row is None else f"state '{row[0]}', step {row[1]} started, {row[2]} done"
+        raise InputError(
+            f"cannot {what} for cycle {cycle} of plate {plate_id!r}: the history shows {seen}",
+            hint="another 'mppf loop' may be running this plate; check 'mppf history --plate-id "
+            f"{plate_id}'",
+        )
+
+    @staticmethod
+    def _plate(row) -> PlateRecord:
+        (plate_id, created, updated, status, design_path, design_sha, flat_path, flat_sha, thickness,
+         press_json, settings_json, note) = row
+        return PlateRecord(plate_id, created, updated, status, design_path, design_sha, flat_path, flat_sha,
+                           float(thickness), json.loads(press_json), json.loads(settings_json), note)
+
+    @staticmethod
+    def _cycle(row) -> CycleRecord:
+        (plate_id, cycle, state, created, updated, job_path, job_sha, steps_json, step_started, steps_done,
+         results_json, interrupted, scan_path, scan_sha, rms, max_abs, within, deviation_json, compare_json,
+         gain, correction_json, decision, rejected_json) = row
+        return CycleRecord(
+            plate_id=plate_id, cycle=int(cycle), state=state, created_utc=created, updated_utc=updated,
+            job_path=job_path, job_sha256=job_sha, steps=steps_from_json(json.loads(steps_json)),
+            step_started=int(step_started), steps_done=int(steps_done), results=json.loads(results_json),
+            interrupted=bool(interrupted), scan_path=scan_path, scan_sha256=scan_sha, rms_mm=rms,
+            max_abs_mm=max_abs, within_pct=within, punch_deviation_mm=grid_from_json(_loads(deviation_json)),
+            comparison=_loads(compare_json), gain=gain, correction=_loads(correction_json), decision=decision,
+            rejected_scans=json.loads(rejected_json),
+        )
+
+
+_CYCLE_COLUMNS = (
+    "plate_id, cycle, state, created_utc, updated_utc, job_path, job_sha256, steps_json, step_started, "
+    "steps_done, results_json, interrupted, scan_path, scan_sha256, rms_mm, max_abs_mm, within_pct, "
+    "deviation_json, compare_json, gain, correction_json, decision, rejected_json"
+)
+
+
+class _Transaction:
+    """BEGIN IMMEDIATE ... COMMIT (ROLLBACK on error) on an autocommit connection."""
+
+    def __init__(self, db: sqlite3.Connection):
+        self._db = db
+        self._outer = False
+
+    def __enter__(self):
+        self._outer = not self._db.in_transaction
+        if self._outer:
+            self._db.execute("BEGIN IMMEDIATE")
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        if not self._outer:
+            return False
+        if exc_type is None:
+            self._db.execute("COMMIT")
+        else:
+            self._db.execute("ROLLBACK")
+        return False

@@ -1,0 +1,92 @@
+"""Where the loop's measurements come from: scanners behind the :class:`~mppf.core.scanner.Scanner` protocol.
+
+A scanner delivers, for one press cycle, the path of a point file (PLY, CSV, XYZ...) of
+the formed plate's top skin, in any pose. :class:`DirectoryScanner` waits for the file the
+operator's 3D scanner (or the person running it) drops into a folder; the simulated
+scanner of dry runs (``mppf.sim.shop``) forms and scans a simulated plate instead. The
+loop (:mod:`mppf.loop.cycle`) takes either through this one interface.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from mppf.core.errors import InputError
+from mppf.geometry.io import READ_SUFFIXES
+from mppf.core.progress import NULL_REPORTER
+from mppf.core.scanner import ScanContext
+
+
+class DirectoryScanner:
+    """Waits for the operator's scan file in a folder.
+
+    A file counts as the scan of the cycle when its suffix is a point format
+    (``.ply .csv .txt .xyz .stl .obj``), it was modified after the cycle was planned
+    (``context.since_s``), no earlier cycle of the plate used it, and its size
+    stayed the same over two polls (the scanner software finished writing it). When
+    several qualify, the newest is taken.
+
+    Parameters
+    ----------
+    folder : path-like
+        Folder the scanner software writes into (must exist).
+    timeout_s : float
+        Longest wait for the file.
+    poll_s : float
+        Interval between looks into the folder.
+    """
+
+    def __init__(self, folder, *, timeout_s: float = 1800.0, poll_s: float = 1.0):
+        self.folder = Path(folder)
+        if not self.folder.is_dir():
+            raise InputError(
+                f"scan folder {self.folder} does not exist or is not a folder",
+                hint="give the folder the scanner software writes into, or --scanner sim for a dry run",
+            )
+        if not timeout_s > 0 or not poll_s > 0:
+            raise InputError(f"scan wait timeout ({timeout_s} s) and poll interval ({poll_s} s) must be positive")
+        self.timeout_s = float(timeout_s)
+        self.poll_s = float(poll_s)
+
+    def _candidates(self, context: ScanContext) -> dict[Path, int]:
+        used = {str(Path(p).resolve()) for p in context.used_paths}
+        found = {}
+        for path in self.folder.iterdir():
+            if path.suffix.lower() not in READ_SUFFIXES or not path.is_file():
+                continue
+            try:
+                stat = path.stat()
+            except OSError:  # removed while we looked
+                continue
+            if stat.st_mtime + 1.0 < context.since_s or str(path.resolve()) in used:
+                continue
+            found[path] = stat.st_size
+        return found
+
+    def acquire(self, cycle: int, context: ScanContext) -> Path:
+        """Wait for a new, complete scan file; return its path."""
+        context.reporter.info(f"cycle {cycle}: waiting for the scan file in {self.folder} (up to {self.timeout_s:.0f} s)")
+        context.reporter.start(f"waiting for scan {cycle}", total=self.timeout_s)
+        start = time.monotonic()
+        previous: dict[Path, int] = {}
+        try:
+            while True:
+                current = self._candidates(context)
+                stable = [p for p, size in current.items() if size > 0 and previous.get(p) == size]
+                if stable:
+                    return max(stable, key=lambda p: p.stat().st_mtime)
+                previous = current
+                waited = time.monotonic() - start
+                if waited >= self.timeout_s:
+                    raise InputError(
+                        f"no new scan file appeared in {self.folder} within {self.timeout_s:.0f} s "
+                        f"for cycle {cycle} of plate {context.plate_id}",
+                        hint="save the scan there (PLY or CSV) and run 'mppf loop --resume' to go on",
+                    )
+                context.reporter.update(waited)
+                time.sleep(self.poll_s)
+        finally:
+            context.reporter.finish()

@@ -1,0 +1,1 @@
+"""Measurement: a scan of the formed plate compared with its design, deviations, statistics, punch deviations."""

@@ -1,0 +1,217 @@
+"""Ball-tip contact: the tip height of every punch touching a plate, solved exactly.
+
+A plate of thickness ``t`` is described by its mid-surface. The bottom skin is the
+mid-surface offset by ``t/2`` against the (upward) normal, the top skin by ``t/2``
+along it. A ball of radius ``r`` touching a skin is a ball of radius ``R = r + t/2``
+touching the mid-surface, so only the mid-surface is needed.
+
+For a punch on the vertical axis through ``(x0, y0)`` the ball centre height is the
+drop-cutter value
+
+    upper:  zc = max over mid-surface points p with |p_xy - a| < R of  p_z + sqrt(R^2 - |p_xy - a|^2)
+    lower:  zc = min over the same points of                           p_z - sqrt(R^2 - |p_xy - a|^2)
+
+and the tip height is ``zc - r`` (upper: the bottom of its ball) or ``zc + r`` (lower:
+the top of its ball). The maximiser is the contact point ``p`` where the ball centre
+lies on the surface normal: ``p + s R n(p)`` is on the axis, ``s = +1`` upper, ``-1``
+lower. :func:`tip_heights` samples the drop-cutter value on a small patch around the
+axis, then solves ``(p + s R n)_xy = a`` with Newton's method (analytic Jacobian from
+the second derivatives of the height field), so the result is exact, not limited by
+the sampling. See ``docs/planning.md``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from mppf.core.errors import GeometryError, InputError
+from mppf.core.transform import apply_tf
+
+SAMPLES_PER_SIDE = 11
+"""Samples per side of the patch searched around each punch axis before Newton."""
+
+PATCH_HALF_WIDTH = 1.5
+"""Half width of the searched (u, v) patch, in units of R = r + t/2."""
+
+NEWTON_ITERATIONS = 20
+NEWTON_TOL_MM = 1e-9
+
+
+@dataclass(frozen=True, eq=False)
+class PlacedSurface:
+    """A height field ``w = z(u, v)`` in a local frame, placed in press coordinates.
+
+    Attributes
+    ----------
+    surface : object
+        Anything with ``derivatives(u, v) -> (z, zu, zv, zuu, zuv, zvv)`` for (m,)
+        arrays of local coordinates (mm); e.g. a :class:`mppf.geometry.surface` surface.
+    tf_press_local : (4, 4) float
+        Maps the surface's local frame into press coordinates.
+    """
+
+    surface: object
+    tf_press_local: np.ndarray
+
+    def geometry(self, u, v):
+        """Press-coordinate point and derivatives of r(u, v) = tf (u, v, z(u, v)).
+
+        Returns
+        -------
+        p, pu, pv, puu, puv, pvv : (m, 3) float
+        """
+        u = np.asarray(u, dtype=float)
+        v = np.asarray(v, dtype=float)
+        z, zu, zv, zuu, zuv, zvv = (np.broadcast_to(np.asarray(a, dtype=float), u.shape)
+                                    for a in self.surface.derivatives(u, v))
+        rot = np.asarray(self.tf_press_local, dtype=float)[:3, :3]
+        zero, one = np.zeros_like(u), np.ones_like(u)
+        p = np.stack([u, v, z], axis=-1) @ rot.T + self.tf_press_local[:3, 3]
+        pu = np.stack([one, zero, zu], axis=-1) @ rot.T
+        pv = np.stack([zero, one, zv], axis=-1) @ rot.T
+        puu = np.stack([zero, zero, zuu], axis=-1) @ rot.T
+        puv = np.stack([zero, zero, zuv], axis=-1) @ rot.T
+        pvv = np.stack([zero, zero, zvv], axis=-1) @ rot.T
+        return p, pu, pv, puu, puv, pvv
+
+    def points(self, u, v) -> np.ndarray:
+        """(m, 3) press points of the surface at local (u, v)."""
+        z = np.asarray(self.surface.evaluate(u, v), dtype=float)
+        return apply_tf(self.tf_press_local, np.column_stack([u, v, np.broadcast_to(z, np.shape(u))]))
+
+    def axis_foot(self, x_mm, y_mm, iterations: int = 8) -> tuple[np.ndarray, np.ndarray]:
+        """Local (u, v) where vertical press lines through (x, y) cross the surface.
+
+        Fixed-point iteration along the line; exact enough as a start for Newton.
+        """
+        tf = np.asarray(self.tf_press_local, dtype=float)
+        rot, shift = tf[:3, :3], tf[:3, 3]
+        line0 = (np.column_stack([x_mm, y_mm, np.zeros_like(x_mm)]) - shift) @ rot  # local
+        direction = rot[2]  # press z expressed in local coordinates
+        if abs(direction[2]) < 0.5:
+            raise GeometryError(
+                f"the plate is tilted {np.degrees(np.arccos(abs(direction[2]))):.0f} deg from the press bed",
+                hint="the design must lie nearly horizontal after registration; check the flat plate",
+            )
+        s = np.zeros(len(line0))
+        for _ in range(iterations):
+            u = line0[:, 0] + s * direction[0]
+            v = line0[:, 1] + s * direction[1]
+            z = np.asarray(self.surface.evaluate(u, v), dtype=float)
+            s = (z - line0[:, 2]) / direction[2]
+        return line0[:, 0] + s * direction[0], line0[:, 1] + s * direction[1]
+
+
+@dataclass(frozen=True)
+class Contact:
+    """Tip heights of one matrix.
+
+    Attributes
+    ----------
+    tip_mm : (m,) float
+        Tip height (upper: bottom of ball, lower: top of ball), press z, mm.
+    contact_mm : (m, 3) float
+        Contact point on the mid-surface, press coordinates.
+    exact : (m,) bool
+        True where Newton converged to the contact (False: the sampled value was kept).
+    """
+
+    tip_mm: np.ndarray
+    contact_mm: np.ndarray
+    exact: np.ndarray
+
+
+def _normal_and_derivatives(pu, pv, puu, puv, pvv):
+    """Unit normal (oriented up) and its u, v derivatives, all (m, 3)."""
+    big_n = np.cross(pu, pv)
+    big_nu = np.cross(puu, pv) + np.cross(pu, puv)
+    big_nv = np.cross(puv, pv) + np.cross(pu, pvv)
+    sign = np.where(big_n[:, 2] >= 0, 1.0, -1.0)[:, None]
+    big_n, big_nu, big_nv = big_n * sign, big_nu * sign, big_nv * sign
+    norm = np.linalg.norm(big_n, axis=1, keepdims=True)
+    n = big_n / norm
+    nu = (big_nu - n * np.sum(n * big_nu, axis=1, keepdims=True)) / norm
+    nv = (big_nv - n * np.sum(n * big_nv, axis=1, keepdims=True)) / norm
+    return n, nu, nv
+
+
+def tip_heights(placed: PlacedSurface, x_mm, y_mm, *, tip_radius_mm: float,
+                thickness_mm: float) -> tuple[Contact, Contact]:
+    """Tip heights of the upper and lower punches on vertical axes through (x, y).
+
+    Parameters
+    ----------
+    placed : PlacedSurface
+        The plate's mid-surface in press coordinates.
+    x_mm, y_mm : (m,) float
+        Punch axes, press coordinates.
+    tip_radius_mm, thickness_mm : float
+
+    Returns
+    -------
+    upper, lower : Contact
+        Upper punches touch the top skin from above, lower punches the bottom skin
+        from below.
+    """
+    if not tip_radius_mm > 0 or not thickness_mm > 0:
+        raise InputError(f"tip radius and thickness must be positive, got {tip_radius_mm}, {thickness_mm} mm")
+    x_mm = np.asarray(x_mm, dtype=float).reshape(-1)
+    y_mm = np.asarray(y_mm, dtype=float).reshape(-1)
+    m = len(x_mm)
+    big_r = tip_radius_mm + thickness_mm / 2.0
+    axis = np.column_stack([x_mm, y_mm])
+
+    # 1. Where each axis crosses the surface, in local (u, v).
+    u0, v0 = placed.axis_foot(x_mm, y_mm)
+    # 2. A patch of samples around it: the drop-cutter value there bounds the answer.
+    offsets = np.linspace(-PATCH_HALF_WIDTH * big_r, PATCH_HALF_WIDTH * big_r, SAMPLES_PER_SIDE)
+    du, dv = (g.reshape(-1) for g in np.meshgrid(offsets, offsets))
+    us = u0[:, None] + du[None, :]
+    vs = v0[:, None] + dv[None, :]
+    pts = placed.points(us.reshape(-1), vs.reshape(-1)).reshape(m, -1, 3)
+    d2 = np.sum((pts[:, :, :2] - axis[:, None, :]) ** 2, axis=2)
+    reach = d2 < big_r**2
+    if not np.all(reach.any(axis=1)):
+        raise GeometryError("no surface point within reach of a punch ball",
+                            hint="the surface is too steep for the press; check the registration")
+    rise = np.sqrt(np.where(reach, big_r**2 - d2, 0.0))
+    return tuple(_solve_side(placed, s, axis, us, vs, pts, rise, reach, big_r, tip_radius_mm)
+                 for s in (1.0, -1.0))
+
+
+def _solve_side(placed, s, axis, us, vs, pts, rise, reach, big_r, tip_radius_mm) -> Contact:
+    """Best sample, then Newton on (p + s R n)_xy = axis (s = +1 upper, -1 lower)."""
+    m = len(axis)
+    value = np.where(reach, s * pts[:, :, 2] + rise, -np.inf)  # maximise s * zc
+    best = np.argmax(value, axis=1)
+    rows = np.arange(m)
+    sampled = s * value[rows, best]
+    u, v = us[rows, best], vs[rows, best]
+    for _ in range(NEWTON_ITERATIONS):
+        p, pu, pv, puu, puv, pvv = placed.geometry(u, v)
+        n, nu, nv = _normal_and_derivatives(pu, pv, puu, puv, pvv)
+        resid = (p + s * big_r * n)[:, :2] - axis
+        if np.all(np.abs(resid) < NEWTON_TOL_MM):
+            break
+        ju = (pu + s * big_r * nu)[:, :2]
+        jv = (pv + s * big_r * nv)[:, :2]
+        det = ju[:, 0] * jv[:, 1] - jv[:, 0] * ju[:, 1]
+        det = np.where(np.abs(det) < 1e-12, 1e-12, det)
+        step_u = (jv[:, 1] * resid[:, 0] - jv[:, 0] * resid[:, 1]) / det
+        step_v = (-ju[:, 1] * resid[:, 0] + ju[:, 0] * resid[:, 1]) / det
+        length = np.hypot(step_u, step_v)
+        scale = np.minimum(1.0, 0.5 * big_r / np.maximum(length, 1e-300))
+        u = u - scale * step_u
+        v = v - scale * step_v
+    p, pu, pv, puu, puv, pvv = placed.geometry(u, v)
+    n, _, _ = _normal_and_derivatives(pu, pv, puu, puv, pvv)
+    centre = p + s * big_r * n
+    converged = np.all(np.abs(centre[:, :2] - axis) < 1e-6, axis=1)
+    # The Newton point is a genuine touching position, so it is kept when it is at
+    # least as far as the sampled value (always, unless it found another local contact).
+    exact = converged & (s * centre[:, 2] >= s * sampled - 1e-9)
+    zc = np.where(exact, centre[:, 2], sampled)
+    contact = np.where(exact[:, None], p, pts[rows, best])
+    return Contact(tip_mm=zc - s * tip_radius_mm, contact_mm=contact, exact=exact)

@@ -1,0 +1,262 @@
+"""Stroke planning: a design surface and its flat plate -> strokes of both punch matrices.
+
+:func:`plan_job` is the whole planner as a short sequence of calls; each stage is a
+small module: :mod:`mppf.planning.placement` (flat on the bed, registration, offset and tilt),
+:mod:`mppf.planning.contact` (exact ball-tip contact), :mod:`mppf.planning.overbend` (springback
+pre-compensation), :mod:`mppf.planning.steps` (multi-step forming and validation). The math is
+in ``docs/planning.md``; the job file in ``docs/file-formats.md``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from mppf.planning.contact import PlacedSurface, tip_heights
+from mppf.core.errors import GeometryError, InputError, LimitError
+from mppf.core.polygon import contains, convex_outline, distance_outside, offset_convex
+from mppf.planning.job import Job, PlateLayout
+from mppf.planning.overbend import overbend
+from mppf.planning.placement import (check_flat_belongs, design_area_mm2,
+                            optimise_pose, place_flat, register_design)
+from mppf.forming.precompensate import refine_strokes
+from mppf.planning.press import PressConfig
+from mppf.core.progress import NULL_REPORTER
+from mppf.forming.material import Material
+from mppf.planning.steps import MAX_STEPS, split_steps, steps_needed, validate_steps
+from mppf.geometry.surface import fit_plate
+from mppf.core.transform import apply_tf, as_points, rotation_angle_deg
+
+SURFACE_KIND = "poly"
+SURFACE_DEGREE = 4
+MAX_MARGIN_MM = 500.0
+"""Largest trim margin accepted (mm)."""
+
+
+def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float, *, steps: int | None = None,
+             material: Material | None = None, springback: bool = False, design_faces=None,
+             reporter=NULL_REPORTER, inputs: dict | None = None, margin_mm: float | None = None) -> Job:
+    """Plan the strokes of every punch of both matrices for one plate.
+
+    Parameters
+    ----------
+    design_points : (n, 3) float, mm
+        The design (curved) plate's mid-surface, any coordinates (e.g. hull).
+    flat_points : (k, 3) float, mm
+        Its unfolded (flat) plate; with k == n the points are taken as paired with
+        the design's, in the same order (as :func:`mppf.geometry.unfold.unfold` gives them).
+    press : PressConfig
+    thickness_mm : float
+        Plate thickness t, > 0.
+    steps : int, optional
+        Number of press steps; by default the fewest within the dimpling limit.
+    material : Material, optional
+        Needed for ``springback``.
+    springback : bool
+        Pre-compensate springback: over-bend the principal arcs, then refine the strokes
+        by virtual press cycles on the plate model with the nominal material
+        (:func:`mppf.forming.precompensate.refine_strokes`).
+    design_faces : (m, 3) int, optional
+        Mesh triangles of the design (better fold and area checks).
+    reporter : Reporter
+    inputs : dict, optional
+        ``{"design": {"path", "sha256"}, "flat": {...}}`` recorded in the job.
+    margin_mm : float, optional
+        Trim margin: the flat plate is cut with this excess band around its net outline
+        (trimmed after forming), so punches under the band are used too; default the
+        press's ``[forming] margin_mm``. The design surface is extended smoothly over it.
+
+    Returns
+    -------
+    Job
+        Validated; its ``layout`` holds the plate as cut (margin included), the net
+        outline, the margin, the reference corner, the design heights at the punches and
+        the material; ``extra`` the reports ``registration``, ``validation``,
+        ``plate_corners_mm``, ``pose``, ``inputs``, ``springback``, ``n_steps``.
+
+    Raises
+    ------
+    InputError
+        Bad thickness, step count or points; GeometryError for a flat that does not
+        belong to the design; LimitError for a plate that does not fit or strokes
+        that cannot be kept inside the press limits (nothing is planned).
+    """
+    design = as_points(design_points, "design points")
+    flat = as_points(flat_points, "flat points")
+    if isinstance(thickness_mm, bool) or not isinstance(thickness_mm, (int, float)) \
+            or not math.isfinite(thickness_mm) or thickness_mm <= 0:
+        raise InputError(f"the plate thickness must be a positive number of mm, got {thickness_mm!r}",
+                         hint="give e.g. --thickness 20")
+    if springback and material is None:
+        raise InputError("springback compensation needs the plate material",
+                         hint="give --material steel|ah36 or --youngs/--poisson/--yield")
+    if steps is not None and (isinstance(steps, bool) or not isinstance(steps, (int, np.integer))
+                              or not 1 <= steps <= MAX_STEPS):
+        raise InputError(f"the number of steps must be a whole number 1..{MAX_STEPS}, got {steps!r}",
+                         hint="leave --steps out to get the fewest steps within the dimpling limit")
+    t = float(thickness_mm)
+    margin = press.margin_mm if margin_mm is None else margin_mm
+    if isinstance(margin, bool) or not isinstance(margin, (int, float)) or not math.isfinite(margin) \
+            or not 0 <= margin <= MAX_MARGIN_MM:
+        raise InputError(f"the trim margin must be 0..{MAX_MARGIN_MM:g} mm, got {margin!r}",
+                         hint="give e.g. --margin 100 (or 0 to cut the plate to its net outline)")
+    margin = float(margin)
+
+    # 1. lay the flat plate on the bed: centred, long side along x, bottom skin at z = 0
+    reporter.info("placing the flat plate on the bed")
+    placement = place_flat(flat, press, t)
+    # 2. fit the design in its own frame; register it onto the flat on the bed
+    fitted = fit_plate(design, degree=SURFACE_DEGREE, kind=SURFACE_KIND, faces=design_faces)
+    reporter.info("registering the design onto the flat plate")
+    registration = register_design(design, placement.flat_press_mm, reporter=reporter)
+    paired = registration.method == "paired"
+    if registration.ambiguous_start:
+        reporter.info("the plate is nearly symmetric: check that the plate lies the right way round "
+                      "(registration start was ambiguous)")
+    belongs = check_flat_belongs(design, placement.flat_press_mm, paired,
+                                 design_area_mm2(fitted, design, design_faces))
+    # 3. the surface to press: the design, over-bent for springback if asked
+    surface, springback_report = fitted.surface, {"enabled": False}
+    if springback:
+        reach = float(np.linalg.norm(fitted.frame.to_local(design)[:, :2], axis=1).max()) + margin \
+            + press.trim_allowance_mm
+        try:
+            surface = overbend(fitted.surface, t, material, reach)
+            springback_report = _springback_report(surface)
+        except GeometryError as exc:  # the over-bent arcs do not reach: start the refinement from the design
+            springback_report = {"enabled": True, "method": f"design start ({exc})"}
+    placed = PlacedSurface(surface, registration.tf @ fitted.frame.tf_world_local)
+    # 4. active punches: axes inside the plate as cut (the design's outline seen from above,
+    # grown by the trim margin)
+    design_press = apply_tf(registration.tf, design)
+    gx, gy = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    outline_xy = offset_convex(convex_outline(design_press[:, :2], "the placed design"), margin)
+    active = contains(outline_xy, np.column_stack([gx.ravel(), gy.ravel()])).reshape(press.shape)
+    if not active.any():
+        raise LimitError("the plate covers no punch axis", hint="check the plate size and the press pitch")
+    rows, cols = np.nonzero(active)
+    # 5. strokes: exact ball contact, with the offset and tilt of least travel
+    reporter.info(f"solving the contact of {2 * len(rows)} punches")
+    centre = np.array([0.0, 0.0, t / 2.0])
+    pose = optimise_pose(placed, gx[active], gy[active], [f"[{r},{c}]" for r, c in zip(rows, cols)],
+                         press, t, centre)
+    upper = np.full(press.shape, np.nan)
+    lower = np.full(press.shape, np.nan)
+    upper[active], lower[active] = pose.upper_mm, pose.lower_mm
+    tf_press_design = pose.tf_adjust @ registration.tf
+    net_outline = convex_outline(apply_tf(pose.tf_adjust, design_press)[:, :2], "the placed design")
+    outline = offset_convex(net_outline, margin)
+    # the design's mid-surface height at each active punch axis, as the tips would hold it
+    # (the loop's calibrated correction aims at it, mppf.forming.precompensate.calibrated_correction)
+    design_placed = PlacedSurface(fitted.surface, tf_press_design @ fitted.frame.tf_world_local)
+    up_d, lo_d = tip_heights(design_placed, gx[active], gy[active], tip_radius_mm=press.tip_radius_mm,
+                             thickness_mm=t)
+    target = np.full(press.shape, np.nan)
+    target[active] = 0.5 * (up_d.tip_mm + lo_d.tip_mm)
+    if springback:
+        # virtual press cycles on the plate model (nominal material) against the design
+        reporter.info("refining the springback pre-compensation on the plate model")
+        refined = refine_strokes(press, upper, lower, active, target, outline, t, material)
+        upper, lower = refined.upper_mm, refined.lower_mm
+        springback_report["refinement"] = {"virtual_cycles": len(refined.history_mm) - 1,
+                                           "predicted_max_mm": refined.predicted_max_mm,
+                                           "history_mm": refined.history_mm}
+    # 6. press steps from flat to the target, within the dimpling limit
+    n_steps = steps if steps is not None else steps_needed(upper, lower, active, press, t)
+    if n_steps > MAX_STEPS:
+        raise LimitError(f"the plate needs {n_steps} press steps to keep within the dimpling limit of "
+                         f"{press.max_neighbour_diff_mm:g} mm, more than the {MAX_STEPS} one job may hold",
+                         hint="check [forming] max_neighbour_diff_mm in the press description")
+    step_list = split_steps(upper, lower, active, t, int(n_steps))
+    # 7. validate everything before a job exists
+    validation = validate_steps(step_list, press, t)
+    validation["contact_exact_fraction"] = float(np.mean(pose.exact))
+    validation["contact_beyond_edge_mm"] = _check_trim(pose.contact_xy_mm, outline_xy, press)
+    extra = {
+        "planner": {"surface_kind": fitted.kind, "surface_degree": fitted.degree,
+                    "surface_fit_rms_mm": fitted.rms_mm, "surface_fit_max_mm": fitted.max_abs_mm},
+        "registration": {**registration.to_dict(), **belongs,
+                         "rotation_deg": rotation_angle_deg(registration.tf)},
+        "pose": {"tilt_x_deg": pose.tilt_x_deg, "tilt_y_deg": pose.tilt_y_deg, "offset_mm": pose.offset_mm,
+                 "max_travel_mm": float(max(np.abs(upper[active] - t).max(), np.abs(lower[active]).max())),
+                 "travel_definition": "largest |tip height - flat-plate tip height| (upper t, lower 0)"},
+        "validation": validation,
+        "plate_corners_mm": placement.corners_mm.tolist(),
+        "plate_size_mm": placement.size_mm.tolist(),
+        "n_active": int(active.sum()),
+        "n_steps": int(n_steps),
+        "inputs": inputs or {},
+        "springback": springback_report,
+    }
+    layout = PlateLayout(outline_mm=outline, net_outline_mm=net_outline, margin_mm=margin, design_mid_mm=target,
+                         material=material)
+    return Job(press=press, thickness_mm=t, steps=step_list, tf_press_design=tf_press_design,
+               tf_press_flat=placement.tf_press_flat, layout=layout, extra=extra)
+
+
+def _check_trim(contact_xy_mm, outline_xy, press: PressConfig) -> float:
+    """Largest distance of a ball contact past the plate edge; refuse it beyond the trim allowance."""
+    beyond = float(distance_outside(outline_xy, contact_xy_mm).max())
+    if beyond > press.trim_allowance_mm:
+        raise GeometryError(
+            f"a punch ball touches the design surface {beyond:.0f} mm past the plate edge, beyond the "
+            f"press's trim allowance of {press.trim_allowance_mm:g} mm",
+            hint="raise [forming] trim_allowance_mm in the press description if the surface may be "
+                 "extended that far",
+        )
+    return beyond
+
+
+def _springback_report(surface) -> dict:
+    def radii(k):
+        return [None if abs(v) < 1e-12 else float(1.0 / v) for v in k]
+
+    return {
+        "enabled": True,
+        "method": "principal arcs at the plate centre replaced by over-bent arcs (docs/planning.md)",
+        "target_radii_mm": radii(surface.target_k),
+        "loaded_radii_mm": radii(surface.loaded_k),
+        "directions_uv": surface.directions.tolist(),
+    }
+
+
+def plan_summary(job: Job) -> dict:
+    """The figures an operator checks before pressing (for tables and ``--json``).
+
+    Returns
+    -------
+    dict
+        Registration, pose, strokes per matrix, steps and plate corners.
+    """
+    extra = job.extra
+    final = job.steps[-1]
+    act = final.active
+
+    def matrix(values, limits, flat_mm):
+        vals = values[act]
+        return {"active": int(act.sum()), "parked": int((~act).sum()), "park_mm": limits.park_mm,
+                "min_mm": float(vals.min()), "max_mm": float(vals.max()),
+                "limits_mm": [limits.min_mm, limits.max_mm],
+                "max_travel_mm": float(np.abs(vals - flat_mm).max())}
+
+    reg = extra.get("registration", {})
+    return {
+        "press": job.press.name,
+        "matrix": [job.press.rows, job.press.cols],
+        "thickness_mm": job.thickness_mm,
+        "inputs": extra.get("inputs", {}),
+        "registration": {k: reg.get(k) for k in ("method", "rms_mm", "iterations", "rotation_deg",
+                                                  "neighbour_strain_p95_pct", "area_mismatch_pct")},
+        "pose": extra.get("pose", {}),
+        "n_steps": len(job.steps),
+        "upper": matrix(final.upper_mm, job.press.upper, job.thickness_mm),
+        "lower": matrix(final.lower_mm, job.press.lower, 0.0),
+        "max_travel_mm": extra.get("pose", {}).get("max_travel_mm"),
+        "min_gap_mm": extra.get("validation", {}).get("min_gap_mm"),
+        "max_neighbour_step_mm": extra.get("validation", {}).get("max_neighbour_step_mm"),
+        "plate_corners_mm": extra.get("plate_corners_mm"),
+        "plate_size_mm": extra.get("plate_size_mm"),
+        "margin_mm": 0.0 if job.layout is None else job.layout.margin_mm,
+        "springback": extra.get("springback", {"enabled": False}),
+    }

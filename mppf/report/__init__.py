@@ -1,0 +1,1 @@
+"""Reports: HTML pages and pictures (strain, strokes, deviation maps, convergence)."""

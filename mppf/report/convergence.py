@@ -1,0 +1,118 @@
+"""Pictures and the HTML report of a bend - measure - compare loop.
+
+:func:`convergence_figure` plots the largest absolute and the RMS deviation of every
+cycle against the two limits; :func:`loop_report` is one self-contained HTML page with
+the cycle table, the convergence chart, pictures of the plate and of each cycle (built
+from :mod:`mppf.report.html`'s building blocks).
+"""
+
+from __future__ import annotations
+
+import html
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from mppf.loop.history import CycleRecord, PlateRecord
+from mppf.report.html import image_html, render_page, table_html
+from mppf.report.deviation import figure_png, punch_map_figure
+
+
+def convergence_figure(cycles: Sequence[CycleRecord], tolerance_mm: float, rms_tolerance_mm: float) -> Figure:
+    """Largest absolute and RMS deviation per cycle, with the limits as dashed lines."""
+    measured = [c for c in cycles if c.max_abs_mm is not None]
+    n = [c.cycle for c in measured]
+    fig = Figure(figsize=(6.5, 4), layout="constrained")
+    ax = fig.subplots()
+    ax.plot(n, [c.max_abs_mm for c in measured], "o-", color="tab:red", label="largest |deviation|")
+    ax.plot(n, [c.rms_mm for c in measured], "s-", color="tab:blue", label="RMS deviation")
+    ax.axhline(tolerance_mm, color="tab:red", linestyle="--", linewidth=1, label=f"limit {tolerance_mm:g} mm")
+    ax.axhline(rms_tolerance_mm, color="tab:blue", linestyle="--", linewidth=1,
+               label=f"RMS limit {rms_tolerance_mm:g} mm")
+    ax.set_xlabel("press cycle")
+    ax.set_ylabel("deviation from the design (mm)")
+    ax.set_xticks(n or [1])
+    ax.set_ylim(bottom=0)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title("Convergence of the loop", fontsize=10)
+    return fig
+
+
+def plot_convergence(cycles: Sequence[CycleRecord], path, tolerance_mm: float, rms_tolerance_mm: float) -> Path:
+    """Draw :func:`convergence_figure` and save it; return the path."""
+    path = Path(path)
+    convergence_figure(cycles, tolerance_mm, rms_tolerance_mm).savefig(path, dpi=120)
+    return path
+
+
+def plot_punch_deviation(comparison, punch_x_mm, punch_y_mm, path) -> Path:
+    """Draw the deviation at the punches of a comparison and save it; return the path."""
+    path = Path(path)
+    punch_map_figure(comparison, punch_x_mm, punch_y_mm).savefig(path, dpi=110)
+    return path
+
+
+def cycle_rows(cycles: Sequence[CycleRecord]) -> list[tuple]:
+    """One row per cycle: cycle, steps, max |dev|, RMS, within %, gain, decision, scan SHA-256."""
+    return [
+        (c.cycle, f"{c.steps_done}/{len(c.steps)}" + (" (interrupted)" if c.interrupted else ""),
+         np.nan if c.max_abs_mm is None else c.max_abs_mm, np.nan if c.rms_mm is None else c.rms_mm,
+         np.nan if c.within_pct is None else c.within_pct, np.nan if c.gain is None else c.gain,
+         c.decision or c.state, (c.scan_sha256 or "")[:12])
+        for c in cycles
+    ]
+
+
+CYCLE_HEADER = ("cycle", "steps", "max |dev| (mm)", "RMS (mm)", "within tolerance (%)", "gain", "decision",
+                "scan SHA-256")
+
+
+def loop_report(
+    plate: PlateRecord,
+    cycles: Sequence[CycleRecord],
+    *,
+    tolerance_mm: float,
+    rms_tolerance_mm: float,
+    pictures: Sequence[tuple[str, bytes]] = (),
+    cycle_pictures: Mapping[int, Sequence[tuple[str, bytes]]] | None = None,
+    intro: str = "",
+) -> str:
+    """The HTML report of a plate's loop.
+
+    Parameters
+    ----------
+    plate : PlateRecord
+    cycles : sequence of CycleRecord
+    tolerance_mm, rms_tolerance_mm : float
+    pictures : sequence of (caption, png bytes)
+        Pictures of the plate (strain, strokes...).
+    cycle_pictures : mapping cycle -> sequence of (caption, png bytes)
+        Pictures of each cycle (deviation map, deviation at the punches).
+    intro : str
+
+    Returns
+    -------
+    str
+        The HTML document.
+    """
+    status = plate.status if plate.status != "active" else "running"
+    summary = table_html([
+        ("plate", plate.plate_id), ("result", status), ("design", f"{plate.design_path} ({plate.design_sha256[:12]})"),
+        ("flat", f"{plate.flat_path} ({plate.flat_sha256[:12]})"), ("thickness (mm)", plate.thickness_mm),
+        ("limits", f"largest |deviation| <= {tolerance_mm:g} mm and RMS <= {rms_tolerance_mm:g} mm"),
+    ])
+    sections = [("Summary", summary + table_html(cycle_rows(cycles), CYCLE_HEADER)),
+                ("Convergence", image_html(figure_png(convergence_figure(cycles, tolerance_mm, rms_tolerance_mm)),
+                                           "convergence"))]
+    if pictures:
+        sections.append(("Plate and strokes", _figures(pictures)))
+    for number, shots in sorted((cycle_pictures or {}).items()):
+        sections.append((f"Cycle {number}", _figures(shots)))
+    return render_page(f"Bend - measure - compare: plate {plate.plate_id}", sections, intro)
+
+
+def _figures(pictures: Sequence[tuple[str, bytes]]) -> str:
+    return "\n".join(image_html(png, caption) + f"<p>{html.escape(caption)}</p>" for caption, png in pictures)

@@ -1,0 +1,162 @@
+"""Deviation pictures of a comparison: a colour map on the design plate, a histogram.
+
+The map shows the design plate in its own frame (u along its longest extent, v across,
+seen from the +normal side): the measured points coloured by their signed deviation
+with a diverging colour map centred on 0 (blue below the design, red above), the
+tolerance as black contour lines, outliers as black crosses and the design outline. With a
+trim margin, the points in the margin are grey dots (not counted) inside the grown outline
+(dashed).
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+from matplotlib.colors import TwoSlopeNorm
+from matplotlib.figure import Figure
+from matplotlib.tri import Triangulation
+
+from mppf.core.polygon import convex_outline, offset_convex
+from mppf.measure.compare import Comparison
+
+CMAP = "RdBu_r"
+"""Diverging colour map: blue = below the design, red = above."""
+
+
+def _colour_limit(comparison: Comparison) -> float:
+    d = comparison.deviation_mm[comparison.inlier]
+    big = float(np.max(np.abs(d))) if d.size else 0.0
+    return max(big, 1.2 * comparison.tolerance_mm, 0.1)
+
+
+def _triangulation(uv: np.ndarray) -> Triangulation | None:
+    """Delaunay triangulation of the points without the long triangles spanning scan gaps."""
+    if uv.shape[0] < 10:
+        return None
+    try:
+        tri = Triangulation(uv[:, 0], uv[:, 1])
+    except (ValueError, RuntimeError):  # degenerate (collinear) points
+        return None
+    corners = uv[tri.triangles]
+    edges = np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2).max(axis=1)
+    tri.set_mask(edges > 4.0 * np.median(edges))
+    return tri
+
+
+def deviation_map_figure(comparison: Comparison, title: str | None = None) -> Figure:
+    """The colour deviation map as a matplotlib Figure (see the module docstring)."""
+    c = comparison
+    uv = c.measured_uv_mm
+    inl = c.inlier
+    limit = _colour_limit(c)
+    fig = Figure(figsize=(10, 6.2), layout="constrained")
+    ax = fig.subplots()
+    outline = convex_outline(c.design_uv_mm, "the design")
+    ring = np.vstack([outline, outline[:1]])
+    ax.fill(ring[:, 0], ring[:, 1], color="0.92", zorder=0, label="design plate")
+    ax.plot(ring[:, 0], ring[:, 1], color="black", linestyle="-", linewidth=1.2, zorder=4)
+    if c.margin_mm > 0:
+        grown = offset_convex(outline, c.margin_mm)
+        grown = np.vstack([grown, grown[:1]])
+        ax.plot(grown[:, 0], grown[:, 1], color="0.4", linestyle="--", linewidth=0.9, zorder=4)
+        if c.in_margin.any():
+            ax.plot(uv[c.in_margin, 0], uv[c.in_margin, 1], ".", color="0.6", markersize=2, zorder=1,
+                    label=f"trim margin {c.margin_mm:g} mm ({int(c.in_margin.sum())} points, not counted)")
+    norm = TwoSlopeNorm(vcenter=0.0, vmin=-limit, vmax=limit)
+    d = c.deviation_mm[inl]
+    tri = _triangulation(uv[inl])
+    if tri is not None:
+        # a continuous colour field over the scanned area (gaps of the scan stay grey)
+        sc = ax.tripcolor(tri, d, cmap=CMAP, norm=norm, shading="gouraud", zorder=2)
+        if d.min() < -c.tolerance_mm or d.max() > c.tolerance_mm:
+            ax.tricontour(tri, d, levels=[-c.tolerance_mm, c.tolerance_mm], colors="black", linewidths=0.9,
+                          linestyles=["--", "-"], zorder=3)
+    else:
+        sc = ax.scatter(uv[inl, 0], uv[inl, 1], c=d, cmap=CMAP, norm=norm, s=12, linewidths=0, zorder=2)
+    if c.is_outlier.any():
+        ax.plot(uv[c.is_outlier, 0], uv[c.is_outlier, 1], "x", color="black", markersize=4, zorder=4,
+                label=f"outliers ({int(c.is_outlier.sum())}, not counted)")
+    bar = fig.colorbar(sc, ax=ax, shrink=0.9, extend="both")
+    bar.set_label("deviation along the design normal (mm)")
+    for level in (-c.tolerance_mm, c.tolerance_mm):
+        bar.ax.axhline(level, color="black", linewidth=1.2)
+    ax.set_aspect("equal")
+    ax.set_xlabel("u (mm, design frame)")
+    ax.set_ylabel("v (mm, design frame)")
+    verdict = "IN tolerance" if c.in_tolerance else "OUT of tolerance"
+    ax.set_title(title or f"Deviation from design: RMS {c.rms_mm:.2f} mm, max |d| {c.max_abs_mm:.2f} mm, "
+                          f"{c.within_tolerance_pct:.1f} % within +-{c.tolerance_mm:g} mm ({verdict})",
+                 fontsize=10)
+    ax.legend(loc="upper right", fontsize=8)
+    return fig
+
+
+def histogram_figure(comparison: Comparison) -> Figure:
+    """Histogram of the inlier deviations with the tolerance band, as a Figure."""
+    c = comparison
+    edges, counts = c.histogram_edges_mm, c.histogram_counts
+    fig = Figure(figsize=(8, 3.6), layout="constrained")
+    ax = fig.subplots()
+    centres = 0.5 * (edges[1:] + edges[:-1])
+    inside = np.abs(centres) <= c.tolerance_mm
+    ax.bar(centres, counts, width=np.diff(edges), color=np.where(inside, "#4c72b0", "#c44e52"),
+           edgecolor="white", linewidth=0.5)
+    ax.axvspan(-c.tolerance_mm, c.tolerance_mm, color="green", alpha=0.08, label=f"tolerance +-{c.tolerance_mm:g} mm")
+    ax.axvline(0.0, color="black", linewidth=0.8)
+    ax.set_xlabel("deviation (mm)")
+    ax.set_ylabel("points")
+    ax.set_title(f"{c.n_inliers} points, mean {c.mean_mm:+.2f} mm, RMS {c.rms_mm:.2f} mm", fontsize=10)
+    ax.legend(fontsize=8)
+    return fig
+
+
+def punch_map_figure(comparison: Comparison, punch_x_mm, punch_y_mm) -> Figure:
+    """Deviation at each punch (press z) on the punch grid; interpolated punches hatched."""
+    c = comparison
+    x, y = np.asarray(punch_x_mm, dtype=float), np.asarray(punch_y_mm, dtype=float)
+    values = np.ma.masked_invalid(c.punch_deviation_mm)
+    limit = max(float(np.nanmax(np.abs(c.punch_deviation_mm))) if np.isfinite(c.punch_deviation_mm).any()
+                else 0.0, c.tolerance_mm, 0.1)
+    fig = Figure(figsize=(10, 5.5), layout="constrained")
+    ax = fig.subplots()
+    dx = np.diff(x).mean() if x.size > 1 else 1.0
+    dy = np.diff(y).mean() if y.size > 1 else 1.0
+    edges_x = np.concatenate([x - dx / 2, [x[-1] + dx / 2]])
+    edges_y = np.concatenate([y - dy / 2, [y[-1] + dy / 2]])
+    mesh = ax.pcolormesh(edges_x, edges_y, values, cmap=CMAP, norm=TwoSlopeNorm(0.0, -limit, limit),
+                         edgecolors="white", linewidth=0.3)
+    gx, gy = np.meshgrid(x, y)
+    interp = c.punch_interpolated
+    ax.plot(gx[interp], gy[interp], "o", markerfacecolor="none", markeredgecolor="black", markersize=5,
+            label="interpolated (no scan data)")
+    fig.colorbar(mesh, ax=ax, label="plate deviation along press z (mm)")
+    ax.set_aspect("equal")
+    ax.set_xlabel("press x (mm)")
+    ax.set_ylabel("press y (mm)")
+    ax.set_title("Deviation at the punches (positive = plate above the design)", fontsize=10)
+    if interp.any():
+        ax.legend(fontsize=8, loc="upper right")
+    return fig
+
+
+def figure_png(fig: Figure, dpi: int = 110) -> bytes:
+    """PNG bytes of a figure (for embedding in the HTML report)."""
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=dpi)
+    return buffer.getvalue()
+
+
+def plot_deviation(comparison: Comparison, path, title: str | None = None) -> Path:
+    """Draw the colour deviation map and save it (.png, .pdf or .svg); return the path."""
+    path = Path(path)
+    deviation_map_figure(comparison, title).savefig(path, dpi=120)
+    return path
+
+
+def plot_histogram(comparison: Comparison, path) -> Path:
+    """Draw the deviation histogram and save it; return the path."""
+    path = Path(path)
+    histogram_figure(comparison).savefig(path, dpi=120)
+    return path

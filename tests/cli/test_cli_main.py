@@ -1,0 +1,100 @@
+"""The top-level ``mppf`` command: exit codes, --debug, --version, usage errors."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import click
+import pytest
+
+import mppf
+from mppf.cli import cli, main
+from mppf.core.errors import EXIT_BUG, EXIT_INPUT, EXIT_LINK, EXIT_PRESS, PressRefused
+
+
+@pytest.fixture()
+def failing_commands():
+    """Two extra commands on the real group: one refused by the press, one with a bug."""
+
+    @click.command("qa-refused")
+    def refused():
+        raise PressRefused("the PLC refused GO: punch 3 not homed", hint="home the punches, then retry")
+
+    @click.command("qa-bug")
+    def bug():
+        return {}["missing key"]
+
+    cli.add_command(refused)
+    cli.add_command(bug)
+    yield
+    del cli.commands["qa-refused"]
+    del cli.commands["qa-bug"]
+
+
+def test_version(capsys):
+    assert main(["--version"]) == 0
+    assert capsys.readouterr().out.strip() == f"mppf, version {mppf.__version__}"
+
+
+def test_help_lists_the_geometry_commands(capsys):
+    assert main(["--help"]) == 0
+    out = capsys.readouterr().out
+    assert "fit" in out and "register" in out and "--debug" in out
+
+
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (["no-such-command"], "No such command"),
+        (["fit"], "Missing argument"),
+        (["fit", "a.csv", "--degree", "7"], "--degree"),
+        (["register", "a.csv"], "Missing argument"),
+        (["register", "a.csv", "b.csv", "--method", "magic"], "--method"),
+        (["register", "a.csv", "b.csv", "--max-iterations", "many"], "--max-iterations"),
+        (["fit", "a.csv", "--no-such-option"], "No such option"),
+    ],
+)
+def test_usage_errors_exit_2(args, words, capsys):
+    assert main(args) == EXIT_INPUT
+    err = capsys.readouterr().err
+    assert words in err and "Traceback" not in err
+
+
+def test_input_error_exit_2_without_traceback_unless_debug(tmp_path, capsys):
+    missing = str(tmp_path / "gone.csv")
+    assert main(["fit", missing]) == EXIT_INPUT
+    err = capsys.readouterr().err
+    assert "gone.csv: file not found" in " ".join(err.split()) and "Traceback" not in err
+    assert main(["--debug", "fit", missing]) == EXIT_INPUT
+    err = capsys.readouterr().err
+    assert "Traceback" in err and "FileFormatError" in err and "file not found" in err
+
+
+def test_link_failure_exit_3(capsys):
+    # port 1 on this machine: nothing listens, the connection is refused at once
+    assert main(["status", "--plc", "tcp://127.0.0.1:1?unit=1"]) == EXIT_LINK
+    err = capsys.readouterr().err
+    assert "cannot connect" in err and "Traceback" not in err
+
+
+def test_press_refusal_exit_4(failing_commands, capsys):
+    assert main(["qa-refused"]) == EXIT_PRESS
+    err = " ".join(capsys.readouterr().err.split())
+    assert "refused GO: punch 3 not homed" in err and "home the punches" in err
+
+
+def test_bug_exit_1_with_traceback_only_under_debug(failing_commands, capsys):
+    assert main(["qa-bug"]) == EXIT_BUG
+    err = capsys.readouterr().err
+    assert "internal error" in err and "KeyError" in err and "Traceback" not in err
+    assert main(["--debug", "qa-bug"]) == EXIT_BUG
+    assert "Traceback" in capsys.readouterr().err
+
+
+def test_console_script_exit_code_and_stderr(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "mppf", "register", str(tmp_path / "a.csv"),
+                           str(tmp_path / "b.csv")], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == EXIT_INPUT
+    assert "a.csv: file not found" in " ".join(proc.stderr.split())
+    assert "Traceback" not in proc.stderr and proc.stdout == ""

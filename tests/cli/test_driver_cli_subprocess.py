@@ -1,0 +1,146 @@
+"""The press commands as an operator runs them: ``mppf press/status/stop/reset`` against a
+``mppf sim`` running in its own process, Ctrl-C delivered as a real SIGINT."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+from driver_helpers import small_job, small_press
+
+from mppf.cli import main
+from mppf.drivers.audit import AuditLog
+from mppf.planning.job import load_job, save_job
+from mppf.planning.press import example_press_path
+
+pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+
+ROWS, COLS = 4, 6
+
+
+@pytest.fixture
+def env(tmp_path):
+    return dict(os.environ, MPPF_HOME=str(tmp_path / "home"))
+
+
+@pytest.fixture
+def press_toml(tmp_path):
+    """The example press cut down to ROWS x COLS, as a file for ``mppf sim --press``."""
+    text = example_press_path().read_text()
+    text, n_rows = re.subn(r"(?m)^rows = \d+", f"rows = {ROWS}", text)
+    text, n_cols = re.subn(r"(?m)^cols = \d+", f"cols = {COLS}", text)
+    assert n_rows == n_cols == 1
+    path = tmp_path / "press.toml"
+    path.write_text(text)
+    return path
+
+
+def start_sim(env, press_toml, *args):
+    """``mppf sim`` on a free port in its own process; return (process, URL)."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "mppf", "sim", "--port", "0", "--press", str(press_toml), "--status-every", "100",
+         *args],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+    )
+    line = proc.stdout.readline()
+    match = re.search(r"tcp://127\.0\.0\.1:\d+\?unit=1", line)
+    if not match:
+        proc.kill()
+        raise AssertionError(f"mppf sim did not start: {line}{proc.communicate(timeout=10)[1]}")
+    return proc, match.group(0)
+
+
+def end_sim(proc):
+    proc.send_signal(signal.SIGINT)
+    try:
+        out, err = proc.communicate(timeout=10)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0, err
+    assert "simulated PLC stopped" in out
+
+
+def status(url, capsys) -> dict:
+    assert main(["status", "--plc", url, "--json"]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def audit_entries(path):
+    if not path.exists():
+        return []
+    with AuditLog(path) as log:
+        return log.entries()
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_ctrl_c_or_sigterm_to_mppf_press_stops_the_plc_and_exits_130(tmp_path, env, press_toml, capsys, signum):
+    job_path = save_job(small_job(small_press(ROWS, COLS), n_steps=1), tmp_path / "job.json")
+    audit = tmp_path / "audit.sqlite"
+    # real time and no watchdog: a move of ~370 mm takes ~19 s, and only a STOP ends it early
+    sim, url = start_sim(env, press_toml, "--time-scale", "1", "--watchdog", "0")
+    try:
+        press = subprocess.Popen(
+            [sys.executable, "-m", "mppf", "press", str(job_path), "--plc", url, "--yes", "--audit", str(audit)],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+        )
+        try:
+            deadline = time.monotonic() + 30.0
+            while not any(e.action == "go" for e in audit_entries(audit)):
+                assert press.poll() is None, press.communicate()[1]
+                assert time.monotonic() < deadline, "mppf press did not send GO"
+                time.sleep(0.05)
+            time.sleep(0.5)  # the punches are moving
+            assert status(url, capsys)["status"]["busy"]
+            press.send_signal(signum)
+            out, err = press.communicate(timeout=20)
+        finally:
+            press.kill()
+        err = " ".join(err.split())
+        assert press.returncode == 130, err
+        assert "cancelled by the operator; STOP was sent" in err and "Traceback" not in err
+        entries = audit_entries(audit)
+        assert [(e.action, e.outcome) for e in entries][-2:] == [("go", "ok"), ("stop", "ok")]
+        assert {e.job_sha256 for e in entries} == {load_job(job_path).sha256()}
+        assert entries[-1].sequence == entries[-2].sequence == 1
+        # the PLC stopped (no watchdog could have done it) short of the targets
+        time.sleep(0.3)  # braking from 20 mm/s at 100 mm/s^2 takes 0.2 s
+        report = status(url, capsys)
+        assert not report["status"]["busy"] and not report["status"]["in_position"]
+        assert not report["status"]["fault"] and report["motion_sequence"] == 1
+    finally:
+        end_sim(sim)
+
+
+def test_status_stop_reset_against_a_sim_process(tmp_path, env, press_toml, capsys):
+    audit = tmp_path / "audit.sqlite"
+    sim, url = start_sim(env, press_toml, "--word-order", "CDAB", "--fault", "estop")
+    try:
+        report = status(url, capsys)
+        assert (report["rows"], report["cols"], report["word_order"]) == (ROWS, COLS, "CDAB")
+        assert report["status"]["estop"] and report["fault_text"].startswith("ESTOP")
+        assert main(["stop", "--plc", url, "--audit", str(audit)]) == 0
+        assert "STOP sent" in capsys.readouterr().out
+        assert main(["reset", "--plc", url, "--audit", str(audit)]) == 4  # the e-stop is still pressed
+        assert "refused RESET" in " ".join(capsys.readouterr().err.split())
+        assert status(url, capsys)["status"]["fault"]  # latched: nothing cleared it
+    finally:
+        end_sim(sim)
+    assert [(e.action, e.outcome) for e in audit_entries(audit) if e.action != "connect"] == [
+        ("stop", "ok"), ("reset", "refused")]
+
+    sim, url = start_sim(env, press_toml, "--fault", "overpressure")
+    try:
+        report = status(url, capsys)
+        assert report["status"]["fault"] and report["fault_text"].startswith("OVERPRESSURE")
+        assert main(["reset", "--plc", url, "--audit", str(audit)]) == 0
+        assert "faults reset" in capsys.readouterr().out
+        report = status(url, capsys)
+        assert report["status"]["ready"] and not report["status"]["fault"] and report["fault_code"] == 0
+    finally:
+        end_sim(sim)

@@ -1,0 +1,466 @@
+"""The Modbus press driver against the simulated PLC over real TCP sockets.
+
+No mocks: every test starts the simulated PLC (a pymodbus server on a loopback port)
+and talks Modbus to it. Faults are injected in the simulator at precise moments of a
+step through a :class:`HookReporter`.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+import time
+
+import numpy as np
+import pytest
+from driver_helpers import HookReporter, small_press, step_setpoints
+
+from mppf.drivers.audit import AuditLog
+from mppf.drivers.modbus import ModbusPress, motion_time_s
+from mppf.drivers.modbus_adapter import ModbusAdapter
+from mppf.drivers.regmap import load_register_map
+from mppf.drivers.url import parse_plc_url
+from mppf.core.errors import Cancelled, ConfigError, InputError, LimitError, LinkError, PressFault, PressRefused
+from mppf.sim.plc import start_simulated_plc
+
+FAST = 50.0  # simulated seconds per wall second for ordinary steps
+
+
+@pytest.fixture
+def press():
+    return small_press()
+
+
+@pytest.fixture
+def start_sim(press):
+    """Start simulated PLCs (TCP on a free loopback port); all stopped at the end."""
+    handles = []
+
+    def start(**options):
+        options.setdefault("time_scale", FAST)
+        handle = start_simulated_plc(options.pop("press", press), **options)
+        handles.append(handle)
+        return handle
+
+    yield start
+    for handle in handles:
+        handle.stop()
+
+
+@pytest.fixture
+def audit(tmp_path):
+    log = AuditLog(tmp_path / "audit.sqlite")
+    yield log
+    log.close()
+
+
+def actions(log: AuditLog) -> list[tuple[str, str]]:
+    return [(e.action, e.outcome) for e in log.entries()]
+
+
+@pytest.mark.parametrize("word_order", ["ABCD", "CDAB"])
+def test_upload_verify_go_complete(start_sim, press, audit, word_order):
+    sim = start_sim(word_order=word_order)
+    upper, lower = step_setpoints(press)
+    upper[2, 3] = -12.34  # a negative value exercises the sign of the int32 encoding
+    reporter = HookReporter()
+    with ModbusPress(sim.url, press, audit=audit, job_sha256="f" * 64) as plc:
+        assert plc.identity.word_order == word_order
+        assert (plc.identity.rows, plc.identity.cols) == press.shape
+        first = plc.run_step(upper, lower, reporter=reporter)
+        second = plc.run_step(upper - 5.0, lower + 5.0)
+    # the PLC holds exactly the setpoints and the punches stand on them
+    sim_upper, sim_lower = sim.setpoints_mm()
+    np.testing.assert_allclose(sim_upper, upper - 5.0, atol=1e-9)
+    np.testing.assert_allclose(sim_lower, lower + 5.0, atol=1e-9)
+    act_upper, act_lower = sim.actual_positions_mm()
+    np.testing.assert_allclose(act_upper, upper - 5.0, atol=press.position_tolerance_mm)
+    np.testing.assert_allclose(second.actual_upper_mm, act_upper, atol=0.005)
+    np.testing.assert_allclose(first.target_upper_mm, upper, atol=1e-9)
+    assert first.max_error_mm <= press.position_tolerance_mm
+    assert second.sequence == first.sequence + 1  # a new sequence per upload
+    # the motion took about as long as the hydraulics need at the time scale
+    travel = max(np.abs(upper - press.upper.park_mm).max(), np.abs(lower - press.lower.park_mm).max())
+    expected_s = motion_time_s(travel, press.speed_mm_s, press.accel_mm_s2) / FAST
+    assert expected_s * 0.8 < first.duration_s < expected_s + 0.5
+    # progress: upload, then motion
+    assert reporter.tasks[0].startswith("upload") and reporter.tasks[1].startswith("motion")
+    assert any("verified" in m for m in reporter.messages)
+    # the audit log has the handshake in order, with sequence and job hash
+    steps = [a for a in actions(audit) if a[0] != "connect"]
+    assert steps == [("upload", "ok"), ("validate", "ok"), ("go", "ok"), ("complete", "ok")] * 2
+    rows = [e for e in audit.entries() if e.action == "go"]
+    assert [e.sequence for e in rows] == [first.sequence, second.sequence]
+    assert all(e.job_sha256 == "f" * 64 and e.plc == str(parse_plc_url(sim.url)) for e in rows)
+
+
+def test_strokes_beyond_limits_are_refused_before_any_write(start_sim, press, audit):
+    sim = start_sim()
+    upper, lower = step_setpoints(press)
+    upper[1, 2] = press.upper.max_mm + 10.0
+    lower[3, 5] = press.lower.min_mm - 1.0
+    before = sim.setpoints_mm()
+    with ModbusPress(sim.url, press, audit=audit) as plc:
+        status_before = plc.status_report()
+        with pytest.raises(LimitError) as info:
+            plc.run_step(upper, lower)
+        status_after = plc.status_report()
+    message = str(info.value)
+    assert "2 setpoint(s) beyond" in message and "nothing was written" in message
+    assert "upper punch 8 (row 1, col 2)" in message and f"{press.upper.max_mm + 10.0:.2f}" in message
+    assert "lower punch 23 (row 3, col 5)" in message
+    # nothing reached the PLC: setpoints, sequence, CRC handshake untouched
+    after = sim.setpoints_mm()
+    for a, b in zip(before, after):
+        np.testing.assert_array_equal(a, b)
+    for key in ("acknowledged_sequence", "motion_sequence", "refusal_code"):
+        assert status_after[key] == status_before[key]
+    assert ("upload", "ok") not in actions(audit)
+    assert ("limits", "refused") in actions(audit)
+
+
+def test_a_plc_limit_tighter_than_the_press_description_is_checked_too(start_sim, press):
+    doc = press.to_dict()
+    doc["upper"]["max_mm"] = 100.0
+    doc["upper"]["park_mm"] = 100.0
+    from mppf.planning.press import press_from_dict
+
+    sim = start_sim(press=press_from_dict(doc))
+    upper, lower = step_setpoints(press, upper_mm=95.0)  # up to 115 mm: fine for the press file
+    with ModbusPress(sim.url, press) as plc, pytest.raises(LimitError, match="limits -300.00..100.00"):
+        plc.run_step(upper, lower)
+
+
+def test_bad_setpoint_arrays_are_input_errors(start_sim, press):
+    sim = start_sim()
+    upper, lower = step_setpoints(press)
+    with ModbusPress(sim.url, press) as plc:
+        with pytest.raises(InputError, match="shape"):
+            plc.run_step(upper[:2], lower)
+        upper[0, 1] = np.nan
+        with pytest.raises(InputError, match="NaN"):
+            plc.run_step(upper, lower)
+
+
+def test_link_dropped_mid_upload_no_go_then_a_retry_works(start_sim, press, audit):
+    sim = start_sim(watchdog_s=None)
+    upper, lower = step_setpoints(press)
+    with ModbusPress(sim.url, press, audit=audit, heartbeat_s=None, timeout_s=0.5) as plc:
+        sim.inject("drop", after_writes=1, duration_s=1.5)  # the first setpoint frame is lost
+        with pytest.raises(LinkError) as info:
+            plc.run_step(upper, lower)
+        assert "before GO" in str(info.value) and "did not move" in str(info.value)
+        flags = sim.status_bits()
+        assert not flags["busy"] and not flags["data_valid"]
+        assert ("go", "ok") not in actions(audit) and ("upload", "failed") in actions(audit)
+        time.sleep(1.6)  # the link comes back
+        result = plc.run_step(upper, lower)
+    assert result.max_error_mm <= press.position_tolerance_mm
+    assert actions(audit)[-2:] == [("go", "ok"), ("complete", "ok")]
+
+
+def test_plc_restart_during_motion_is_detected(start_sim, press, audit):
+    sim = start_sim(time_scale=5.0)
+    upper, lower = step_setpoints(press)
+
+    def restart(task):
+        if task.startswith("motion"):
+            sim.restart(downtime_s=0.3)
+
+    with ModbusPress(sim.url, press, audit=audit) as plc:
+        with pytest.raises((LinkError, PressFault)) as info:
+            plc.run_step(upper, lower, reporter=HookReporter(on_start=restart))
+        assert "restarted" in str(info.value)
+        st = plc.status()
+    assert not st.busy and st.acknowledged_sequence == 0
+    assert ("stop", "ok") in actions(audit)
+
+
+def test_link_lost_during_motion_stop_after_reconnect(start_sim, press, audit):
+    sim = start_sim(time_scale=5.0, watchdog_s=None)
+    upper, lower = step_setpoints(press)
+
+    def drop(task):
+        if task.startswith("motion"):
+            sim.drop_connections(0.4)
+
+    with ModbusPress(sim.url, press, audit=audit, timeout_s=0.3) as plc:
+        with pytest.raises(LinkError) as info:
+            plc.run_step(upper, lower, reporter=HookReporter(on_start=drop))
+    message = str(info.value)
+    assert "after GO" in message and "STOP was sent after reconnecting" in message
+    assert "restarted" not in message
+    assert [e.detail.startswith("link lost") for e in audit.entries() if e.action == "stop"] == [True]
+    flags = sim.wait_idle(3.0)
+    assert not flags["busy"] and not flags["in_position"]  # stopped short of the targets
+
+
+def test_estop_during_motion_stops_and_reports(start_sim, press, audit):
+    sim = start_sim(time_scale=10.0)
+    upper, lower = step_setpoints(press)
+    sim.inject("estop", after_s=2.0)  # 2 simulated s into the motion
+    with ModbusPress(sim.url, press, audit=audit) as plc:
+        with pytest.raises(PressFault) as info:
+            plc.run_step(upper, lower)
+        assert "ESTOP" in str(info.value) and "STOP was sent" in str(info.value)
+        assert ("stop", "ok") in actions(audit)
+        assert not sim.wait_idle(2.0)["busy"]
+        # latched: a new step is refused until the cause is gone and RESET is sent
+        with pytest.raises(PressRefused, match="e-stop"):
+            plc.run_step(upper, lower)
+        with pytest.raises(PressRefused, match="ESTOP_ACTIVE"):
+            plc.reset()
+        sim.release_estop()
+        assert plc.status().fault  # still latched: reset only on request
+        plc.reset()
+        assert plc.status().ready
+        result = plc.run_step(upper, lower)
+    assert result.max_error_mm <= press.position_tolerance_mm
+
+
+def test_stuck_punch_is_named_from_the_actual_positions(start_sim, press):
+    sim = start_sim()
+    upper, lower = step_setpoints(press)
+    sim.inject("stuck", matrix="lower", row=2, col=4, percent=50)
+    with ModbusPress(sim.url, press) as plc, pytest.raises(PressFault) as info:
+        plc.run_step(upper, lower)
+    message = str(info.value)
+    assert "1 punch(es) not in position" in message
+    assert f"lower (row 2, col 4) target {lower[2, 4]:.2f} mm" in message
+    actual = sim.actual_positions_mm()[1][2, 4]
+    assert f"actual {actual:.2f} mm" in message
+
+
+def test_stuck_punch_fault_of_the_plc_names_the_punch(start_sim, press):
+    sim = start_sim()
+    upper, lower = step_setpoints(press)
+    sim.inject("stuck", matrix="upper", row=0, col=1, percent=30, fault_after_s=0.5)
+    with ModbusPress(sim.url, press) as plc, pytest.raises(PressFault) as info:
+        plc.run_step(upper, lower)
+    assert "STUCK_PUNCH" in str(info.value) and "upper (row 0, col 1)" in str(info.value)
+
+
+def test_a_halted_plc_program_is_detected_from_its_stale_heartbeat(start_sim, press, audit):
+    sim = start_sim(time_scale=5.0)
+    upper, lower = step_setpoints(press)
+    sim.inject("freeze", after_s=1.0)  # the PLC program halts 1 s into the motion; the link still answers
+    t0 = time.monotonic()
+    with ModbusPress(sim.url, press, audit=audit) as plc, pytest.raises(PressFault) as info:
+        plc.run_step(upper, lower)
+    assert time.monotonic() - t0 < 5.0  # long before the motion timeout (about 45 s here)
+    assert "the PLC heartbeat stayed at" in str(info.value) and "PLC program is not running" in str(info.value)
+    assert "stop the press at the machine" in info.value.hint
+    assert ("stop", "ok") in actions(audit) and ("complete", "ok") not in actions(audit)
+
+
+def test_watchdog_expiry_when_the_heartbeat_stops(start_sim, press, audit):
+    sim = start_sim(time_scale=5.0, watchdog_s=0.3)
+    upper, lower = step_setpoints(press)
+    with ModbusPress(sim.url, press, audit=audit, heartbeat_s=0.1) as plc:
+        hook = HookReporter(on_start=lambda task: task.startswith("motion") and plc.stop_heartbeat())
+        with pytest.raises(PressFault, match="WATCHDOG"):
+            plc.run_step(upper, lower, reporter=hook)
+        assert not sim.wait_idle(2.0)["busy"]
+        plc.start_heartbeat()
+        plc.reset()
+        assert not plc.status().fault
+
+
+def test_foreign_write_between_verification_and_go_is_refused(start_sim, press, audit):
+    sim = start_sim()
+    upper, lower = step_setpoints(press)
+
+    def foreign(message):
+        if "validated by the PLC" in message:
+            sim.write_foreign_setpoint("upper", 1, 1, 55.5)
+
+    before = sim.actual_positions_mm()
+    with ModbusPress(sim.url, press, audit=audit) as plc:
+        with pytest.raises(PressRefused) as info:
+            plc.run_step(upper, lower, reporter=HookReporter(on_info=foreign))
+        st = plc.status_report()
+    assert "refused GO" in str(info.value) and "CRC_MISMATCH" in str(info.value)
+    assert "nothing moved" in str(info.value)
+    assert st["motion_sequence"] == 0 and not st["status"]["busy"]
+    for a, b in zip(before, sim.actual_positions_mm()):
+        np.testing.assert_array_equal(a, b)
+    assert ("go", "refused") in actions(audit)
+
+
+def test_foreign_write_during_upload_fails_verification_or_validation(start_sim, press, audit):
+    sim = start_sim()
+    upper, lower = step_setpoints(press)
+
+    def foreign(task):
+        if task.startswith("upload"):
+            sim.write_foreign_setpoint("lower", 3, 5, -1.0)
+
+    # the foreign value lands before our frames and is overwritten: the step succeeds
+    with ModbusPress(sim.url, press, audit=audit) as plc:
+        plc.run_step(upper, lower, reporter=HookReporter(on_start=foreign))
+
+        def foreign_after(message):
+            if "written and verified" in message:
+                sim.write_foreign_setpoint("lower", 3, 5, -1.0)
+
+        with pytest.raises(PressRefused, match="refused job .* CRC_MISMATCH"):
+            plc.run_step(upper + 1, lower, reporter=HookReporter(on_info=foreign_after))
+    assert ("validate", "refused") in actions(audit)
+
+
+def test_timeout_sends_stop(start_sim, press, audit):
+    sim = start_sim(time_scale=1.0)
+    upper, lower = step_setpoints(press)
+    with ModbusPress(sim.url, press, audit=audit) as plc, pytest.raises(PressFault, match="did not end within 0.3 s"):
+        plc.run_step(upper, lower, timeout_s=0.3)
+    assert ("stop", "ok") in actions(audit)
+    assert not sim.wait_idle(5.0)["busy"]
+
+
+def test_ctrl_c_during_motion_sends_stop_and_cancels(start_sim, press, audit):
+    sim = start_sim(time_scale=2.0)
+    upper, lower = step_setpoints(press)
+
+    def operator_presses_ctrl_c(completed):
+        raise KeyboardInterrupt
+
+    with ModbusPress(sim.url, press, audit=audit) as plc, pytest.raises(Cancelled, match="STOP was sent"):
+        plc.run_step(upper, lower, reporter=HookReporter(on_update=operator_presses_ctrl_c))
+    assert [e.detail for e in audit.entries() if e.action == "stop"] == ["cancelled by the operator"]
+    flags = sim.wait_idle(5.0)
+    assert not flags["busy"] and not flags["in_position"]  # stopped short of the targets
+
+
+def test_ctrl_c_again_while_stop_is_sent_repeats_the_stop(start_sim, press, audit):
+    sim = start_sim(time_scale=2.0, watchdog_s=None)  # no watchdog: only a STOP ends the motion
+    upper, lower = step_setpoints(press)
+    rmap = load_register_map()
+    interrupted = []
+
+    def operator_presses_ctrl_c(completed):
+        raise KeyboardInterrupt
+
+    with ModbusPress(sim.url, press, audit=audit) as plc:
+        send = plc._io.write_command
+
+        def write_command(address, words):
+            if address == rmap["command"].address and words[0] == rmap.command("STOP") and not interrupted:
+                interrupted.append(words)
+                raise KeyboardInterrupt  # the operator's second Ctrl-C, before the STOP frame left
+            return send(address, words)
+
+        plc._io.write_command = write_command
+        with pytest.raises(Cancelled, match="STOP was sent"):
+            plc.run_step(upper, lower, reporter=HookReporter(on_update=operator_presses_ctrl_c))
+    assert interrupted
+    assert [(e.outcome, e.detail) for e in audit.entries() if e.action == "stop"] == [
+        ("ok", "cancelled by the operator (Ctrl-C again: STOP repeated)")]
+    flags = sim.wait_idle(5.0)
+    assert not flags["busy"] and not flags["in_position"]
+
+
+def test_an_unexpected_error_after_go_sends_stop(start_sim, press, audit):
+    sim = start_sim(time_scale=2.0, watchdog_s=None)  # no watchdog: only a STOP ends the motion
+    upper, lower = step_setpoints(press)
+
+    def display_breaks(completed):
+        raise RuntimeError("the progress display broke")
+
+    with ModbusPress(sim.url, press, audit=audit) as plc, pytest.raises(RuntimeError, match="display broke"):
+        plc.run_step(upper, lower, reporter=HookReporter(on_update=display_breaks))
+    assert [(e.outcome, e.detail) for e in audit.entries() if e.action == "stop"] == [
+        ("ok", "unexpected error: RuntimeError: the progress display broke")]
+    flags = sim.wait_idle(5.0)
+    assert not flags["busy"] and not flags["in_position"]
+
+
+def test_nan_or_infinite_motion_timeout_is_refused_before_any_write(start_sim, press, audit):
+    sim = start_sim()
+    upper, lower = step_setpoints(press)
+    with ModbusPress(sim.url, press, audit=audit) as plc:
+        for bad in (float("nan"), float("inf"), 0.0):
+            with pytest.raises(InputError, match=f"timeout must be a positive number of seconds, got {bad}"):
+                plc.run_step(upper, lower, timeout_s=bad)
+    assert actions(audit) == [("connect", "ok")]
+
+
+def test_connect_checks_identity(start_sim, press):
+    sim = start_sim(word_order="CDAB")
+    with pytest.raises(LinkError, match="uses word order CDAB, but ABCD was requested"):
+        ModbusPress(sim.url, press, word_order="ABCD")
+    with pytest.raises(ConfigError, match="drives 4 x 6 punches"):
+        ModbusPress(sim.url, small_press(5, 6))
+    with pytest.raises(LinkError, match="cannot connect"):
+        ModbusPress("tcp://127.0.0.1:1?unit=1", press)
+    with ModbusPress(sim.url, None, heartbeat_s=None) as plc:  # status only: no press needed
+        report = plc.status_report()
+        with pytest.raises(InputError, match="press description"):
+            plc.run_step(*step_setpoints(press))
+    assert report["word_order"] == "CDAB" and report["limits_mm"]["upper"] == [-300.0, 400.0]
+
+
+def test_a_wrong_unit_id_is_named(start_sim, press):
+    sim = start_sim(unit=2)
+    with pytest.raises(LinkError, match="not an mppf press PLC with unit id 1: .*exception 4") as info:
+        ModbusPress(f"tcp://127.0.0.1:{sim.port}?unit=1&retries=0", press)
+    assert "check the unit id" in info.value.hint
+    with ModbusPress(f"tcp://127.0.0.1:{sim.port}?unit=2", press, heartbeat_s=None) as plc:
+        assert plc.status().ready
+
+
+@pytest.fixture
+def foreign_device():
+    """Another Modbus device at a loopback port (a plain pymodbus server full of 0x1234)."""
+    from pymodbus.server import ModbusTcpServer
+    from pymodbus.simulator import DataType, SimData, SimDevice
+
+    loop = asyncio.new_event_loop()
+    thread = threading.Thread(target=loop.run_forever, daemon=True)
+    thread.start()
+
+    async def start():
+        device = SimDevice(id=1, simdata=[SimData(0, count=200, values=0x1234, datatype=DataType.REGISTERS)])
+        server = ModbusTcpServer(device, address=("127.0.0.1", 0))
+        await server.serve_forever(background=True)
+        return server
+
+    server = asyncio.run_coroutine_threadsafe(start(), loop).result(10)
+    yield f"tcp://127.0.0.1:{server.transport.sockets[0].getsockname()[1]}?unit=1"
+    asyncio.run_coroutine_threadsafe(server.shutdown(), loop).result(10)
+    loop.call_soon_threadsafe(loop.stop)
+    thread.join(10)
+    loop.close()
+
+
+def test_a_device_that_is_not_an_mppf_plc_is_refused_untouched(foreign_device, press, audit):
+    with pytest.raises(LinkError, match=r"not an mppf press PLC: registers .* hold 0x1234 0x1234"):
+        ModbusPress(foreign_device, press, audit=audit)
+    assert actions(audit) == [("connect", "failed")]
+    with ModbusAdapter(parse_plc_url(foreign_device)) as io:  # no heartbeat, nothing else was written
+        assert io.read_holding(0, 200) == [0x1234] * 200
+
+
+def test_heartbeat_keeps_the_plc_in_remote(start_sim, press):
+    sim = start_sim(watchdog_s=0.3)
+    with ModbusPress(sim.url, press, heartbeat_s=0.05) as plc:
+        time.sleep(0.4)
+        first = plc.status_report()["master_heartbeat"]
+        time.sleep(0.2)
+        second = plc.status_report()
+        assert second["status"]["remote"] and second["master_heartbeat"] != first
+        plc.stop_heartbeat()
+        time.sleep(0.5)
+        assert not plc.status().remote
+
+
+def test_reads_are_retried_commands_are_not(start_sim):
+    sim = start_sim()
+    sim.inject("slow", delay_ms=400)
+    url = parse_plc_url(sim.url)
+    with ModbusAdapter(url, timeout_s=0.1, retries=2) as io:
+        with pytest.raises(LinkError, match="no reply"):
+            io.read_holding(0, 2)
+        assert io.requests == 3  # one attempt + two retries
+        with pytest.raises(LinkError, match="no reply"):
+            io.write_command(load_register_map()["master_heartbeat"].address, [7])
+        assert io.requests == 4  # exactly one attempt

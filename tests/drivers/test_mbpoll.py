@@ -1,0 +1,66 @@
+"""A third-party Modbus master (mbpoll, libmodbus) reads the simulated PLC.
+
+mbpoll is a Debian package; CI installs it. Locally the tests are skipped without it,
+but when the environment variable CI is "true" a missing mbpoll is a failure.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import re
+import shutil
+import subprocess
+
+import pytest
+
+from mppf.drivers import regmap as rm
+from mppf.planning.press import example_press_path, load_press
+from mppf.sim.plc import run_simulated_plc
+
+MAP = rm.load_register_map()
+PRESS = dataclasses.replace(load_press(example_press_path()), rows=3, cols=4)
+
+
+@pytest.fixture(scope="module")
+def mbpoll() -> str:
+    path = shutil.which("mbpoll")
+    if path is None:
+        if os.environ.get("CI") == "true":
+            pytest.fail("mbpoll is not installed on CI (apt-get install mbpoll)")
+        pytest.skip("mbpoll is not installed")
+    return path
+
+
+def run_mbpoll(mbpoll, *args) -> dict[int, str]:
+    """Run mbpoll once; return {reference: value text} of its output."""
+    result = subprocess.run([mbpoll, "-1", "-0", *args], capture_output=True, text=True, timeout=20)
+    assert result.returncode == 0, result.stdout + result.stderr
+    return {int(ref): value for ref, value in re.findall(r"^\[(\d+)\]:\s+(\S+)\s*$", result.stdout, re.M)}
+
+
+@pytest.mark.parametrize("word_order", ["ABCD", "CDAB"])
+def test_mbpoll_reads_magic_and_a_setpoint_over_tcp(mbpoll, word_order):
+    with run_simulated_plc(PRESS, word_order=word_order, watchdog_s=None) as sim:
+        sim.write_foreign_setpoint("upper", 1, 2, -123.45)
+        port = str(sim.port)
+        magic = run_mbpoll(mbpoll, "-p", port, "-a", "1", "-r", "0", "-c", "2", "-t", "4:hex", "127.0.0.1")
+        expected = ["0x4D50", "0x5046"] if word_order == "ABCD" else ["0x5046", "0x4D50"]
+        assert [magic[0], magic[1]] == expected
+        # the setpoint as an int32 (mbpoll's default is CDAB; -B reads ABCD)
+        address = MAP["upper_setpoints"].address + 2 * MAP.punch_index(1, 2, PRESS.cols)
+        order_flag = ["-B"] if word_order == "ABCD" else []
+        values = run_mbpoll(
+            mbpoll, *order_flag, "-p", port, "-a", "1", "-r", str(address), "-c", "1", "-t", "4:int", "127.0.0.1"
+        )
+        assert int(values[address]) == -12345
+
+
+@pytest.mark.rtu
+def test_mbpoll_reads_magic_over_rtu_on_a_pty(mbpoll):
+    with run_simulated_plc(PRESS, rtu=True, baud=19200, watchdog_s=None) as sim:
+        parity = {"N": "none", "E": "even", "O": "odd"}[re.search(r"parity=([NEO])", sim.url).group(1)]
+        magic = run_mbpoll(
+            mbpoll, "-m", "rtu", "-b", "19200", "-P", parity, "-a", "1", "-r", "0", "-c", "2", "-t", "4:hex", sim.serial_port
+        )
+        assert [magic[0], magic[1]] == ["0x4D50", "0x5046"]

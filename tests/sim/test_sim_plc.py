@@ -1,0 +1,565 @@
+"""The simulated press PLC, driven by a raw pymodbus master over real sockets and a pty."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from pymodbus.client import ModbusSerialClient, ModbusTcpClient
+from pymodbus.exceptions import ConnectionException, ModbusIOException
+
+from mppf.cli import main
+from mppf.drivers import regmap as rm
+from mppf.drivers.url import parse_plc_url
+from mppf.core.errors import InputError
+from mppf.planning.press import example_press_path, load_press
+from mppf.sim.faults import parse_fault_spec
+from mppf.sim.hydraulics import Hydraulics
+from mppf.sim.plc import run_simulated_plc
+from mppf.sim.serial_pty import PtyPair
+
+MAP = rm.load_register_map()
+PRESS = dataclasses.replace(load_press(example_press_path()), rows=4, cols=6)
+SCALE = 100.0  # motion 100x faster than real time
+
+
+class Master:
+    """A bare Modbus master speaking the register map (the test's own, not the driver)."""
+
+    def __init__(self, sim, word_order="ABCD"):
+        self.sim = sim
+        self.word_order = word_order
+        self.client = ModbusTcpClient("127.0.0.1", port=sim.port, timeout=1.0, retries=0)
+        assert self.client.connect()
+
+    def read(self, name, count=None):
+        field = MAP[name]
+        rr = self.client.read_holding_registers(field.address, count=count or field.count, device_id=1)
+        assert not rr.isError(), rr
+        return rr.registers
+
+    def write(self, address, words):
+        """Write; return the exception code (None if accepted)."""
+        rr = self.client.write_registers(address, list(words), device_id=1)
+        return rr.exception_code if rr.isError() else None
+
+    def flags(self):
+        return MAP.status_flags(self.read("status_word")[0])
+
+    def upload(self, upper_mm, lower_mm):
+        words = {}
+        for side, values in (("upper", upper_mm), ("lower", lower_mm)):
+            words[side] = rm.encode_int32(rm.mm_to_counts(np.ravel(values)), self.word_order)
+            for address, part in rm.chunks(MAP[f"{side}_setpoints"].address, words[side]):
+                assert self.write(address, part) is None
+        return rm.setpoint_crc32(words["upper"], words["lower"])
+
+    def validate(self, crc, sequence):
+        return self.write(MAP["setpoint_crc"].address, rm.encode_uint32([crc], self.word_order) + [sequence])
+
+    def command(self, name, arg=0):
+        return self.write(MAP["command"].address, [MAP.command(name), arg])
+
+    def actuals_mm(self, side):
+        n = PRESS.rows * PRESS.cols
+        words = self.read(f"{side}_actuals", 2 * n)
+        return rm.counts_to_mm(rm.decode_int32(words, self.word_order)).reshape(PRESS.shape)
+
+    def wait_idle(self, timeout_s=5.0):
+        deadline = time.monotonic() + timeout_s
+        while self.flags()["busy"]:
+            assert time.monotonic() < deadline, "motion did not end"
+            time.sleep(0.01)
+        return self.flags()
+
+    def close(self):
+        self.client.close()
+
+
+def targets(seed=0):
+    rng = np.random.default_rng(seed)
+    upper = rng.uniform(40.0, 60.0, PRESS.shape).round(2)
+    lower = rng.uniform(-60.0, -40.0, PRESS.shape).round(2)
+    return upper, lower
+
+
+@pytest.fixture
+def plc():
+    with run_simulated_plc(PRESS, time_scale=SCALE, watchdog_s=None) as sim:
+        master = Master(sim)
+        yield sim, master
+        master.close()
+
+
+def refusal(master):
+    return MAP.fault_codes[master.read("refusal_code")[0]].name
+
+
+# ---------------------------------------------------------------- hydraulics ------
+def run_until_rest(hyd, dt_s=0.001, limit_s=20.0):
+    t = 0.0
+    while hyd.moving:
+        hyd.step(dt_s)
+        t += dt_s
+        assert t < limit_s
+    return t
+
+
+@pytest.mark.parametrize(
+    "distance_mm, expected_s",
+    [
+        (100.0, 100.0 / 20.0 + 20.0 / 100.0),  # trapezoid: cruise at 20 mm/s, 0.2 s to accelerate
+        (1.0, 2.0 * np.sqrt(1.0 / 100.0)),  # triangle: never reaches full speed
+    ],
+)
+def test_trapezoidal_motion_time(distance_mm, expected_s):
+    hyd = Hydraulics(np.zeros((2, 1, 2)), speed_mm_s=20.0, accel_mm_s2=100.0)
+    target = np.array([[[distance_mm, -distance_mm]], [[0.0, distance_mm / 2]]])
+    hyd.move_to(target)
+    assert run_until_rest(hyd) == pytest.approx(expected_s, rel=0.02)
+    assert np.array_equal(hyd.position, target)
+
+
+def test_stop_brakes_within_the_braking_distance():
+    hyd = Hydraulics(np.zeros((2, 1, 1)), speed_mm_s=20.0, accel_mm_s2=100.0)
+    hyd.move_to(np.full((2, 1, 1), 100.0))
+    for _ in range(1000):  # 1 s: at full speed
+        hyd.step(0.001)
+    at_stop = hyd.position.copy()
+    hyd.stop()
+    run_until_rest(hyd)
+    braked = hyd.position - at_stop
+    assert np.allclose(braked, 20.0**2 / (2 * 100.0), atol=0.05)  # v^2 / 2a = 2 mm
+
+
+# ------------------------------------------------------------------ identity ------
+@pytest.mark.parametrize("word_order", ["ABCD", "CDAB"])
+def test_magic_and_identity_in_both_word_orders(word_order):
+    with run_simulated_plc(PRESS, word_order=word_order) as sim:
+        master = Master(sim, word_order)
+        words = master.read("magic")
+        assert rm.detect_word_order(words, MAP.magic) == word_order
+        assert master.read("map_version") == [MAP.version]
+        assert master.read("rows") + master.read("cols") == [PRESS.rows, PRESS.cols]
+        limit = rm.decode_int32(master.read("upper_max"), word_order)[0]
+        assert limit * MAP.count_mm == pytest.approx(PRESS.upper.max_mm)
+        # power-on: punches parked, setpoints equal to the actual positions
+        assert np.allclose(master.actuals_mm("lower"), PRESS.lower.park_mm)
+        assert sim.url == f"tcp://127.0.0.1:{sim.port}?unit=1"
+        url = parse_plc_url(sim.url)  # the driver's URL grammar
+        assert (url.scheme, url.host, url.port, url.unit) == ("tcp", "127.0.0.1", sim.port, 1)
+        master.close()
+
+
+def test_writes_to_status_registers_are_refused(plc):
+    sim, master = plc
+    for name in ("magic", "status_word", "acknowledged_sequence", "upper_actuals"):
+        before = master.read(name, 2 if MAP[name].count > 1 else 1)
+        assert master.write(MAP[name].address, [1] * len(before)) == MAP.exceptions["read_only"]
+        assert master.read(name, len(before)) == before
+        assert refusal(master) == "READ_ONLY"
+    # a write spanning a writable and a read-only register is refused as a whole
+    hb = MAP["master_heartbeat"]
+    assert master.write(hb.address, [7] * (MAP["status_word"].address - hb.address + 1)) == 2
+    assert master.read("master_heartbeat") == [0]
+    # so is a write to the unused registers between the fields
+    assert master.write(MAP["master_heartbeat"].end, [1]) == 2
+
+
+# -------------------------------------------------------------------- motion ------
+def test_motion_completes_at_the_setpoints(plc):
+    sim, master = plc
+    upper, lower = targets()
+    crc = master.upload(upper, lower)
+    assert not master.flags()["data_valid"]
+    assert master.validate(crc, 7) is None
+    assert master.flags()["data_valid"] and master.read("acknowledged_sequence") == [7]
+    started = time.monotonic()
+    assert master.command("GO", 7) is None
+    assert master.flags()["busy"]
+    assert master.command("GO", 7) is None  # a repeated GO does nothing
+    assert master.command("GO", 8) == MAP.exceptions["refused"] and refusal(master) == "BUSY"
+    flags = master.wait_idle()
+    elapsed = time.monotonic() - started
+    assert flags["in_position"] and flags["ready"] and not flags["fault"]
+    assert np.allclose(master.actuals_mm("upper"), upper, atol=0.005)
+    assert np.allclose(master.actuals_mm("lower"), lower, atol=0.005)
+    assert master.read("motion_sequence") == [7]
+    # trapezoid: longest travel 400 + 60 mm (lower park -400 -> -40 ... -60) at 20 mm/s
+    travel = max(np.abs(upper - PRESS.upper.park_mm).max(), np.abs(lower - PRESS.lower.park_mm).max())
+    expected_s = (travel / PRESS.speed_mm_s + PRESS.speed_mm_s / PRESS.accel_mm_s2) / SCALE
+    assert 0.8 * expected_s < elapsed < expected_s + 0.5
+    hb = master.read("plc_heartbeat")[0]
+    time.sleep(0.1)
+    assert master.read("plc_heartbeat")[0] != hb
+
+
+def test_stop_decelerates_short_of_the_target(plc):
+    sim, master = plc
+    upper, lower = targets()
+    assert master.validate(master.upload(upper, lower), 3) is None
+    assert master.command("GO", 3) is None
+    time.sleep(0.05)
+    assert master.command("STOP") is None
+    flags = master.wait_idle()
+    assert not flags["in_position"]
+    actual_upper, _ = sim.actual_positions_mm()
+    assert np.all(actual_upper > upper + 10.0)  # stopped on the way down from 400 mm
+    time.sleep(0.05)
+    assert np.array_equal(sim.actual_positions_mm()[0], actual_upper)  # at rest
+
+
+# -------------------------------------------------------------------- checks ------
+def test_go_refused_after_a_foreign_setpoint_write(plc):
+    sim, master = plc
+    upper, lower = targets()
+    assert master.validate(master.upload(upper, lower), 5) is None
+    sim.write_foreign_setpoint("upper", 1, 2, 55.55)
+    assert master.command("GO", 5) == MAP.exceptions["refused"]
+    assert refusal(master) == "CRC_MISMATCH"
+    assert not master.flags()["busy"]
+    assert np.allclose(sim.actual_positions_mm()[0], PRESS.upper.park_mm)
+
+
+def test_job_block_refused_on_wrong_crc_and_beyond_limits(plc):
+    sim, master = plc
+    upper, lower = targets()
+    crc = master.upload(upper, lower)
+    assert master.validate(crc ^ 1, 4) == MAP.exceptions["refused"]
+    assert refusal(master) == "CRC_MISMATCH"
+    assert master.read("acknowledged_sequence") == [0] and not master.flags()["data_valid"]
+    upper[0, 0] = PRESS.upper.max_mm + 0.01
+    crc = master.upload(upper, lower)
+    assert master.validate(crc, 4) == MAP.exceptions["refused"]
+    assert refusal(master) == "LIMIT"
+    # writing the matching CRC alone (no job_sequence) does not validate: GO checks again
+    assert master.write(MAP["setpoint_crc"].address, rm.encode_uint32([crc], "ABCD")) is None
+    assert master.command("GO", 4) == MAP.exceptions["refused"]
+    assert refusal(master) == "LIMIT"
+    assert not master.flags()["busy"]
+
+
+def test_go_refused_on_sequence_mismatch(plc):
+    sim, master = plc
+    upper, lower = targets()
+    assert master.validate(master.upload(upper, lower), 9) is None
+    assert master.command("GO", 8) == MAP.exceptions["refused"]
+    assert refusal(master) == "SEQUENCE_MISMATCH"
+    assert master.read("command") == [0]  # the refused command was not stored
+    assert master.command("GO", 9) is None
+    master.wait_idle()
+    assert master.read("refusal_code") == [0]
+
+
+def test_estop_refuses_go_and_reset_until_released(plc):
+    sim, master = plc
+    upper, lower = targets()
+    assert master.validate(master.upload(upper, lower), 2) is None
+    sim.inject("estop")
+    flags = master.flags()
+    assert flags["estop"] and flags["fault"] and not flags["ready"]
+    assert MAP.fault_codes[master.read("fault_code")[0]].name == "ESTOP"
+    assert master.command("GO", 2) == MAP.exceptions["refused"] and refusal(master) == "ESTOP_ACTIVE"
+    assert master.command("RESET") == MAP.exceptions["refused"] and refusal(master) == "ESTOP_ACTIVE"
+    sim.release_estop()
+    assert master.command("GO", 2) == MAP.exceptions["refused"] and refusal(master) == "FAULT_ACTIVE"
+    assert master.command("RESET") is None
+    assert master.flags()["ready"] and master.read("fault_code") == [0]
+    assert master.command("GO", 2) is None
+    assert master.wait_idle()["in_position"]
+
+
+@pytest.mark.parametrize("kind", ["estop", "overpressure"])
+def test_fault_during_motion_halts_the_punches(plc, kind):
+    sim, master = plc
+    upper, lower = targets()
+    sim.inject(kind, after_s=3.0)  # 3 s of simulated motion
+    assert master.validate(master.upload(upper, lower), 1) is None
+    assert master.command("GO", 1) is None
+    flags = master.wait_idle()
+    assert flags["fault"] and not flags["in_position"] and flags["estop"] == (kind == "estop")
+    assert MAP.fault_codes[master.read("fault_code")[0]].name == kind.upper()
+    actual_upper = master.actuals_mm("upper")
+    # about 3 s of motion from 400 mm at 20 mm/s with 100 mm/s2: 400 - (0.5*100*0.2**2 + 20*2.8) = 342 mm
+    assert np.all((actual_upper > 330.0) & (actual_upper < 352.0))
+
+
+def test_freeze_halts_the_program_but_the_link_still_answers(plc):
+    sim, master = plc
+    upper, lower = targets()
+    sim.inject("freeze", after_s=3.0)
+    assert master.validate(master.upload(upper, lower), 1) is None
+    assert master.command("GO", 1) is None
+    deadline = time.monotonic() + 5.0
+    while not sim.plc.frozen:
+        assert time.monotonic() < deadline, "the freeze did not happen"
+        time.sleep(0.01)
+    beat, actual = master.read("plc_heartbeat"), master.actuals_mm("upper")
+    time.sleep(0.2)  # ten scan periods
+    assert master.read("plc_heartbeat") == beat and (master.actuals_mm("upper") == actual).all()
+    assert master.flags()["busy"]  # frozen status: still says moving
+    assert np.all((actual > 330.0) & (actual < 352.0))  # halted about 3 s into the move (see above)
+    assert master.command("STOP") is None  # accepted into memory; nothing acts on it
+    sim.clear_faults()  # the program runs again
+    time.sleep(0.1)
+    assert not master.flags()["busy"] and master.read("plc_heartbeat") != beat
+
+
+def test_watchdog_stops_motion_when_the_heartbeat_goes_stale():
+    with run_simulated_plc(PRESS, time_scale=2.0, watchdog_s=0.3) as sim:
+        master = Master(sim)
+        upper, lower = targets()
+        assert master.validate(master.upload(upper, lower), 1) is None
+        assert master.write(MAP["master_heartbeat"].address, [1]) is None
+        assert master.flags()["remote"]
+        assert master.command("GO", 1) is None
+        for beat in range(2, 6):  # heartbeats keep it moving
+            time.sleep(0.1)
+            assert master.write(MAP["master_heartbeat"].address, [beat]) is None
+        assert master.flags()["busy"]
+        time.sleep(0.5)  # then the master falls silent
+        flags = master.wait_idle()
+        assert flags["fault"] and not flags["remote"]
+        assert MAP.fault_codes[master.read("fault_code")[0]].name == "WATCHDOG"
+        assert np.all(master.actuals_mm("upper") > 300.0)
+        master.close()
+
+
+# -------------------------------------------------------------------- faults ------
+def test_stuck_punch_ends_short_without_a_fault(plc):
+    sim, master = plc
+    upper, lower = targets()
+    sim.inject("stuck", matrix="lower", row=2, col=3, percent=25)
+    assert master.validate(master.upload(upper, lower), 1) is None
+    assert master.command("GO", 1) is None
+    flags = master.wait_idle()
+    assert not flags["in_position"] and not flags["fault"] and flags["ready"]
+    error = np.abs(master.actuals_mm("lower") - lower)
+    assert error[2, 3] == pytest.approx(0.75 * abs(lower[2, 3] - PRESS.lower.park_mm), abs=0.01)
+    error[2, 3] = 0
+    assert error.max() < 0.006
+    assert not any(master.read("lower_fault_bits", 2))
+
+
+def test_stuck_punch_with_fault_timer_sets_its_fault_bit(plc):
+    sim, master = plc
+    upper, lower = targets()
+    sim.inject("stuck", matrix="upper", row=1, col=4, percent=50, fault_after_s=2.0)
+    assert master.validate(master.upload(upper, lower), 1) is None
+    assert master.command("GO", 1) is None
+    flags = master.wait_idle()
+    assert flags["fault"] and MAP.fault_codes[master.read("fault_code")[0]].name == "STUCK_PUNCH"
+    bits = rm.unpack_bits(master.read("upper_fault_bits", 2), PRESS.rows * PRESS.cols)
+    assert np.flatnonzero(bits).tolist() == [MAP.punch_index(1, 4, PRESS.cols)]
+    assert master.command("RESET") is None
+    assert not any(master.read("upper_fault_bits", 2)) and not master.flags()["fault"]
+
+
+def test_slow_replies(plc):
+    sim, master = plc
+    sim.inject("slow", delay_ms=150)
+    started = time.monotonic()
+    master.read("magic")
+    assert time.monotonic() - started >= 0.15
+    sim.clear_faults()
+    started = time.monotonic()
+    master.read("magic")
+    assert time.monotonic() - started < 0.1
+
+
+def test_dropped_connection_and_recovery(plc):
+    sim, master = plc
+    sim.drop_connections(0.6)
+    with pytest.raises((ConnectionException, ModbusIOException)):
+        master.read("magic")
+    time.sleep(0.8)
+    master.client.close()
+    assert master.client.connect()
+    assert rm.detect_word_order(master.read("magic"), MAP.magic) == "ABCD"
+
+
+def test_drop_on_a_write_leaves_it_unapplied(plc):
+    sim, master = plc
+    sim.inject("drop", after_writes=2, duration_s=0.3)
+    upper, lower = targets()
+    assert master.write(MAP["upper_setpoints"].address, rm.encode_int32([100], "ABCD")) is None
+    with pytest.raises((ConnectionException, ModbusIOException)):
+        master.write(MAP["upper_setpoints"].address + 2, rm.encode_int32([200], "ABCD"))
+    time.sleep(0.6)
+    master.client.close()
+    assert master.client.connect()
+    words = master.read("upper_setpoints", 4)
+    assert rm.decode_int32(words, "ABCD").tolist() == [100, round(PRESS.upper.park_mm * 100)]
+
+
+def test_restart_loses_the_sequence(plc):
+    sim, master = plc
+    upper, lower = targets()
+    assert master.validate(master.upload(upper, lower), 11) is None
+    assert master.command("GO", 11) is None
+    master.wait_idle()
+    sim.restart(downtime_s=0.2)
+    time.sleep(0.4)
+    master.client.close()
+    assert master.client.connect()
+    assert master.read("acknowledged_sequence") == [0] and not master.flags()["data_valid"]
+    assert master.command("GO", 11) == MAP.exceptions["refused"]
+    assert refusal(master) in ("CRC_MISMATCH", "SEQUENCE_MISMATCH")
+    assert np.allclose(master.actuals_mm("upper"), upper, atol=0.005)  # the punches stayed put
+
+
+def test_inject_rejects_bad_parameters(plc):
+    sim, _ = plc
+    with pytest.raises(InputError, match="row 4, col 0 outside"):
+        sim.inject("stuck", matrix="upper", row=4, col=0)
+    with pytest.raises(InputError, match="unknown fault 'flood'"):
+        sim.inject("flood")
+    with pytest.raises(InputError, match="unexpected keyword"):
+        sim.inject("slow", delay=3)
+
+
+# ----------------------------------------------------------------------- RTU ------
+@pytest.mark.rtu
+@pytest.mark.parametrize("word_order", ["ABCD", "CDAB"])
+def test_rtu_over_a_pty_pair(word_order):
+    with run_simulated_plc(PRESS, rtu=True, baud=115200, word_order=word_order) as sim:
+        match = re.fullmatch(r"rtu://(/dev/pts/\d+)\?baud=115200&parity=([NEO])&unit=1", sim.url)
+        assert match, sim.url
+        url = parse_plc_url(sim.url)  # the driver's URL grammar
+        assert (url.device, url.baud, url.parity) == (sim.serial_port, 115200, match.group(2))
+        client = ModbusSerialClient(match.group(1), baudrate=115200, parity=match.group(2), timeout=1.0, retries=0)
+        assert client.connect()
+        try:
+            rr = client.read_holding_registers(MAP["magic"].address, count=2, device_id=1)
+            assert not rr.isError(), rr
+            assert rm.detect_word_order(rr.registers, MAP.magic) == word_order
+            rr = client.write_registers(MAP["status_word"].address, [1], device_id=1)
+            assert rr.isError() and rr.exception_code == MAP.exceptions["read_only"]
+        finally:
+            client.close()
+
+
+@pytest.mark.rtu
+def test_rtu_on_a_serial_device_made_by_socat(tmp_path):
+    """The rtu_port= path (a real serial device), on a socat pty pair."""
+    socat = shutil.which("socat")
+    if socat is None:
+        if os.environ.get("CI") == "true":
+            pytest.fail("socat is not installed on CI")
+        pytest.skip("socat is not installed")
+    port_a, port_b = tmp_path / "ttyA", tmp_path / "ttyB"
+    proc = subprocess.Popen(
+        [socat, f"pty,raw,echo=0,link={port_a}", f"pty,raw,echo=0,link={port_b}"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        deadline = time.monotonic() + 5.0
+        while not (port_a.exists() and port_b.exists()):
+            assert time.monotonic() < deadline, "socat made no pty pair"
+            time.sleep(0.02)
+        with run_simulated_plc(PRESS, rtu_port=str(port_a), baud=38400, parity="N") as sim:
+            assert sim.url == f"rtu://{port_a}?baud=38400&parity=N&unit=1"
+            client = ModbusSerialClient(str(port_b), baudrate=38400, parity="N", timeout=1.0, retries=0)
+            assert client.connect()
+            try:
+                rr = client.read_holding_registers(MAP["rows"].address, count=2, device_id=1)
+                assert not rr.isError(), rr
+                assert rr.registers == [PRESS.rows, PRESS.cols]
+            finally:
+                client.close()
+    finally:
+        proc.terminate()
+        proc.wait(timeout=5)
+
+
+@pytest.mark.rtu
+def test_paced_pty_relay_takes_the_wire_time():
+    with PtyPair(baud=9600) as link:
+        a = os.open(link.port_a, os.O_RDWR | os.O_NOCTTY)
+        b = os.open(link.port_b, os.O_RDWR | os.O_NOCTTY)
+        try:
+            payload = bytes(range(96))
+            started = time.monotonic()
+            os.write(a, payload)
+            received = b""
+            while len(received) < len(payload):
+                received += os.read(b, 256)
+            elapsed = time.monotonic() - started
+        finally:
+            os.close(a)
+            os.close(b)
+    assert received == payload
+    wire_s = 96 * 11 / 9600  # 0.11 s
+    assert wire_s <= elapsed < wire_s + 0.1
+
+
+# ----------------------------------------------------------------------- CLI ------
+@pytest.mark.parametrize(
+    "spec, kind, params",
+    [
+        ("stuck:upper:3:5@40", "stuck", {"matrix": "upper", "row": 3, "col": 5, "percent": 40.0}),
+        ("estop", "estop", {}),
+        ("estop@2.0", "estop", {"after_s": 2.0}),
+        ("overpressure@1.5", "overpressure", {"after_s": 1.5}),
+        ("freeze@2", "freeze", {"after_s": 2.0}),
+        ("slow:50", "slow", {"delay_ms": 50.0}),
+        ("drop@3", "drop", {"after_s": 3.0}),
+        ("drop:0.5@3", "drop", {"duration_s": 0.5, "after_s": 3.0}),
+        ("restart@1", "restart", {"after_s": 1.0}),
+    ],
+)
+def test_fault_spec_grammar(spec, kind, params):
+    parsed = parse_fault_spec(spec)
+    assert (parsed.kind, parsed.params) == (kind, params)
+
+
+@pytest.mark.parametrize(
+    "spec, message",
+    [
+        ("stuck:side:1:2", "matrix must be 'upper' or 'lower'"),
+        ("stuck:upper:1", "wrong number of ':' fields"),
+        ("stuck:upper:1:2@120", "PERCENT must be 0..100"),
+        ("slow:fast", "MS must be a number"),
+        ("estop@-1", "T must be >= 0"),
+        ("meteor", "unknown fault 'meteor'"),
+    ],
+)
+def test_bad_fault_spec_exits_2_with_one_message(capsys, spec, message):
+    assert main(["sim", "--port", "0", "--fault", spec]) == 2
+    err = capsys.readouterr().err
+    assert message in " ".join(err.split())
+    assert "Traceback" not in err
+
+
+def test_sim_command_serves_until_interrupted():
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "mppf", "sim", "--port", "0", "--word-order", "CDAB", "--status-every", "0.2"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        line = proc.stdout.readline()
+        match = re.search(r"tcp://127\.0\.0\.1:(\d+)\?unit=1", line)
+        assert match, line
+        client = ModbusTcpClient("127.0.0.1", port=int(match.group(1)), timeout=1.0, retries=0)
+        assert client.connect()
+        rr = client.read_holding_registers(MAP["magic"].address, count=2, device_id=1)
+        client.close()
+        assert rm.detect_word_order(rr.registers, MAP.magic) == "CDAB"
+        time.sleep(0.3)
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=10)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0, err
+    assert "ready" in out and "simulated PLC stopped" in out
