@@ -23,7 +23,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 import mppf  # noqa: E402
-from mppf.geometry.io import read_points  # noqa: E402
+from mppf.geometry.read import read_points  # noqa: E402
 from mppf.geometry.localize import foot_points  # noqa: E402
 from mppf.geometry.surface import fit_plate  # noqa: E402
 

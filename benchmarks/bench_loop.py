@@ -2,7 +2,8 @@
 
 For every real hull patch and seed: unfold the design, plan it (springback
 pre-compensation), run :func:`mppf.loop.cycle.run_loop` on the simulated PLC (real Modbus over
-loopback, time-scaled motion) with a simulated plate (seeded true material) and scanner,
+loopback, time-scaled motion; ``--in-process``: the in-process press, the same driver on the PLC
+program itself, instant) with a simulated plate (seeded true material) and scanner,
 and record the deviations of every cycle. Target (issue 6): in tolerance (largest
 absolute deviation <= 2.5 mm and RMS <= 1 mm) within 3 cycles in at least 90 % of runs;
 and ``mppf demo`` in under 60 s.
@@ -10,12 +11,13 @@ and ``mppf demo`` in under 60 s.
 The simulated scanner picks the plate's reference-corner mark in every scan (see
 ``docs/compare.md``, "Which way round"); ``--no-mark`` leaves it out.
 
-Run:  python benchmarks/bench_loop.py [--seeds 1 2 ... 10] [--plates ...] [--no-demo] [--no-mark]
+Run:  python benchmarks/bench_loop.py [--seeds 1 2 ... 10] [--plates ...] [--no-demo] [--no-mark] [--in-process]
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import subprocess
 import sys
 import tempfile
@@ -24,16 +26,20 @@ from pathlib import Path
 
 import numpy as np
 
-from mppf.drivers.modbus import ModbusPress
 from mppf.core.errors import MppfError
-from mppf.loop.history import History
-from mppf.geometry.io import read_points, write_points
-from mppf.planning.job import load_job
-from mppf.loop.cycle import LoopSettings, run_loop, start_plate
-from mppf.planning.press import example_press_path, load_press
-from mppf.sim.plc import run_simulated_plc
-from mppf.sim.shop import SimulatedPlateScanner
+from mppf.drivers.modbus import ModbusPress
+from mppf.geometry.read import read_points
 from mppf.geometry.unfold import unfold
+from mppf.geometry.write import write_points
+from mppf.loop.cycle import run_loop
+from mppf.loop.history import History
+from mppf.loop.plate import start_plate
+from mppf.loop.settings import LoopSettings
+from mppf.planning.job import load_job
+from mppf.planning.press import example_press_path, load_press
+from mppf.sim.plc.host import run_simulated_plc
+from mppf.sim.plc.link import InProcessPress
+from mppf.sim.shop import SimulatedPlateScanner
 
 HULL = Path(__file__).resolve().parents[1] / "mppf" / "examples" / "hull"
 PLATES = ["P1_midbody_bilge_smooth", "P2_bow_flare_smooth", "P3_stern_saddle_smooth",
@@ -43,7 +49,7 @@ TARGET_PCT = 90.0
 
 
 def run_one(work: Path, name: str, flat_path: Path, seed: int, thickness_mm: float, max_cycles: int,
-            time_scale: float, mark: bool = True) -> dict:
+            time_scale: float | None, mark: bool = True) -> dict:
     press = load_press(example_press_path())
     design = read_points(HULL / f"{name}.csv")
     flat = read_points(flat_path)
@@ -55,7 +61,7 @@ def run_one(work: Path, name: str, flat_path: Path, seed: int, thickness_mm: flo
                     settings=settings)
         job = load_job(history.cycle(plate_id, 1).job_path)
         scanner = SimulatedPlateScanner.for_job(press, thickness_mm, job, flat.points, seed=seed, reference_mark=mark)
-        with run_simulated_plc(press, time_scale=time_scale) as sim, ModbusPress(sim.url, press) as link:
+        with _press(press, time_scale) as link:
             result = run_loop(history, plate_id, link, scanner)
     cycles = result.cycles
     ok_at = next((c.cycle for c in cycles if c.decision == "in_tolerance"), None)
@@ -65,6 +71,17 @@ def run_one(work: Path, name: str, flat_path: Path, seed: int, thickness_mm: flo
         "true_yield_mpa": scanner.plate.material.yield_stress_mpa, "true_t_mm": scanner.plate.thickness_mm,
         "seconds": time.monotonic() - started,
     }
+
+
+@contextlib.contextmanager
+def _press(press, time_scale: float | None):
+    """The simulated PLC over loopback Modbus at ``time_scale``, or (None) the in-process press."""
+    if time_scale is None:
+        with InProcessPress(press) as link:
+            yield link
+        return
+    with run_simulated_plc(press, time_scale=time_scale) as sim, ModbusPress(sim.url, press) as link:
+        yield link
 
 
 def _series(values) -> str:
@@ -77,7 +94,10 @@ def main(argv=None) -> int:
     parser.add_argument("--seeds", nargs="+", type=int, default=list(range(1, 11)))
     parser.add_argument("--thickness", type=float, default=20.0)
     parser.add_argument("--max-cycles", type=int, default=5)
-    parser.add_argument("--time-scale", type=float, default=100.0)
+    parser.add_argument("--time-scale", type=float, default=100.0,
+                        help="motion speed-up of the simulated PLC over loopback Modbus")
+    parser.add_argument("--in-process", action="store_true",
+                        help="press with the in-process press (the driver on the PLC program, instant) instead")
     parser.add_argument("--no-demo", action="store_true", help="skip timing 'mppf demo'")
     parser.add_argument("--no-mark", action="store_true",
                         help="scans without the reference-corner mark (registration by the best fit alone)")
@@ -90,8 +110,8 @@ def main(argv=None) -> int:
             flat_path = write_points(work / f"{name}.flat.csv", unfold(read_points(HULL / f"{name}.csv").points).flat)
             for seed in args.seeds:
                 try:
-                    row = run_one(work, name, flat_path, seed, args.thickness, args.max_cycles, args.time_scale,
-                                  not args.no_mark)
+                    row = run_one(work, name, flat_path, seed, args.thickness, args.max_cycles,
+                                  None if args.in_process else args.time_scale, not args.no_mark)
                 except MppfError as exc:  # a failed run counts as not in tolerance
                     row = {"plate": name, "seed": seed, "status": "error", "cycles": 0, "ok_at": None,
                            "max_abs": [], "rms": [], "true_yield_mpa": float("nan"), "true_t_mm": float("nan"),

@@ -31,11 +31,11 @@ from pymodbus.framer import FramerRTU
 from pymodbus.pdu import DecodePDU
 from pymodbus.pdu.register_message import ReadHoldingRegistersRequest, WriteMultipleRegistersRequest
 
-from mppf.drivers import regmap as rm
+from mppf.drivers import codec, regmap as rm
 from mppf.drivers.modbus import ModbusPress
 from mppf.drivers.url import parse_plc_url
 from mppf.planning.press import example_press_path, load_press, press_from_dict
-from mppf.sim.plc import start_simulated_plc
+from mppf.sim.plc.host import start_simulated_plc
 from mppf.sim.serial_pty import wire_time_s
 
 BAUD = 115200
@@ -59,17 +59,17 @@ def upload_requests(rmap: rm.RegisterMap, press, upper, lower, seq: int) -> list
     status = [rmap[n] for n in ("status_word", "plc_heartbeat")]
     st_addr, st_count = status[0].address, status[1].end - status[0].address
     n = rmap.words_in_use(press.rows, press.cols)
-    blocks = {side: rm.encode_int32(rm.mm_to_counts(g.ravel()), "ABCD") for side, g in (("upper", upper), ("lower", lower))}
+    blocks = {side: codec.encode_int32(codec.mm_to_counts(g.ravel()), "ABCD") for side, g in (("upper", upper), ("lower", lower))}
     out = [("read", st_addr, st_count)] * 2  # readiness, sequence
     for side in ("upper", "lower"):
         out += [("write", start, words)
-                for start, words in rm.chunks(rmap[f"{side}_setpoints"].address, blocks[side], rmap.max_write_registers)]
+                for start, words in codec.chunks(rmap[f"{side}_setpoints"].address, blocks[side], rmap.max_write_registers)]
     for side in ("upper", "lower"):
         base = rmap[f"{side}_setpoints"].address
         out += [("read", start, min(rmap.max_read_registers, base + n - start))
                 for start in range(base, base + n, rmap.max_read_registers)]
-    crc = rm.setpoint_crc32(blocks["upper"], blocks["lower"])
-    out.append(("write", rmap["setpoint_crc"].address, rm.encode_uint32([crc], "ABCD") + [seq]))
+    crc = codec.setpoint_crc32(blocks["upper"], blocks["lower"])
+    out.append(("write", rmap["setpoint_crc"].address, codec.encode_uint32([crc], "ABCD") + [seq]))
     out.append(("read", st_addr, st_count))
     return out
 

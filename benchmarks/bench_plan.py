@@ -26,7 +26,7 @@ import numpy as np
 
 import mppf
 from mppf.planning.contact import PlacedSurface, tip_heights
-from mppf.geometry.io import read_points
+from mppf.geometry.read import read_points
 from mppf.planning.plan import plan_job
 from mppf.planning.press import load_press, example_press_path, press_from_dict
 from mppf.geometry.surface import fit_plate

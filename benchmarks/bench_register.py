@@ -31,8 +31,10 @@ from rich.table import Table
 from scipy.spatial.transform import Rotation
 
 from mppf.geometry.frame import fit_frame
-from mppf.geometry.io import read_points, write_points
-from mppf.registration.register import principal_candidates, register_icp
+from mppf.geometry.read import read_points
+from mppf.geometry.write import write_points
+from mppf.registration.register import register_icp
+from mppf.registration.starts import principal_candidates
 from mppf.core.transform import apply_tf, invert_tf, make_tf, rotation_angle_deg
 
 NOISE_MM = 0.5

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mppf.geometry.io import read_points
+from mppf.geometry.read import read_points
 from mppf.geometry.unfold import unfold
 
 HULL = Path(__file__).resolve().parents[1] / "mppf" / "examples" / "hull"

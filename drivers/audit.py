@@ -15,7 +15,6 @@ from __future__ import annotations
 import getpass
 import os
 import socket
-import sqlite3
 import threading
 import time
 from dataclasses import dataclass

@@ -33,7 +33,7 @@ from collections.abc import Callable, Sequence
 from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 from pymodbus.exceptions import ConnectionException, ModbusException, ModbusIOException
 
-from mppf.drivers.regmap import chunks
+from mppf.drivers.codec import EXCEPTION_NAMES, chunks
 from mppf.drivers.url import PlcUrl
 from mppf.core.errors import LinkError, PlcError
 
@@ -49,17 +49,6 @@ MAX_READ_REGS = 125
 MAX_WRITE_REGS = 122
 RETRY_DELAY_S = 0.1  # pause before the n-th retry: n * RETRY_DELAY_S
 
-EXCEPTION_NAMES = {
-    1: "illegal function",
-    2: "illegal data address",
-    3: "illegal data value",
-    4: "server device failure",
-    5: "acknowledge",
-    6: "server device busy",
-    8: "memory parity error",
-    10: "gateway path unavailable",
-    11: "gateway target device failed to respond",
-}
 
 
 class _ExactRtuClient(ModbusSerialClient):

@@ -34,7 +34,7 @@ GRAMMAR = (
 
 @dataclass(frozen=True)
 class FaultSpec:
-    """A parsed fault: ``kind`` and the keyword arguments of ``SimulatedPlc.inject``."""
+    """A parsed fault: ``kind`` and the keyword arguments of ``SimHandle.inject`` (``mppf.sim.plc.host``)."""
 
     kind: str
     params: dict = field(default_factory=dict)

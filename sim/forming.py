@@ -7,7 +7,7 @@ The model, in three steps (see ``docs/compare.md``, section "The simulated plate
    ``z = (lower + upper) / 2`` on the punch axis. (On a slope ``s = sqrt(1 + |grad z|^2)``
    the balls touch off-axis and hold the mid-surface at ``lower - r + (r + t/2) s`` and
    ``upper + r - (r + t/2) s``; the two slope terms cancel in the mean.)
-2. **Loaded surface.** A thin-plate-spline (scipy ``RBFInterpolator``) through those
+2. **Loaded surface.** A thin-plate spline (:func:`mppf.core.grid.tps_fill`) through those
    mid-surface heights, evaluated on a regular grid covering the plate's outline.
 3. **Springback.** The loaded surface's deviation ``w`` from its best-fit plane has the
    curvature tensor ``H`` (the Hessian of ``w``, small-slope approximation). Each principal
@@ -33,8 +33,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.interpolate import RectBivariateSpline
 
-from mppf.core.polygon import contains
+from mppf.core import polygon
 from mppf.core.errors import GeometryError, InputError
+from mppf.core.validate import check_number, check_positive
 from mppf.forming.plate_model import grid_axes, loaded_surface, spring_back
 from mppf.planning.press import PressConfig
 from mppf.forming.material import Material
@@ -88,11 +89,9 @@ def sample_plate(
     -------
     PlateSample
     """
-    if not np.isfinite(thickness_mm) or thickness_mm <= 0:
-        raise InputError(f"plate thickness must be positive, got {thickness_mm} mm")
+    check_positive("the plate thickness", thickness_mm, unit="mm")
     for name, value in (("yield_scatter", yield_scatter), ("thickness_scatter", thickness_scatter)):
-        if not 0.0 <= value <= 0.9:
-            raise InputError(f"{name} must be within 0..0.9, got {value}")
+        check_number(name, value, low=0.0, high=0.9)
     rng = np.random.default_rng(seed)
     a, b = _truncated_normal(rng, 2)
     true_material = replace(material, yield_stress_mpa=material.yield_stress_mpa * (1.0 + yield_scatter * a))
@@ -165,8 +164,7 @@ class FormedPlate:
         sample that edge and stop up to a spacing short of the other: a scan whose edge
         seems shifted).
         """
-        if not np.isfinite(spacing_mm) or spacing_mm <= 0:
-            raise InputError(f"sampling spacing must be positive, got {spacing_mm} mm")
+        spacing_mm = check_positive("the sampling spacing", spacing_mm, unit="mm")
         lo = self.outline_xy_mm.min(axis=0)
         hi = self.outline_xy_mm.max(axis=0)
         count = np.floor((hi - lo) / spacing_mm + 1e-9).astype(int)
@@ -175,7 +173,7 @@ class FormedPlate:
         ys = start[1] + spacing_mm * np.arange(count[1] + 1)
         xx, yy = np.meshgrid(xs, ys)
         xy = np.column_stack([xx.ravel(), yy.ravel()])
-        inside = contains(self.outline_xy_mm, xy, tolerance_mm=1e-6)
+        inside = polygon.contains(self.outline_xy_mm, xy, tolerance_mm=1e-6)
         return xy[inside]
 
     def mid_surface_points(self, spacing_mm: float = GRID_SPACING_MM, *, loaded: bool = False) -> np.ndarray:
@@ -341,7 +339,6 @@ def _outline(press: PressConfig, act: np.ndarray, outline_xy_mm) -> np.ndarray:
     outline = np.asarray(outline_xy_mm, dtype=float)
     if outline.ndim != 2 or outline.shape[1] != 2 or outline.shape[0] < 3 or not np.all(np.isfinite(outline)):
         raise GeometryError(f"the plate outline must be a polygon (k >= 3, 2) in mm, got shape {outline.shape}")
-    area = 0.5 * abs(np.dot(outline[:, 0], np.roll(outline[:, 1], 1)) - np.dot(outline[:, 1], np.roll(outline[:, 0], 1)))
-    if area <= 0:
+    if abs(polygon.area(outline)) <= 0:
         raise GeometryError("the plate outline has no area", hint="give the corners of the flat plate in press x, y")
     return outline

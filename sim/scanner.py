@@ -15,7 +15,7 @@ A scan (see ``docs/compare.md``, section "The simulated scanner") is
 - optionally with the plate's reference-corner mark picked in the scan (``mark_xy_mm``):
   its position in the scanner's coordinates, as the operator would click it in the
   scanner software (within a few mm), written next to the scan as
-  ``<scan file>.mark.json`` (:data:`mppf.loop.cycle.MARK_SUFFIX`). The pose stays arbitrary.
+  ``<scan file>.mark.json`` (:data:`mppf.measure.mark.MARK_SUFFIX`). The pose stays arbitrary.
 
 The scanner owns one seeded random generator: successive scans differ, the sequence is
 reproducible. Build a new scanner with the same seed to repeat a scan.
@@ -31,8 +31,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from mppf.core.polygon import contains
-from mppf.core.errors import InputError
-from mppf.geometry.io import write_points
+from mppf.core.validate import check_number
+from mppf.geometry.write import write_points
 from mppf.measure.mark import MARK_SUFFIX
 from mppf.sim.forming import FormedPlate
 from mppf.core.transform import apply_tf, make_tf
@@ -115,14 +115,13 @@ class SimulatedScanner:
             ("spacing_mm", spacing_mm, 1.0, 1000.0),
         )
         for name, value, lo, hi in checks:
-            if not (np.isfinite(value) and lo <= value <= hi):
-                raise InputError(f"scanner {name} must be within {lo}..{hi}, got {value}")
+            check_number(f"scanner {name}", value, low=lo, high=hi)
         self.noise_mm = float(noise_mm)
         self.occlusion_fraction = float(occlusion_fraction)
         self.outlier_fraction = float(outlier_fraction)
         self.spacing_mm = float(spacing_mm)
-        if max_turn_deg is not None and not (np.isfinite(max_turn_deg) and 0.0 <= max_turn_deg <= 180.0):
-            raise InputError(f"scanner max_turn_deg must be within 0..180, got {max_turn_deg}")
+        if max_turn_deg is not None:
+            check_number("scanner max_turn_deg", max_turn_deg, low=0.0, high=180.0, unit="deg")
         self.max_turn_deg = max_turn_deg
         self.seed = seed
         self._rng = np.random.default_rng(seed)

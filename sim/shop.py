@@ -1,14 +1,15 @@
 """The dry-run shop floor: a simulated plate measured by a simulated scanner.
 
-:class:`SimulatedPlateScanner` implements :class:`mppf.loop.scanners.Scanner` for dry runs:
+:class:`SimulatedPlateScanner` implements :class:`mppf.core.scanner.Scanner` for dry runs:
 for each cycle it forms the simulated plate (:func:`mppf.sim.forming.form_plate`) from
 the tip positions the press reported for the cycle's last step (the PLC's actual
 positions, read back by the driver), lets it spring back with the plate's true,
 seeded material (:func:`mppf.sim.forming.sample_plate`), and scans its top skin with
 noise, occlusion, outliers and an arbitrary pose (:class:`mppf.sim.scanner.SimulatedScanner`)
 into the plate's work folder. The press side of a dry run is the simulated PLC
-(:func:`mppf.sim.plc.run_simulated_plc`) driven over loopback Modbus by the real driver;
-the command line wires the two (``mppf loop`` without ``--plc``, ``mppf demo``).
+(:func:`mppf.sim.plc.run_simulated_plc`) driven over loopback Modbus by the real driver
+(``mppf loop`` without ``--plc``, ``mppf demo``), or the in-process press
+(:class:`mppf.sim.plc.link.InProcessPress`: the same driver on the PLC program itself, instant).
 
 Each cycle's scan uses its own seed (``seed * 1000 + cycle``), so a scan repeated after a
 resume is the same scan.
@@ -54,7 +55,7 @@ def plate_outline_xy(job: Job, flat_points) -> np.ndarray:
 
 
 class SimulatedPlateScanner:
-    """A :class:`mppf.loop.scanners.Scanner` that forms and scans a simulated plate.
+    """A :class:`mppf.core.scanner.Scanner` that forms and scans a simulated plate.
 
     Parameters
     ----------

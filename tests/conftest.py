@@ -1,4 +1,4 @@
-"""Shared, generic pytest fixtures."""
+"""Shared, generic pytest fixtures: the bundled hull plates, and one plate planned once for the loop tests."""
 
 from __future__ import annotations
 
@@ -8,8 +8,39 @@ import pytest
 
 import mppf
 
+LOOP_PLATE = "K2_fwd_bilge_convex"
+"""The plate of the loop's tests: a weakly doubly curved KCS bilge plate, plans fast."""
+
 
 @pytest.fixture(scope="session")
 def hull_dir() -> Path:
     """Folder of the bundled real hull plates (61 x 41 grids, mm, hull coordinates)."""
     return Path(mppf.__file__).parent / "examples" / "hull"
+
+
+@pytest.fixture(scope="session")
+def plate_files(tmp_path_factory, hull_dir) -> tuple[Path, Path]:
+    """The design of :data:`LOOP_PLATE` and its unfolded flat, as files (made once per session)."""
+    from mppf.geometry.read import read_points
+    from mppf.geometry.unfold import unfold
+    from mppf.geometry.write import write_points
+
+    design = hull_dir / f"{LOOP_PLATE}.csv"
+    flat = tmp_path_factory.mktemp("plate") / f"{LOOP_PLATE}.flat.csv"
+    return design, write_points(flat, unfold(read_points(design).points).flat)
+
+
+@pytest.fixture(scope="session")
+def planned_plate(plate_files):
+    """(design, flat, press, job): :data:`LOOP_PLATE` planned once for the example press, 20 mm thick.
+
+    The job is the first cycle's of :func:`mppf.loop.plate.start_plate` with the default loop
+    settings; tests record it as a new plate with :func:`mppf.loop.plate.record_plate`.
+    """
+    from mppf.geometry.read import read_points
+    from mppf.loop.plate import plan_first_cycle
+    from mppf.planning.press import example_press_path, load_press
+
+    design, flat = (read_points(path) for path in plate_files)
+    press = load_press(example_press_path())
+    return design, flat, press, plan_first_cycle(design, flat, press, 20.0)

@@ -1,8 +1,17 @@
-"""Analytic plate surfaces for the planner tests (height fields with exact derivatives)."""
+"""Helpers of the planning, forming and correction tests: analytic plate surfaces (height fields with
+exact derivatives), the example press and a punch grid for the corrections."""
 
 from __future__ import annotations
 
+import dataclasses
+import functools
+from dataclasses import dataclass
+
 import numpy as np
+import pytest
+
+from mppf.forming.material import Material
+from mppf.planning.press import example_press_path, load_press
 
 
 class PlaneSurface:
@@ -73,3 +82,86 @@ def developed_cylinder(radius_mm, length_mm, width_mm, n_u=41, n_v=31):
     uu, vv = np.meshgrid(u, v, indexing="ij")
     arc = radius_mm * np.arcsin(vv / radius_mm)
     return np.column_stack([uu.ravel(), arc.ravel(), np.zeros(uu.size)])
+
+
+# -- the correction tests: the example press and a punch grid with a block of active punches --
+
+
+@pytest.fixture(scope="module")
+def press():
+    """The bundled example press (24 x 16 punches, 150 mm pitch)."""
+    return load_press(example_press_path())
+
+
+@pytest.fixture(scope="module")
+def grid(press):
+    """(px, py, active, lower): punch axes, a 3 x 2 m block of active punches, lower tips of a bend along x."""
+    px, py = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    active = (np.abs(px) <= 1500) & (np.abs(py) <= 1000)
+    lower = np.where(active, px**2 / 8000.0 - 30.0, np.nan)
+    return px, py, active, lower
+
+
+def neighbour_diffs(values, active):
+    """|differences| of all row and column neighbours that are both active (flat array)."""
+    out = []
+    for axis in (0, 1):
+        a = np.moveaxis(values, axis, 0)
+        m = np.moveaxis(active, axis, 0)
+        both = m[1:] & m[:-1]
+        out.append(np.abs(a[1:] - a[:-1])[both])
+    return np.concatenate(out)
+
+
+# -- the plate-model tests: a block of active punches and a plate pressed with strokes refined for nominal steel --
+
+MODEL_THICKNESS_MM = 20.0
+NOMINAL = Material()
+
+
+def model_press():
+    """The example press with the plate cut to its net outline (exact geometry)."""
+    return dataclasses.replace(load_press(example_press_path()), margin_mm=0.0)
+
+
+def model_grid(press, active_cols=slice(2, 22), active_rows=slice(1, 15)):
+    """(px, py, active, outline): punch axes, a block of active punches and a rectangle 50 mm around them."""
+    px, py = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    active = np.zeros(press.shape, dtype=bool)
+    active[active_rows, active_cols] = True
+    outline = np.array([[px[active].min() - 50, py[active].min() - 50], [px[active].max() + 50, py[active].min() - 50],
+                        [px[active].max() + 50, py[active].max() + 50], [px[active].min() - 50, py[active].max() + 50]])
+    return px, py, active, outline
+
+
+@dataclass(frozen=True, eq=False)
+class SofterPlate:
+    """A twisted bilge planned on the plate model for nominal steel, pressed into a plate 15 % softer."""
+
+    press: object
+    px: np.ndarray
+    py: np.ndarray
+    active: np.ndarray
+    outline: np.ndarray
+    target: np.ndarray
+    planned: object  # the Refinement for nominal steel
+    true: Material
+    measured: np.ndarray
+
+
+@functools.lru_cache(maxsize=None)
+def softer_plate_pressed() -> SofterPlate:
+    """Strokes refined for the nominal steel; the plate that took them is 15 % softer (computed once, read-only)."""
+    from mppf.forming.precompensate import deviation, predict_mid_heights, refine_strokes
+
+    press = model_press()
+    t = MODEL_THICKNESS_MM
+    px, py, active, outline = model_grid(press)
+    target = np.where(active, py**2 / (2 * 6000.0) + px * py / 2.0e7, np.nan)
+    planned = refine_strokes(press, target + t / 2, target - t / 2, active, target, outline, t, NOMINAL)
+    true = Material(yield_stress_mpa=0.85 * NOMINAL.yield_stress_mpa)
+    formed = predict_mid_heights(press, planned.upper_mm, planned.lower_mm, active, outline, t, true)
+    measured = deviation(press, formed, target, active)
+    for array in (px, py, active, outline, target, measured, planned.upper_mm, planned.lower_mm):
+        array.flags.writeable = False
+    return SofterPlate(press, px, py, active, outline, target, planned, true, measured)

@@ -36,7 +36,9 @@ def cli(ctx: click.Context, debug: bool) -> None:
 def _register_commands() -> None:
     from mppf.cli import (
         compare_cmd,
+        demo_cmd,
         geometry,
+        history_cmd,
         loop_cmd,
         plan_cmd,
         press_cmd,
@@ -45,7 +47,8 @@ def _register_commands() -> None:
         unfold_cmd,
     )
 
-    for module in (geometry, register_cmd, unfold_cmd, plan_cmd, sim_cmd, press_cmd, compare_cmd, loop_cmd):
+    for module in (geometry, register_cmd, unfold_cmd, plan_cmd, sim_cmd, press_cmd, compare_cmd, loop_cmd,
+                   history_cmd, demo_cmd):
         for command in module.COMMANDS:
             cli.add_command(command)
 

@@ -9,6 +9,7 @@ import numpy as np
 
 from mppf.cli._common import PICTURE_SUFFIXES, check_output_path, console, err_console, print_json, units_option
 from mppf.core.errors import InputError
+from mppf.core.validate import check_number, check_positive
 
 SKIN_SIDE = {"top": 1.0, "mid": 0.0, "bottom": -1.0}
 """Offset of the measured skin from the design mid-surface, in half thicknesses."""
@@ -24,9 +25,7 @@ def skin_offset_mm(skin: str, thickness_mm: float | None) -> float:
     if thickness_mm is None:
         raise InputError(f"--skin {skin} needs the plate --thickness",
                          hint=f"e.g. --thickness 20 --skin {skin}")
-    if not (np.isfinite(thickness_mm) and thickness_mm > 0):
-        raise InputError(f"--thickness must be a positive length in mm, got {thickness_mm}")
-    return SKIN_SIDE[skin] * 0.5 * thickness_mm
+    return SKIN_SIDE[skin] * 0.5 * check_positive("--thickness", thickness_mm, unit="mm")
 
 
 @click.command("compare")
@@ -60,13 +59,11 @@ def compare_command(design: str, measured: str, tolerance: float, thickness: flo
     Both files are point or mesh files (.csv .txt .xyz .ply .stl .obj).
     Exit code 2 for unreadable files or a scan that does not match the design.
     """
+    from mppf.geometry.read import read_points
     from mppf.measure.compare import compare
-    from mppf.geometry.io import read_points
 
-    if not (np.isfinite(tolerance) and tolerance > 0):
-        raise InputError(f"--tolerance must be a positive length in mm, got {tolerance}")
-    if not (np.isfinite(margin) and margin >= 0):
-        raise InputError(f"--margin must be the trim margin's width in mm, 0 or more, got {margin}")
+    check_positive("--tolerance", tolerance, unit="mm")
+    check_number("--margin", margin, low=0.0, unit="mm", hint="")  # one line: the range says what to give
     offset = skin_offset_mm(skin, thickness)
     if plot:
         check_output_path(plot, "the deviation map (--plot)", PICTURE_SUFFIXES, kind="picture")

@@ -28,7 +28,7 @@ def fit_command(file: str, degree: str, kind: str, smoothing: float | None, unit
     residual (RMS and largest), degree, kind, point count and the local frame
     (origin and u, v, n axes in the file's coordinates).
     """
-    from mppf.geometry.io import read_points
+    from mppf.geometry.read import read_points
     from mppf.geometry.surface import fit_plate
 
     cloud = read_points(file, units=units)

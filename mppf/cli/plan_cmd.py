@@ -11,11 +11,10 @@ from rich.table import Table
 from mppf.cli._common import (PICTURE_SUFFIXES, RichReporter, check_output_path, console, print_json,
                               units_option)
 from mppf.core.errors import InputError
-from mppf.geometry.io import read_points
-from mppf.planning.job import save_job
-from mppf.planning.plan import plan_job, plan_summary
-from mppf.planning.press import example_press_path, load_press
+from mppf.geometry.read import read_points
 from mppf.forming.material import MATERIALS, Material
+from mppf.planning.job import save_job
+from mppf.planning.press import example_press_path, load_press
 
 
 def _material(name, youngs, poisson, yield_mpa) -> Material | None:
@@ -117,6 +116,8 @@ def plan_command(design, flat, press_path, thickness_mm, steps, springback, marg
     (e.g. from 'mppf unfold'; same point order = paired registration). Nothing is
     written when the plan fails validation.
     """
+    from mppf.planning.plan import plan_job, plan_summary  # numpy/scipy work: imported when planning
+
     if output:
         check_output_path(output, "the job file")
     if plot:

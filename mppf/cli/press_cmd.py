@@ -1,26 +1,23 @@
 """``mppf press``, ``mppf status``, ``mppf stop``, ``mppf reset``: drive the press PLC.
 
-Thin wrappers over :class:`mppf.drivers.modbus.ModbusPress`; see ``docs/driver.md``.
+Thin wrappers over :class:`mppf.drivers.modbus.ModbusPress`; which press, the
+confirmation and SIGTERM follow :mod:`mppf.cli.press_policy` (as ``mppf loop``). See
+``docs/driver.md``.
 """
 
 from __future__ import annotations
 
-import contextlib
 import math
-import signal
-import sys
-import threading
 from pathlib import Path
 
 import click
 import numpy as np
 from rich.table import Table
 
-from mppf.cli._common import RichReporter, console, err_console, print_json
-from mppf.core.errors import InputError, PressRefused
-
-DRY_RUN_TIME_SCALE = 20.0
-DRY_RUN_REPLY_TIMEOUT_S = 5.0  # the in-process simulator shares this process's CPU: be patient
+from mppf.cli._common import RichReporter, console, print_json
+from mppf.cli.press_policy import (confirm_motion, connect, press_description, press_link, sigterm_as_ctrl_c,
+                                   time_scale_option)
+from mppf.core.errors import InputError
 
 plc_option = click.option(
     "--plc",
@@ -43,13 +40,11 @@ def _need_plc(plc_url: str | None) -> str:
     return plc_url
 
 
-def _connect(plc_url: str, press=None, *, audit_path=None, heartbeat_s=None, **kw):
-    """A connected ModbusPress (the drivers are imported only when a command needs them)."""
+def _audit(audit_path):
+    """The audit log at ``audit_path`` (None: the default one)."""
     from mppf.drivers.audit import AuditLog
-    from mppf.drivers.modbus import ModbusPress
 
-    audit = AuditLog(audit_path) if audit_path is not False else None
-    return ModbusPress(plc_url, press, audit=audit, heartbeat_s=heartbeat_s, **kw)
+    return AuditLog(audit_path)
 
 
 def _select_steps(job, step: int | None) -> list[int]:
@@ -59,38 +54,6 @@ def _select_steps(job, step: int | None) -> list[int]:
     if not 1 <= step <= n:
         raise InputError(f"--step {step} does not exist: the job has steps 1..{n}")
     return [step]
-
-
-def _confirm(plc, job_path: Path, steps: list[int], yes: bool) -> None:
-    """Ask before moving a real press; refuse without a terminal unless --yes."""
-    if yes:
-        return
-    what = (f"job {job_path.name}, step(s) {', '.join(map(str, steps))}, on the press at {plc.url} "
-            f"({plc.identity.rows} x {plc.identity.cols} punches)")
-    if not sys.stdin.isatty():
-        raise PressRefused(
-            f"refusing to move the press without confirmation ({what}): stdin is not a terminal",
-            hint="run it at a terminal to confirm, or add --yes when the press is clear",
-        )
-    if not click.confirm(f"Move {what}? Check that the press is clear", default=False, err=True):
-        raise PressRefused("the operator declined: nothing was sent to the press")
-
-
-@contextlib.contextmanager
-def _sigterm_as_ctrl_c():
-    """While pressing, SIGTERM (kill, a service manager, a CI cancel) is handled like Ctrl-C: STOP first."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def terminate(signum, frame):
-        raise KeyboardInterrupt
-
-    previous = signal.signal(signal.SIGTERM, terminate)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
 
 
 def _result_table(step: int, result, tolerance_mm: float) -> Table:
@@ -116,8 +79,7 @@ def _result_table(step: int, result, tolerance_mm: float) -> Table:
               help="Motion timeout per step in s (default: from the longest move, speed and acceleration).")
 @click.option("--word-order", type=click.Choice(["auto", "ABCD", "CDAB"]), default="auto", show_default=True,
               help="Expected word order of 32-bit registers.")
-@click.option("--time-scale", type=click.FloatRange(min=0.1), default=DRY_RUN_TIME_SCALE, show_default=True,
-              help="Dry run only: the simulated press moves this many times faster than the real one.")
+@time_scale_option
 def press_command(job_path, plc_url, step, yes, audit_path, timeout_s, word_order, time_scale):
     """Send a planned job to the press and follow it, step by step.
 
@@ -137,26 +99,19 @@ def press_command(job_path, plc_url, step, yes, audit_path, timeout_s, word_orde
                          hint="leave it out for the default (from the longest move)")
     job = load_job(job_path)
     steps = _select_steps(job, step)
-    with _sigterm_as_ctrl_c(), contextlib.ExitStack() as stack:
-        dry_run = plc_url is None
-        if dry_run:
-            from mppf.sim.plc import run_simulated_plc
-
-            sim = stack.enter_context(run_simulated_plc(job.press, time_scale=time_scale))
-            plc_url = sim.url
-            err_console.print(f"[bold yellow]DRY RUN[/] against the simulated PLC at {plc_url} "
-                              f"(time x{time_scale:g}); no press moves")
-        plc = stack.enter_context(_connect(plc_url, job.press, audit_path=audit_path, heartbeat_s=0.25,
-                                           word_order=word_order, job_sha256=job.sha256(),
-                                           timeout_s=DRY_RUN_REPLY_TIMEOUT_S if dry_run else None))
+    dry_run = plc_url is None
+    with sigterm_as_ctrl_c(), press_link(job.press, plc_url, audit=_audit(audit_path), time_scale=time_scale,
+                                         reporter=RichReporter(), heartbeat_s=0.25, word_order=word_order,
+                                         job_sha256=job.sha256()) as plc:
+        # every step checked against the limits before the first moves
         setpoints = {k: job.steps[k - 1].setpoints_mm(job.press) for k in steps}
-        for k in steps:  # every step checked before the first moves
+        for k in steps:
             plc.check_setpoints(*setpoints[k])
+        # a real press: the operator confirms
         if not dry_run:
-            if plc.status().simulated:
-                err_console.print("simulated PLC (status bit 'simulated'): no confirmation needed")
-            else:
-                _confirm(plc, job_path, steps, yes)
+            confirm_motion(plc, f"job {job_path.name}, step(s) {', '.join(map(str, steps))}, on "
+                                f"{press_description(plc)}", yes)
+        # press, step by step
         for k in steps:
             reporter = RichReporter(enabled=True)
             reporter.info(f"step {k} of {len(job.steps)}")
@@ -171,7 +126,7 @@ def press_command(job_path, plc_url, step, yes, audit_path, timeout_s, word_orde
 @click.option("--json", "as_json", is_flag=True, help="Print the status as JSON.")
 def status_command(plc_url, as_json):
     """Read the PLC's identity and status (reads only; nothing is written)."""
-    with _connect(_need_plc(plc_url), audit_path=False) as plc:
+    with connect(_need_plc(plc_url), heartbeat_s=None) as plc:
         report = plc.status_report()
     if as_json:
         print_json(report)
@@ -197,7 +152,7 @@ def status_command(plc_url, as_json):
 @audit_option
 def stop_command(plc_url, audit_path):
     """Command STOP: every punch decelerates to a standstill (always accepted)."""
-    with _connect(_need_plc(plc_url), audit_path=audit_path) as plc:
+    with connect(_need_plc(plc_url), audit=_audit(audit_path), heartbeat_s=None) as plc:
         plc.stop("mppf stop")
     console.print(f"STOP sent to {plc.url}")
 
@@ -207,7 +162,7 @@ def stop_command(plc_url, audit_path):
 @audit_option
 def reset_command(plc_url, audit_path):
     """Reset latched faults (refused while the cause, e.g. the e-stop, is present)."""
-    with _connect(_need_plc(plc_url), audit_path=audit_path) as plc:
+    with connect(_need_plc(plc_url), audit=_audit(audit_path), heartbeat_s=None) as plc:
         plc.reset()
         st = plc.status()
     console.print(f"faults reset on {plc.url}: {st.fault_text}; ready: {st.ready}")

@@ -38,9 +38,10 @@ def register_command(source: str, target: str, method: str, init: str, robust: s
     """
 
     from mppf.core.errors import InputError
-    from mppf.geometry.io import WRITE_SUFFIXES, read_points, write_points
-    from mppf.registration.register import register_icp, register_paired
     from mppf.core.transform import apply_tf
+    from mppf.geometry.read import read_points
+    from mppf.geometry.write import WRITE_SUFFIXES, write_points
+    from mppf.registration.register import register_icp, register_paired
 
     if method == "paired":
         ctx = click.get_current_context()

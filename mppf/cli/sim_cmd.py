@@ -77,7 +77,7 @@ def sim_command(
     prints its URL and a status line now and then.
     """
     from mppf.sim.faults import parse_fault_spec
-    from mppf.sim.plc import start_simulated_plc
+    from mppf.sim.plc.host import start_simulated_plc
 
     if rtu_port and (host is not None or port is not None):
         raise InputError("--rtu cannot be combined with --host/--port", hint="serve either TCP or RTU")

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from mppf.cli._common import PICTURE_SUFFIXES, check_output_path, console, print_json, units_option
-from mppf.geometry.unfold import STRAIN_LIMIT_PCT
+from mppf.geometry.unfold_report import STRAIN_LIMIT_PCT
 
 
 @click.command("unfold")
@@ -31,8 +31,9 @@ def unfold_command(design: str, output: str, units: str, strain_limit_pct: float
     paired', the planner). Prints the in-plane strain (RMS, max), the area and outline
     length changes and a warning when the strain exceeds --strain-limit.
     """
-    from mppf.geometry.io import read_points, write_points
+    from mppf.geometry.read import read_points
     from mppf.geometry.unfold import unfold
+    from mppf.geometry.write import write_points
 
     out = _writable(output, plot_path)
     cloud = read_points(design, units=units)
@@ -63,7 +64,7 @@ def unfold_command(design: str, output: str, units: str, strain_limit_pct: float
 
 def _writable(output: str, plot_path: str | None) -> Path:
     """Refuse output paths that cannot be written, before the work is done."""
-    from mppf.geometry.io import WRITE_SUFFIXES
+    from mppf.geometry.write import WRITE_SUFFIXES
 
     path = check_output_path(output, "the flat file", WRITE_SUFFIXES, kind="point file")
     if plot_path is not None:

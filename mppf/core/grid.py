@@ -9,6 +9,8 @@ the second along x (spacing ``hx``); lengths in mm, curvatures in 1/mm.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 ROBUST_PASSES = 3
@@ -152,10 +154,23 @@ def integrate_hessian(hxx, hxy, hyy, hx: float, hy: float) -> np.ndarray:
         Heights, mm, up to a plane a + b x + c y (fixed by the caller; a tiny Tikhonov
         term keeps the system regular).
     """
-    from scipy import sparse
-    from scipy.sparse.linalg import spsolve
-
+    hxx = np.asarray(hxx, dtype=float)
     ny, nx = hxx.shape
+    a, factors = _hessian_system(ny, nx, float(hx), float(hy))
+    scale = max(hx, hy) ** 2
+    b = np.concatenate([hxx.ravel() * scale, np.asarray(hyy, dtype=float).ravel() * scale,
+                        np.sqrt(2.0) * np.asarray(hxy, dtype=float).ravel() * scale, np.zeros(nx * ny)])
+    return factors.solve(a.T @ b).reshape(ny, nx)
+
+
+@functools.lru_cache(maxsize=8)
+def _hessian_system(ny: int, nx: int, hx: float, hy: float):
+    """The least-squares operator of :func:`integrate_hessian` on a grid and the LU factors of its
+    normal matrix; cached, since the plate model and the corrections integrate on the same grid
+    again and again (the factorisation is most of the cost)."""
+    from scipy import sparse
+    from scipy.sparse.linalg import splu
+
     ix, iy = sparse.identity(nx), sparse.identity(ny)
     dxx = sparse.kron(iy, _second_difference(nx, hx))
     dyy = sparse.kron(_second_difference(ny, hy), ix)
@@ -163,10 +178,7 @@ def integrate_hessian(hxx, hxy, hyy, hx: float, hy: float) -> np.ndarray:
     scale = max(hx, hy) ** 2
     reg = sparse.identity(nx * ny) * 1e-6
     a = sparse.vstack([dxx * scale, dyy * scale, np.sqrt(2.0) * dxy * scale, reg]).tocsr()
-    b = np.concatenate([hxx.ravel() * scale, hyy.ravel() * scale, np.sqrt(2.0) * hxy.ravel() * scale,
-                        np.zeros(nx * ny)])
-    normal = (a.T @ a).tocsc()
-    return spsolve(normal, a.T @ b).reshape(ny, nx)
+    return a, splu((a.T @ a).tocsc())
 
 
 def tps_fill(known_xy, values, query_xy, smoothing: float = 0.0) -> np.ndarray:

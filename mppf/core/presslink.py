@@ -1,8 +1,10 @@
 """The one interface of "a press": what workflows need from the press, whatever drives it.
 
-The Modbus driver (:class:`mppf.drivers.modbus.ModbusPress`) implements it against a real
-or simulated PLC. Workflows (``mppf press``, ``mppf loop``, the demo) take a
-:class:`PressLink` as an argument and never import a driver themselves.
+The press driver (:class:`mppf.drivers.plc_press.PlcPress`) implements it on the register
+map: :class:`mppf.drivers.modbus.ModbusPress` against a real or simulated PLC over Modbus,
+:class:`mppf.sim.plc.link.InProcessPress` on the simulated PLC's program in this thread
+(instant, for tests and library dry runs). Workflows (``mppf press``, ``mppf loop``, the
+demo) take a :class:`PressLink` as an argument and never import a driver themselves.
 """
 
 from __future__ import annotations
@@ -104,6 +106,8 @@ class PressLink(Protocol):
             A setpoint beyond the press limits (nothing is written).
         LinkError
             The link failed (the press is sent STOP where the link allows).
+        PlcError
+            The PLC refused a request (after GO the press is sent STOP).
         PressFault
             The PLC faulted, refused GO, or positions are out of tolerance.
         Cancelled

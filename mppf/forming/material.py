@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from mppf.core.errors import InputError
+from mppf.core.validate import check_number, check_positive
 
 
 @dataclass(frozen=True)
@@ -26,12 +26,11 @@ class Material:
     yield_stress_mpa: float = 235.0
 
     def __post_init__(self):
-        if not self.youngs_modulus_mpa > 0:
-            raise InputError(f"Young's modulus must be positive, got {self.youngs_modulus_mpa} MPa")
-        if not 0 <= self.poisson < 0.5:
-            raise InputError(f"Poisson's ratio must be in [0, 0.5), got {self.poisson}")
-        if not self.yield_stress_mpa > 0:
-            raise InputError(f"yield stress must be positive, got {self.yield_stress_mpa} MPa")
+        checked = {"youngs_modulus_mpa": check_positive("Young's modulus", self.youngs_modulus_mpa, unit="MPa"),
+                   "poisson": check_number("Poisson's ratio", self.poisson, low=0.0, high=0.5, high_open=True),
+                   "yield_stress_mpa": check_positive("the yield stress", self.yield_stress_mpa, unit="MPa")}
+        for name, value in checked.items():
+            object.__setattr__(self, name, float(value))
 
     @property
     def plane_strain_modulus_mpa(self) -> float:

@@ -12,7 +12,10 @@ real loop uses), and repeat until the predicted deviation is below ``tolerance_m
 is the simulation-based displacement adjustment of die design, done per plate.
 
 What it cannot know is the plate's true yield stress and thickness (they scatter around
-the nominal values); the real bend - measure - compare loop corrects that.
+the nominal values); the real bend - measure - compare loop corrects that, with the plate
+model calibrated on the measured cycles (:mod:`mppf.correct.calibrated`, which uses this
+module: the dependency runs one way, correct.calibrated -> forming.precompensate ->
+correct.compensate).
 """
 
 from __future__ import annotations
@@ -21,14 +24,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.interpolate import RectBivariateSpline
-from scipy.optimize import minimize_scalar
 
+from mppf.core.grid import without_plane
+from mppf.core.validate import check_number
 from mppf.correct.compensate import compensate
-from mppf.core.errors import InputError
-from mppf.core.grid import tps_fill, without_plane
+from mppf.forming.material import Material
 from mppf.forming.plate_model import grid_axes, loaded_surface, spring_back
 from mppf.planning.press import PressConfig
-from mppf.forming.material import Material
 
 MODEL_SPACING_MM = 30.0
 """Grid spacing of the plate model used for the prediction."""
@@ -94,8 +96,24 @@ def predict_mid_heights(press: PressConfig, upper_mm, lower_mm, active, outline_
     return spline.ev(py, px)
 
 
-def _deviation(press: PressConfig, predicted, target, act) -> np.ndarray:
-    """Predicted minus target at the active punches, its best plane removed (NaN elsewhere)."""
+def deviation(press: PressConfig, predicted, target, active) -> np.ndarray:
+    """Predicted minus target heights at the active punches, their best plane removed.
+
+    The deviation up to a rigid placement, as the comparison of a scan measures it.
+
+    Parameters
+    ----------
+    press : PressConfig
+    predicted, target : (rows, cols) float
+        Mid-surface heights at the punch axes, mm.
+    active : (rows, cols) bool
+
+    Returns
+    -------
+    (rows, cols) float
+        mm, NaN where inactive.
+    """
+    act = np.asarray(active, dtype=bool)
     px, py = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
     return np.where(act, without_plane(px, py, predicted - target, act), np.nan)
 
@@ -134,9 +152,8 @@ def refine_strokes(press: PressConfig, upper_mm, lower_mm, active, target_mid_mm
     InputError
         A negative iteration count or a non-positive tolerance.
     """
-    if iterations < 0 or not tolerance_mm > 0:
-        raise InputError(f"refinement needs iterations >= 0 and a positive tolerance, got {iterations}, "
-                         f"{tolerance_mm} mm")
+    iterations = check_number("the refinement's iterations", iterations, low=0, integer=True)
+    tolerance_mm = check_number("the refinement's tolerance", tolerance_mm, low=0.0, low_open=True, unit="mm")
     act = np.asarray(active, dtype=bool)
     upper = np.where(act, np.asarray(upper_mm, dtype=float), np.nan)
     lower = np.where(act, np.asarray(lower_mm, dtype=float), np.nan)
@@ -147,7 +164,7 @@ def refine_strokes(press: PressConfig, upper_mm, lower_mm, active, target_mid_mm
     for _ in range(iterations + 1):
         predicted = predict_mid_heights(press, upper, lower, act, outline_xy_mm, thickness_mm, material)
         # the deviation up to a rigid placement: the comparison of a scan removes its best plane
-        error = _deviation(press, predicted, target, act)
+        error = deviation(press, predicted, target, act)
         worst = float(np.max(np.abs(error[act])))
         history.append(worst)
         if worst < best[0]:
@@ -161,158 +178,3 @@ def refine_strokes(press: PressConfig, upper_mm, lower_mm, active, target_mid_mm
                  f"largest deviation at the punches {history[0]:.2f} -> {best[0]:.2f} mm")
     return Refinement(upper_mm=best[1], lower_mm=best[2], predicted_max_mm=best[0], history_mm=history,
                       notes=notes)
-
-
-YIELD_BOUNDS = (0.6, 1.6)
-"""Range of the fitted effective yield stress, as factors of the nominal one."""
-
-RESIDUAL_SMOOTHING = 10.0
-"""Smoothing of the thin-plate spline through the measured residual (mm^2 units of the spline)."""
-
-MIN_EXPLAINED = 0.25
-"""The loop uses the calibrated correction only when the fitted model explains at least this share
-of the measured deviations (:attr:`MaterialFit.explained`); else the model step of
-:func:`mppf.correct.compensate.compensate`. Near tolerance the scan's noise and registration leave a
-good model about half of a 1 mm RMS unexplained; a model that explains less than a quarter is
-not trusted to solve the next strokes."""
-
-
-@dataclass(frozen=True)
-class MaterialFit:
-    """The plate's effective material, fitted to measured cycles through the plate model.
-
-    Attributes
-    ----------
-    material : Material
-        The nominal material with the fitted yield stress.
-    cost_nominal_mm2, cost_fit_mm2 : float
-        Sum of squared differences (mm^2) between the measured and the predicted punch
-        deviations over all cycles, with the nominal and with the fitted yield stress.
-    n_cycles : int
-    measured_mm2 : float
-        Sum of the squared measured deviations (each cycle's mean removed), mm^2.
-    """
-
-    material: Material
-    cost_nominal_mm2: float
-    cost_fit_mm2: float
-    n_cycles: int
-    measured_mm2: float = float("nan")
-
-    @property
-    def explained(self) -> float:
-        """Share of the measured deviations' squares (means removed) the fitted model explains."""
-        return 1.0 - self.cost_fit_mm2 / self.measured_mm2 if self.measured_mm2 > 0 else 0.0
-
-
-def fit_yield_stress(press: PressConfig, cycles, active, target_mid_mm, outline_xy_mm, thickness_mm: float,
-                     nominal: Material) -> MaterialFit:
-    """The yield stress that makes the plate model best predict the measured deviations.
-
-    Springback depends on the material through ``c = sy' / (E' t)`` alone, so one number,
-    the effective yield stress at the nominal thickness, carries both the yield stress's
-    and the thickness's scatter. It is fitted (bounded scalar minimisation within
-    ``YIELD_BOUNDS`` of the nominal) to the punch deviations measured after every cycle so
-    far, each predicted from that cycle's strokes by :func:`predict_mid_heights`; each
-    cycle's difference has its mean removed (the plate's height is not measured).
-
-    Parameters
-    ----------
-    press : PressConfig
-    cycles : sequence of (upper_mm, lower_mm, punch_error_mm)
-        Each pressed cycle: tip heights (rows, cols; NaN where inactive) and the measured
-        deviation at the punches (NaN where unknown), plane removed.
-    active : (rows, cols) bool
-    target_mid_mm : (rows, cols) float
-        The design's mid-surface height at the punch axes (``Job.layout.design_mid_mm``).
-    outline_xy_mm : (k, 2) float
-        The plate as cut, on the press.
-    thickness_mm : float
-        Nominal thickness.
-    nominal : Material
-
-    Returns
-    -------
-    MaterialFit
-    """
-    act = np.asarray(active, dtype=bool)
-    target = np.asarray(target_mid_mm, dtype=float)
-    cycles = [(np.asarray(u, dtype=float), np.asarray(lo, dtype=float), np.asarray(e, dtype=float))
-              for u, lo, e in cycles]
-
-    def cost(yield_mpa: float) -> float:
-        material = Material(nominal.youngs_modulus_mpa, nominal.poisson, float(yield_mpa))
-        total = 0.0
-        for upper, lower, error in cycles:
-            predicted = _deviation(press, predict_mid_heights(press, upper, lower, act, outline_xy_mm, thickness_mm,
-                                                              material), target, act)
-            known = act & np.isfinite(error)
-            diff = (predicted - error)[known]
-            total += float(np.sum((diff - diff.mean()) ** 2)) if diff.size else 0.0
-        return total
-
-    lo, hi = (f * nominal.yield_stress_mpa for f in YIELD_BOUNDS)
-    best = minimize_scalar(cost, bounds=(lo, hi), method="bounded", options={"xatol": 0.5})
-    fitted = Material(nominal.youngs_modulus_mpa, nominal.poisson, float(best.x))
-    measured = 0.0
-    for _, _, error in cycles:
-        values = error[act & np.isfinite(error)]
-        measured += float(np.sum((values - values.mean()) ** 2)) if values.size else 0.0
-    return MaterialFit(fitted, cost(nominal.yield_stress_mpa), float(best.fun), len(cycles), measured)
-
-
-def calibrated_correction(press: PressConfig, cycles, active, target_mid_mm, outline_xy_mm, thickness_mm: float,
-                          nominal: Material, *, iterations: int = ITERATIONS) -> tuple[Refinement, MaterialFit]:
-    """Next strokes from the plate model calibrated on the measured cycles (model-based ILC).
-
-    1. The effective yield stress is fitted to all cycles so far (:func:`fit_yield_stress`).
-    2. The residual ``r`` the calibrated model does not explain (measured minus predicted
-       deviation of the last cycle: model-form error, measurement error) is spread over
-       the punch grid by a smoothing thin-plate spline.
-    3. The strokes are refined on the calibrated model (:func:`refine_strokes`, from the
-       last cycle's strokes) towards the design moved by ``-r``: so that the plate, which
-       lands ``r`` off what the model predicts, lands on the design.
-
-    Parameters
-    ----------
-    cycles : sequence of (upper_mm, lower_mm, punch_error_mm)
-        Every pressed cycle, the last one last (see :func:`fit_yield_stress`).
-    Other parameters as :func:`fit_yield_stress`; ``iterations`` as :func:`refine_strokes`.
-
-    Returns
-    -------
-    refinement : Refinement
-        The new strokes (NaN where inactive) and the predicted deviation against the
-        residual-corrected target.
-    fit : MaterialFit
-
-    Raises
-    ------
-    InputError
-        No cycle given, or too few measured punches (fewer than 6) in the last one.
-    """
-    if not cycles:
-        raise InputError("the calibrated correction needs at least one measured cycle")
-    act = np.asarray(active, dtype=bool)
-    target = np.asarray(target_mid_mm, dtype=float)
-    fit = fit_yield_stress(press, cycles, act, target, outline_xy_mm, thickness_mm, nominal)
-    upper, lower, error = (np.asarray(a, dtype=float) for a in cycles[-1])
-    known = act & np.isfinite(error)
-    if known.sum() < 6:
-        raise InputError(f"only {int(known.sum())} punches have a measured deviation; the calibrated "
-                         "correction needs at least 6")
-    predicted = _deviation(press, predict_mid_heights(press, upper, lower, act, outline_xy_mm, thickness_mm,
-                                                      fit.material), target, act)
-    px, py = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
-    spread = np.full(press.shape, np.nan)
-    spread[act] = tps_fill(np.column_stack([px[known], py[known]]), (error - predicted)[known],
-                           np.column_stack([px[act], py[act]]), smoothing=RESIDUAL_SMOOTHING)
-    refinement = refine_strokes(press, upper, lower, act, target - spread, outline_xy_mm, thickness_mm, fit.material,
-                                iterations=iterations)
-    notes = [f"plate model calibrated on {fit.n_cycles} cycle(s): effective yield stress "
-             f"{fit.material.yield_stress_mpa:.0f} MPa (nominal {nominal.yield_stress_mpa:.0f}); squared misfit "
-             f"{fit.cost_nominal_mm2:.0f} -> {fit.cost_fit_mm2:.0f} mm^2, {100 * fit.explained:.0f} % of the "
-             f"measured deviations explained; residual the model does not explain "
-             f"up to {np.nanmax(np.abs(spread)):.2f} mm", *refinement.notes]
-    return Refinement(refinement.upper_mm, refinement.lower_mm, refinement.predicted_max_mm, refinement.history_mm,
-                      notes), fit

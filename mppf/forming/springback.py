@@ -18,7 +18,6 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import brentq
 
-from mppf.core.errors import InputError
 from mppf.forming.material import Material
 
 #: x = R sy' / (E' t) at which the outer fibres just reach yield: below it the

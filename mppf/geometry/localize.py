@@ -33,8 +33,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from mppf.core.errors import InputError
-from mppf.geometry.surface import Surface, unit_normals
+from mppf.geometry.surface import Surface
+from mppf.geometry.surface_math import unit_normals
 from mppf.core.transform import apply_tf, as_points, tf_from_list
+from mppf.core.validate import check_number, check_positive
 
 RESIDUAL_TOL_REL = 1e-11
 """|F| must be below this times (1 mm + distance) to count as converged."""
@@ -129,8 +131,8 @@ def foot_points(surface: Surface, points, *, tf=None, tol_mm: float = 1e-9,
         p = apply_tf(tf_from_list(tf, name="tf"), p)
     if not np.all(np.isfinite(p)):
         raise InputError("points contain NaN or infinite values", hint="remove invalid points first")
-    if not tol_mm > 0 or int(max_iterations) < 1:
-        raise InputError(f"tol_mm must be > 0 and max_iterations >= 1, got {tol_mm}, {max_iterations}")
+    check_positive("tol_mm", tol_mm, unit="mm")
+    max_iterations = check_number("max_iterations", max_iterations, low=1, integer=True)
     x, y, w = p[:, 0], p[:, 1], p[:, 2]
     u, v = x.copy(), y.copy()
     deriv = [np.asarray(a, dtype=float) for a in surface.derivatives(u, v)]

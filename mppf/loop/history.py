@@ -5,8 +5,9 @@ status) and one row per press cycle. A cycle moves through the states
 
     planned -> pressing -> pressed -> scanned -> compared -> corrected | done
 
-(a rejected scan takes "scanned" back to "pressed"), and each move is committed at once (WAL journal, ``synchronous=FULL``), so a crash or a
-power cut loses at most the step that was running. Moves are conditional
+(:mod:`mppf.loop.states`; a rejected scan takes "scanned" back to "pressed"), and each
+move is committed at once (WAL journal, ``synchronous=FULL``), so a crash or a power cut
+loses at most the step that was running. Moves are conditional
 (``UPDATE ... WHERE state = <expected>``): a cycle can enter "pressing" only once, which
 is what keeps ``mppf loop --resume`` from ever pressing a cycle twice, even when two
 processes race for the same plate. Every move is also appended to the ``events`` table.
@@ -21,81 +22,19 @@ Default location: ``$MPPF_HOME/history.sqlite`` when ``MPPF_HOME`` is set, else
 
 from __future__ import annotations
 
-import json
 import os
 import sqlite3
 import time
-from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 
-import numpy as np
-
-from mppf.core.errors import InputError
 from mppf.core.db import open_sqlite
+from mppf.core.errors import InputError
 from mppf.core.paths import data_dir
-from mppf.planning.job import StepStrokes, grid_from_json, grid_to_json
-
-SCHEMA_VERSION = 1
-
-#: Cycle states in order; "corrected" and "done" are the two ends.
-STATES = ("planned", "pressing", "pressed", "scanned", "compared", "corrected", "done")
-
-#: Plate statuses: "active" while the loop runs, else why it stopped.
-PLATE_STATUSES = ("active", "in_tolerance", "max_cycles", "diverged")
-
-_SCHEMA = """
-CREATE TABLE IF NOT EXISTS plates (
-    plate_id       TEXT PRIMARY KEY,
-    created_utc    TEXT NOT NULL,
-    updated_utc    TEXT NOT NULL,
-    status         TEXT NOT NULL,      -- active, in_tolerance, max_cycles, diverged
-    design_path    TEXT NOT NULL,
-    design_sha256  TEXT NOT NULL,
-    flat_path      TEXT NOT NULL,
-    flat_sha256    TEXT NOT NULL,
-    thickness_mm   REAL NOT NULL,
-    press_json     TEXT NOT NULL,      -- the press description (TOML layout)
-    settings_json  TEXT NOT NULL,      -- loop settings, scanner, PLC URL, seed, work folder
-    note           TEXT NOT NULL DEFAULT ''
-);
-CREATE TABLE IF NOT EXISTS cycles (
-    plate_id       TEXT NOT NULL REFERENCES plates (plate_id),
-    cycle          INTEGER NOT NULL,   -- 1, 2, ...
-    state          TEXT NOT NULL,      -- planned, pressing, pressed, scanned, compared, corrected, done
-    created_utc    TEXT NOT NULL,
-    updated_utc    TEXT NOT NULL,
-    job_path       TEXT NOT NULL,      -- job file of the strokes of this cycle
-    job_sha256     TEXT NOT NULL,
-    steps_json     TEXT NOT NULL,      -- the strokes: [{upper_mm, lower_mm, active}] (null = inactive)
-    step_started   INTEGER NOT NULL DEFAULT 0,  -- last step whose upload/GO began (1-based)
-    steps_done     INTEGER NOT NULL DEFAULT 0,  -- steps finished in position
-    results_json   TEXT NOT NULL DEFAULT '[]', -- per step: sequence, read-back, max error, duration
-    interrupted    INTEGER NOT NULL DEFAULT 0,  -- 1 when resumed from "pressing" (not pressed again)
-    scan_path      TEXT,
-    scan_sha256    TEXT,
-    rms_mm         REAL,
-    max_abs_mm     REAL,
-    within_pct     REAL,
-    deviation_json TEXT,               -- per-punch deviation grid (rows, cols), null = no data
-    compare_json   TEXT,               -- the full comparison summary
-    gain           REAL,               -- gain of the correction that made these strokes
-    correction_json TEXT,              -- that correction (applied mm, clipped, notes)
-    decision       TEXT,               -- continue, in_tolerance, max_cycles, diverged
-    rejected_json  TEXT NOT NULL DEFAULT '[]',  -- scans refused for this cycle: [{path, sha256, reason}]
-    PRIMARY KEY (plate_id, cycle)
-);
-CREATE TABLE IF NOT EXISTS events (
-    id        INTEGER PRIMARY KEY AUTOINCREMENT,
-    time_utc  TEXT NOT NULL,
-    plate_id  TEXT NOT NULL,
-    cycle     INTEGER,
-    state     TEXT NOT NULL,
-    pid       INTEGER NOT NULL,
-    detail    TEXT NOT NULL DEFAULT ''
-);
-"""
-
+from mppf.loop.records import (CYCLE_COLUMNS, SCHEMA, SCHEMA_VERSION, CycleRecord, Event, PlateRecord,
+                               cycle_from_row, dumps, plate_from_row, steps_to_json)
+from mppf.loop.states import CycleState, Decision, PlateStatus
+from mppf.planning.job import StepStrokes, grid_to_json
 
 def default_history_path() -> Path:
     """``$MPPF_HOME/history.sqlite``, else ``~/.local/share/mppf/history.sqlite``."""
@@ -104,118 +43,6 @@ def default_history_path() -> Path:
 
 def _now_utc() -> str:
     return datetime.fromtimestamp(time.time(), tz=timezone.utc).isoformat(timespec="milliseconds")
-
-
-def steps_to_json(steps: list[StepStrokes]) -> list[dict]:
-    """Strokes of a cycle as JSON-ready dicts."""
-    return [
-        {
-            "upper_mm": grid_to_json(np.where(s.active, s.upper_mm, np.nan)),
-            "lower_mm": grid_to_json(np.where(s.active, s.lower_mm, np.nan)),
-            "active": np.asarray(s.active, dtype=bool).tolist(),
-        }
-        for s in steps
-    ]
-
-
-def steps_from_json(doc: list[dict]) -> list[StepStrokes]:
-    """Inverse of :func:`steps_to_json`."""
-    return [
-        StepStrokes(
-            upper_mm=grid_from_json(s["upper_mm"]),
-            lower_mm=grid_from_json(s["lower_mm"]),
-            active=np.asarray(s["active"], dtype=bool),
-        )
-        for s in doc
-    ]
-
-
-@dataclass(frozen=True)
-class PlateRecord:
-    """One plate of the history (see the ``plates`` table)."""
-
-    plate_id: str
-    created_utc: str
-    updated_utc: str
-    status: str
-    design_path: str
-    design_sha256: str
-    flat_path: str
-    flat_sha256: str
-    thickness_mm: float
-    press: dict
-    settings: dict
-    note: str = ""
-
-    def to_dict(self) -> dict:
-        """JSON-ready dict."""
-        return dict(self.__dict__)
-
-
-@dataclass(frozen=True)
-class CycleRecord:
-    """One press cycle of a plate (see the ``cycles`` table).
-
-    Attributes
-    ----------
-    steps : list of StepStrokes
-        The strokes of this cycle (NaN where inactive).
-    punch_deviation_mm : (rows, cols) float or None
-        Deviation at each punch after this cycle (NaN where not measured).
-    """
-
-    plate_id: str
-    cycle: int
-    state: str
-    created_utc: str
-    updated_utc: str
-    job_path: str
-    job_sha256: str
-    steps: list
-    step_started: int
-    steps_done: int
-    results: list
-    interrupted: bool
-    scan_path: str | None
-    scan_sha256: str | None
-    rms_mm: float | None
-    max_abs_mm: float | None
-    within_pct: float | None
-    punch_deviation_mm: np.ndarray | None
-    comparison: dict | None
-    gain: float | None
-    correction: dict | None
-    decision: str | None
-    rejected_scans: list = field(default_factory=list)
-
-    def to_dict(self, *, grids: bool = True) -> dict:
-        """JSON-ready dict (strokes and deviation grid included when ``grids``)."""
-        out = {k: v for k, v in self.__dict__.items() if k not in ("steps", "punch_deviation_mm")}
-        if grids:
-            out["steps"] = steps_to_json(self.steps)
-            out["punch_deviation_mm"] = grid_to_json(self.punch_deviation_mm)
-        return out
-
-
-@dataclass(frozen=True)
-class Event:
-    """One state change."""
-
-    id: int
-    time_utc: str
-    plate_id: str
-    cycle: int | None
-    state: str
-    pid: int
-    detail: str = field(default="")
-
-
-def _loads(text):
-    return None if text is None else json.loads(text)
-
-
-def _dumps(value) -> str:
-    return json.dumps(value, allow_nan=False)
 
 
 class History:
@@ -234,7 +61,7 @@ class History:
 
     def __init__(self, path=None):
         self.path = Path(path) if path is not None else default_history_path()
-        self._db = open_sqlite(self.path, "the plate history", _SCHEMA, SCHEMA_VERSION,
+        self._db = open_sqlite(self.path, "the plate history", SCHEMA, SCHEMA_VERSION,
                                hint="give a writable SQLite file with --history or set MPPF_HOME")
 
     # -- plates -------------------------------------------------------------------------
@@ -264,9 +91,9 @@ class History:
         try:
             with self._transaction():
                 self._db.execute(
-                    "INSERT INTO plates VALUES (?, ?, ?, 'active', ?, ?, ?, ?, ?, ?, ?, ?)",
-                    (plate_id, now, now, str(design_path), design_sha256, str(flat_path), flat_sha256,
-                     float(thickness_mm), _dumps(press), _dumps(settings), note),
+                    "INSERT INTO plates VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                    (plate_id, now, now, PlateStatus.ACTIVE, str(design_path), design_sha256, str(flat_path),
+                     flat_sha256, float(thickness_mm), dumps(press), dumps(settings), note),
                 )
                 self._event(plate_id, None, "created", f"design {design_path}")
         except sqlite3.IntegrityError:  # created by another process meanwhile
@@ -301,21 +128,20 @@ class History:
                 f"plate {plate_id!r} is not in the history {self.path}",
                 hint=f"known plates: {', '.join(known) or 'none'} (see 'mppf history')",
             )
-        return self._plate(row)
+        return plate_from_row(row)
 
     def plates(self) -> list[PlateRecord]:
         """All plates, oldest first."""
         rows = self._db.execute("SELECT * FROM plates ORDER BY created_utc, plate_id").fetchall()
-        return [self._plate(r) for r in rows]
+        return [plate_from_row(r) for r in rows]
 
     def active_plates(self) -> list[PlateRecord]:
         """Plates whose loop has not finished, oldest first."""
-        return [p for p in self.plates() if p.status == "active"]
+        return [p for p in self.plates() if p.status == PlateStatus.ACTIVE]
 
-    def set_plate_status(self, plate_id: str, status: str) -> None:
+    def set_plate_status(self, plate_id: str, status: PlateStatus) -> None:
         """Set why the plate's loop stopped (or "active")."""
-        if status not in PLATE_STATUSES:
-            raise ValueError(f"unknown plate status {status!r}")
+        status = PlateStatus(status)  # ValueError for an unknown status
         with self._transaction():
             self._db.execute(
                 "UPDATE plates SET status = ?, updated_utc = ? WHERE plate_id = ?", (status, _now_utc(), plate_id)
@@ -345,14 +171,15 @@ class History:
         now = _now_utc()
         with self._transaction():
             if previous_decision is not None:
-                self._move(plate_id, cycle - 1, ("compared",), "corrected", decision=previous_decision)
+                self._move(plate_id, cycle - 1, (CycleState.COMPARED,), CycleState.CORRECTED,
+                           decision=Decision(previous_decision))
             self._db.execute(
                 "INSERT INTO cycles (plate_id, cycle, state, created_utc, updated_utc, job_path, job_sha256, "
                 "steps_json, gain, correction_json) VALUES (?, ?, 'planned', ?, ?, ?, ?, ?, ?, ?)",
-                (plate_id, int(cycle), now, now, str(job_path), job_sha256, _dumps(steps_to_json(steps)),
-                 None if gain is None else float(gain), None if correction is None else _dumps(correction)),
+                (plate_id, int(cycle), now, now, str(job_path), job_sha256, dumps(steps_to_json(steps)),
+                 None if gain is None else float(gain), None if correction is None else dumps(correction)),
             )
-            self._event(plate_id, cycle, "planned", f"job {job_path} sha256 {job_sha256[:12]}")
+            self._event(plate_id, cycle, CycleState.PLANNED, f"job {job_path} sha256 {job_sha256[:12]}")
         return self.cycle(plate_id, cycle)
 
     def mark_step_started(self, plate_id: str, cycle: int, step: int) -> None:
@@ -369,7 +196,8 @@ class History:
         """
         with self._transaction():
             if step == 1:
-                self._move(plate_id, cycle, ("planned",), "pressing", step_started=1, detail="step 1 started")
+                self._move(plate_id, cycle, (CycleState.PLANNED,), CycleState.PRESSING, step_started=1,
+                           detail="step 1 started")
                 return
             else:
                 cur = self._db.execute(
@@ -379,7 +207,7 @@ class History:
                 )
                 if cur.rowcount != 1:
                     self._refuse(plate_id, cycle, f"start step {step}")
-            self._event(plate_id, cycle, "pressing", f"step {step} started")
+            self._event(plate_id, cycle, CycleState.PRESSING, f"step {step} started")
 
     def mark_step_not_started(self, plate_id: str, cycle: int, step: int, reason: str) -> None:
         """Undo :meth:`mark_step_started` for a step the press provably never started.
@@ -390,7 +218,7 @@ class History:
         """
         with self._transaction():
             if step == 1:
-                self._move(plate_id, cycle, ("pressing",), "planned", step_started=0,
+                self._move(plate_id, cycle, (CycleState.PRESSING,), CycleState.PLANNED, step_started=0,
                            detail=f"step 1 not started: {reason}")
                 return
             cur = self._db.execute(
@@ -400,7 +228,7 @@ class History:
             )
             if cur.rowcount != 1:
                 self._refuse(plate_id, cycle, f"undo the start of step {step}")
-            self._event(plate_id, cycle, "pressing", f"step {step} not started: {reason}")
+            self._event(plate_id, cycle, CycleState.PRESSING, f"step {step} not started: {reason}")
 
     def mark_step_done(self, plate_id: str, cycle: int, step: int, result: dict) -> None:
         """Record the read-back of a finished step (``result`` is JSON-ready)."""
@@ -410,11 +238,12 @@ class History:
             cur = self._db.execute(
                 "UPDATE cycles SET steps_done = ?, results_json = ?, updated_utc = ? WHERE plate_id = ? AND "
                 "cycle = ? AND state = 'pressing' AND step_started = ? AND steps_done = ?",
-                (step, _dumps(results), _now_utc(), plate_id, cycle, step, step - 1),
+                (step, dumps(results), _now_utc(), plate_id, cycle, step, step - 1),
             )
             if cur.rowcount != 1:
                 self._refuse(plate_id, cycle, f"finish step {step}")
-            self._event(plate_id, cycle, "pressing", f"step {step} done, max error {result.get('max_error_mm')}")
+            self._event(plate_id, cycle, CycleState.PRESSING,
+                        f"step {step} done, max error {result.get('max_error_mm')}")
 
     def mark_pressed(self, plate_id: str, cycle: int, *, interrupted: bool = False, detail: str = "") -> None:
         """Move the cycle from "pressing" to "pressed".
@@ -423,13 +252,14 @@ class History:
         again but measured as it is.
         """
         with self._transaction():
-            self._move(plate_id, cycle, ("pressing",), "pressed", interrupted=int(interrupted), detail=detail)
+            self._move(plate_id, cycle, (CycleState.PRESSING,), CycleState.PRESSED, interrupted=int(interrupted),
+                       detail=detail)
 
     def mark_scanned(self, plate_id: str, cycle: int, scan_path, scan_sha256: str) -> None:
         """Move the cycle from "pressed" to "scanned" with its scan file."""
         with self._transaction():
-            self._move(plate_id, cycle, ("pressed",), "scanned", scan_path=str(scan_path), scan_sha256=scan_sha256,
-                       detail=f"scan {scan_path} sha256 {scan_sha256[:12]}")
+            self._move(plate_id, cycle, (CycleState.PRESSED,), CycleState.SCANNED, scan_path=str(scan_path),
+                       scan_sha256=scan_sha256, detail=f"scan {scan_path} sha256 {scan_sha256[:12]}")
 
     def reject_scan(self, plate_id: str, cycle: int, scan_path, scan_sha256: str, reason: str) -> None:
         """Refuse a scan of the cycle (unreadable, or not matching the design).
@@ -441,8 +271,9 @@ class History:
             record = self.cycle(plate_id, cycle)
             rejected = list(record.rejected_scans) + [
                 {"path": str(scan_path), "sha256": scan_sha256, "reason": reason}]
-            self._move(plate_id, cycle, ("pressed", "scanned"), "pressed", scan_path=None, scan_sha256=None,
-                       rejected_json=_dumps(rejected), detail=f"scan {scan_path} rejected: {reason}")
+            self._move(plate_id, cycle, (CycleState.PRESSED, CycleState.SCANNED), CycleState.PRESSED,
+                       scan_path=None, scan_sha256=None,
+                       rejected_json=dumps(rejected), detail=f"scan {scan_path} rejected: {reason}")
 
     def mark_compared(
         self,
@@ -454,41 +285,43 @@ class History:
         within_pct: float,
         punch_deviation_mm,
         comparison: dict,
-        decision: str,
+        decision: Decision,
     ) -> None:
         """Move the cycle from "scanned" to "compared" with its deviations and decision."""
+        decision = Decision(decision)
         with self._transaction():
             self._move(
-                plate_id, cycle, ("scanned",), "compared",
+                plate_id, cycle, (CycleState.SCANNED,), CycleState.COMPARED,
                 rms_mm=float(rms_mm), max_abs_mm=float(max_abs_mm), within_pct=float(within_pct),
-                deviation_json=_dumps(grid_to_json(punch_deviation_mm)), compare_json=_dumps(comparison),
+                deviation_json=dumps(grid_to_json(punch_deviation_mm)), compare_json=dumps(comparison),
                 decision=decision, detail=f"max |dev| {max_abs_mm:.2f} mm, RMS {rms_mm:.2f} mm -> {decision}",
             )
 
-    def mark_done(self, plate_id: str, cycle: int, decision: str) -> None:
-        """End the loop at this cycle: the cycle becomes "done", the plate gets ``decision``."""
+    def mark_done(self, plate_id: str, cycle: int, decision: Decision) -> None:
+        """End the loop at this cycle: the cycle becomes "done", the plate gets ``decision`` as its status."""
+        status = PlateStatus(decision)  # a decision that ends the loop
         with self._transaction():
-            self._move(plate_id, cycle, ("compared",), "done", decision=decision)
+            self._move(plate_id, cycle, (CycleState.COMPARED,), CycleState.DONE, decision=Decision(decision))
             self._db.execute(
-                "UPDATE plates SET status = ?, updated_utc = ? WHERE plate_id = ?", (decision, _now_utc(), plate_id)
+                "UPDATE plates SET status = ?, updated_utc = ? WHERE plate_id = ?", (status, _now_utc(), plate_id)
             )
-            self._event(plate_id, None, decision, f"loop ended after cycle {cycle}")
+            self._event(plate_id, None, status, f"loop ended after cycle {cycle}")
 
     def cycle(self, plate_id: str, cycle: int) -> CycleRecord:
         """One cycle (InputError when missing)."""
         row = self._db.execute(
-            f"SELECT {_CYCLE_COLUMNS} FROM cycles WHERE plate_id = ? AND cycle = ?", (plate_id, int(cycle))
+            f"SELECT {CYCLE_COLUMNS} FROM cycles WHERE plate_id = ? AND cycle = ?", (plate_id, int(cycle))
         ).fetchone()
         if row is None:
             raise InputError(f"plate {plate_id!r} has no cycle {cycle} in the history {self.path}")
-        return self._cycle(row)
+        return cycle_from_row(row)
 
     def cycles(self, plate_id: str) -> list[CycleRecord]:
         """The cycles of a plate in order."""
         rows = self._db.execute(
-            f"SELECT {_CYCLE_COLUMNS} FROM cycles WHERE plate_id = ? ORDER BY cycle", (plate_id,)
+            f"SELECT {CYCLE_COLUMNS} FROM cycles WHERE plate_id = ? ORDER BY cycle", (plate_id,)
         ).fetchall()
-        return [self._cycle(r) for r in rows]
+        return [cycle_from_row(r) for r in rows]
 
     def events(self, plate_id: str | None = None) -> list[Event]:
         """State changes in order (of one plate or all)."""
@@ -540,35 +373,6 @@ class History:
             hint="another 'mppf loop' may be running this plate; check 'mppf history --plate-id "
             f"{plate_id}'",
         )
-
-    @staticmethod
-    def _plate(row) -> PlateRecord:
-        (plate_id, created, updated, status, design_path, design_sha, flat_path, flat_sha, thickness,
-         press_json, settings_json, note) = row
-        return PlateRecord(plate_id, created, updated, status, design_path, design_sha, flat_path, flat_sha,
-                           float(thickness), json.loads(press_json), json.loads(settings_json), note)
-
-    @staticmethod
-    def _cycle(row) -> CycleRecord:
-        (plate_id, cycle, state, created, updated, job_path, job_sha, steps_json, step_started, steps_done,
-         results_json, interrupted, scan_path, scan_sha, rms, max_abs, within, deviation_json, compare_json,
-         gain, correction_json, decision, rejected_json) = row
-        return CycleRecord(
-            plate_id=plate_id, cycle=int(cycle), state=state, created_utc=created, updated_utc=updated,
-            job_path=job_path, job_sha256=job_sha, steps=steps_from_json(json.loads(steps_json)),
-            step_started=int(step_started), steps_done=int(steps_done), results=json.loads(results_json),
-            interrupted=bool(interrupted), scan_path=scan_path, scan_sha256=scan_sha, rms_mm=rms,
-            max_abs_mm=max_abs, within_pct=within, punch_deviation_mm=grid_from_json(_loads(deviation_json)),
-            comparison=_loads(compare_json), gain=gain, correction=_loads(correction_json), decision=decision,
-            rejected_scans=json.loads(rejected_json),
-        )
-
-
-_CYCLE_COLUMNS = (
-    "plate_id, cycle, state, created_utc, updated_utc, job_path, job_sha256, steps_json, step_started, "
-    "steps_done, results_json, interrupted, scan_path, scan_sha256, rms_mm, max_abs_mm, within_pct, "
-    "deviation_json, compare_json, gain, correction_json, decision, rejected_json"
-)
 
 
 class _Transaction:

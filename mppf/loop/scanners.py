@@ -12,12 +12,10 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-import numpy as np
-
 from mppf.core.errors import InputError
-from mppf.geometry.io import READ_SUFFIXES
-from mppf.core.progress import NULL_REPORTER
 from mppf.core.scanner import ScanContext
+from mppf.core.validate import check_positive
+from mppf.geometry.read import READ_SUFFIXES
 
 
 class DirectoryScanner:
@@ -46,10 +44,8 @@ class DirectoryScanner:
                 f"scan folder {self.folder} does not exist or is not a folder",
                 hint="give the folder the scanner software writes into, or --scanner sim for a dry run",
             )
-        if not timeout_s > 0 or not poll_s > 0:
-            raise InputError(f"scan wait timeout ({timeout_s} s) and poll interval ({poll_s} s) must be positive")
-        self.timeout_s = float(timeout_s)
-        self.poll_s = float(poll_s)
+        self.timeout_s = check_positive("the scan wait timeout (--scan-timeout)", timeout_s, unit="s")
+        self.poll_s = check_positive("the scan poll interval", poll_s, unit="s")
 
     def _candidates(self, context: ScanContext) -> dict[Path, int]:
         used = {str(Path(p).resolve()) for p in context.used_paths}
@@ -68,7 +64,8 @@ class DirectoryScanner:
 
     def acquire(self, cycle: int, context: ScanContext) -> Path:
         """Wait for a new, complete scan file; return its path."""
-        context.reporter.info(f"cycle {cycle}: waiting for the scan file in {self.folder} (up to {self.timeout_s:.0f} s)")
+        context.reporter.info(f"cycle {cycle}: waiting for the scan file in {self.folder} "
+                              f"(up to {self.timeout_s:.0f} s)")
         context.reporter.start(f"waiting for scan {cycle}", total=self.timeout_s)
         start = time.monotonic()
         previous: dict[Path, int] = {}

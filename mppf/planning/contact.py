@@ -26,8 +26,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mppf.core.errors import GeometryError, InputError
+from mppf.core.errors import GeometryError
 from mppf.core.transform import apply_tf
+from mppf.core.validate import check_positive
 
 SAMPLES_PER_SIDE = 11
 """Samples per side of the patch searched around each punch axis before Newton."""
@@ -155,8 +156,8 @@ def tip_heights(placed: PlacedSurface, x_mm, y_mm, *, tip_radius_mm: float,
         Upper punches touch the top skin from above, lower punches the bottom skin
         from below.
     """
-    if not tip_radius_mm > 0 or not thickness_mm > 0:
-        raise InputError(f"tip radius and thickness must be positive, got {tip_radius_mm}, {thickness_mm} mm")
+    check_positive("the tip radius", tip_radius_mm, unit="mm")
+    check_positive("the plate thickness", thickness_mm, unit="mm")
     x_mm = np.asarray(x_mm, dtype=float).reshape(-1)
     y_mm = np.asarray(y_mm, dtype=float).reshape(-1)
     m = len(x_mm)

@@ -18,6 +18,7 @@ import numpy as np
 
 from mppf.core.errors import ConfigError, InputError
 from mppf.core.transform import tf_from_list, tf_to_list
+from mppf.core.validate import check_number
 from mppf.forming.material import Material
 from mppf.planning.press import PressConfig, press_from_dict
 
@@ -156,8 +157,8 @@ class PlateLayout:
             if poly.shape[0] < 3 or not np.all(np.isfinite(poly)):
                 raise ConfigError(f"{source}: plate {name} must be at least 3 finite (x, y) corners",
                                   hint="re-plan the plate with 'mppf plan'")
-        if not (math.isfinite(layout.margin_mm) and layout.margin_mm >= 0):
-            raise ConfigError(f"{source}: plate margin_mm must be a finite length >= 0, got {layout.margin_mm}")
+        check_number(f"{source}: plate margin_mm", layout.margin_mm, low=0.0, unit="mm",
+                     hint="re-plan the plate with 'mppf plan'", error=ConfigError)
         return layout
 
 
@@ -284,9 +285,8 @@ def job_from_dict(doc: dict, source: str = "job") -> Job:
         if key not in doc:
             raise ConfigError(f"{source}: missing key '{key}'")
     press = press_from_dict(doc["press"], source=f"{source} [press]")
-    thickness = doc["thickness_mm"]
-    if isinstance(thickness, bool) or not isinstance(thickness, (int, float)) or not thickness > 0:
-        raise ConfigError(f"{source}: thickness_mm must be a positive number, got {thickness!r}")
+    thickness = check_number(f"{source}: thickness_mm", doc["thickness_mm"], low=0.0, low_open=True, unit="mm",
+                             hint="re-plan the plate with 'mppf plan'", error=ConfigError)
     steps_doc = doc["steps"]
     if not isinstance(steps_doc, list) or not steps_doc:
         raise ConfigError(f"{source}: 'steps' must be a non-empty list")

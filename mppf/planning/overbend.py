@@ -35,7 +35,7 @@ from mppf.core.errors import GeometryError
 from mppf.core.grid import from_principal, integrate_hessian, without_plane
 from mppf.forming.material import Material
 from mppf.forming.springback import loaded_curvature
-from mppf.geometry.surface import curvatures
+from mppf.geometry.curvature import curvatures
 
 FLAT_RADIUS_MM = 1.0e6
 """Principal radii above this (1 km) count as flat and are not over-bent."""
@@ -156,7 +156,7 @@ def overbend(surface, thickness_mm: float, material: Material, half_size_mm: flo
 
 
 class _Arcs:
-    """The arcs-only over-bent surface as a Surface (for :func:`mppf.geometry.surface.curvatures`)."""
+    """The arcs-only over-bent surface as a Surface (for :func:`mppf.geometry.curvature.curvatures`)."""
 
     def __init__(self, arcs: OverbentSurface):
         self.arcs = arcs

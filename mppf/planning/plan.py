@@ -1,32 +1,35 @@
 """Stroke planning: a design surface and its flat plate -> strokes of both punch matrices.
 
 :func:`plan_job` is the whole planner as a short sequence of calls; each stage is a
-small module: :mod:`mppf.planning.placement` (flat on the bed, registration, offset and tilt),
-:mod:`mppf.planning.contact` (exact ball-tip contact), :mod:`mppf.planning.overbend` (springback
-pre-compensation), :mod:`mppf.planning.steps` (multi-step forming and validation). The math is
-in ``docs/planning.md``; the job file in ``docs/file-formats.md``.
+small module: :mod:`mppf.planning.placement` (flat on the bed, registration),
+:mod:`mppf.planning.belongs` (the flat is the design's), :mod:`mppf.planning.pose` (offset and
+tilt of least travel), :mod:`mppf.planning.contact` (exact ball-tip contact),
+:mod:`mppf.planning.overbend` (springback pre-compensation),
+:mod:`mppf.forming.precompensate` (its refinement on the plate model),
+:mod:`mppf.planning.steps` (multi-step forming and validation). The math is in
+``docs/planning.md``; the job file in ``docs/file-formats.md``.
 """
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from mppf.planning.contact import PlacedSurface, tip_heights
 from mppf.core.errors import GeometryError, InputError, LimitError
 from mppf.core.polygon import contains, convex_outline, distance_outside, offset_convex
+from mppf.core.progress import NULL_REPORTER
+from mppf.core.transform import apply_tf, as_points, rotation_angle_deg
+from mppf.core.validate import check_number
+from mppf.forming.material import Material
+from mppf.forming.precompensate import refine_strokes
+from mppf.geometry.surface import fit_plate
+from mppf.planning.belongs import check_flat_belongs, design_area_mm2
+from mppf.planning.contact import PlacedSurface, tip_heights
 from mppf.planning.job import Job, PlateLayout
 from mppf.planning.overbend import overbend
-from mppf.planning.placement import (check_flat_belongs, design_area_mm2,
-                            optimise_pose, place_flat, register_design)
-from mppf.forming.precompensate import refine_strokes
+from mppf.planning.placement import place_flat, register_design
+from mppf.planning.pose import optimise_pose
 from mppf.planning.press import PressConfig
-from mppf.core.progress import NULL_REPORTER
-from mppf.forming.material import Material
 from mppf.planning.steps import MAX_STEPS, split_steps, steps_needed, validate_steps
-from mppf.geometry.surface import fit_plate
-from mppf.core.transform import apply_tf, as_points, rotation_angle_deg
 
 SURFACE_KIND = "poly"
 SURFACE_DEGREE = 4
@@ -82,98 +85,143 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
         belong to the design; LimitError for a plate that does not fit or strokes
         that cannot be kept inside the press limits (nothing is planned).
     """
-    design = as_points(design_points, "design points")
-    flat = as_points(flat_points, "flat points")
-    if isinstance(thickness_mm, bool) or not isinstance(thickness_mm, (int, float)) \
-            or not math.isfinite(thickness_mm) or thickness_mm <= 0:
-        raise InputError(f"the plate thickness must be a positive number of mm, got {thickness_mm!r}",
-                         hint="give e.g. --thickness 20")
-    if springback and material is None:
-        raise InputError("springback compensation needs the plate material",
-                         hint="give --material steel|ah36 or --youngs/--poisson/--yield")
-    if steps is not None and (isinstance(steps, bool) or not isinstance(steps, (int, np.integer))
-                              or not 1 <= steps <= MAX_STEPS):
-        raise InputError(f"the number of steps must be a whole number 1..{MAX_STEPS}, got {steps!r}",
-                         hint="leave --steps out to get the fewest steps within the dimpling limit")
-    t = float(thickness_mm)
-    margin = press.margin_mm if margin_mm is None else margin_mm
-    if isinstance(margin, bool) or not isinstance(margin, (int, float)) or not math.isfinite(margin) \
-            or not 0 <= margin <= MAX_MARGIN_MM:
-        raise InputError(f"the trim margin must be 0..{MAX_MARGIN_MM:g} mm, got {margin!r}",
-                         hint="give e.g. --margin 100 (or 0 to cut the plate to its net outline)")
-    margin = float(margin)
-
+    design, flat, t, margin = _check_inputs(design_points, flat_points, press, thickness_mm, steps, material,
+                                            springback, margin_mm)
     # 1. lay the flat plate on the bed: centred, long side along x, bottom skin at z = 0
     reporter.info("placing the flat plate on the bed")
     placement = place_flat(flat, press, t)
-    # 2. fit the design in its own frame; register it onto the flat on the bed
+    # 2. fit the design in its own frame; register it onto the flat on the bed; the flat must be its unfolding
     fitted = fit_plate(design, degree=SURFACE_DEGREE, kind=SURFACE_KIND, faces=design_faces)
     reporter.info("registering the design onto the flat plate")
     registration = register_design(design, placement.flat_press_mm, reporter=reporter)
-    paired = registration.method == "paired"
     if registration.ambiguous_start:
         reporter.info("the plate is nearly symmetric: check that the plate lies the right way round "
                       "(registration start was ambiguous)")
-    belongs = check_flat_belongs(design, placement.flat_press_mm, paired,
+    belongs = check_flat_belongs(design, placement.flat_press_mm, registration.method == "paired",
                                  design_area_mm2(fitted, design, design_faces))
     # 3. the surface to press: the design, over-bent for springback if asked
-    surface, springback_report = fitted.surface, {"enabled": False}
-    if springback:
-        reach = float(np.linalg.norm(fitted.frame.to_local(design)[:, :2], axis=1).max()) + margin \
-            + press.trim_allowance_mm
-        try:
-            surface = overbend(fitted.surface, t, material, reach)
-            springback_report = _springback_report(surface)
-        except GeometryError as exc:  # the over-bent arcs do not reach: start the refinement from the design
-            springback_report = {"enabled": True, "method": f"design start ({exc})"}
-    placed = PlacedSurface(surface, registration.tf @ fitted.frame.tf_world_local)
-    # 4. active punches: axes inside the plate as cut (the design's outline seen from above,
-    # grown by the trim margin)
+    surface, springback_report = _surface_to_press(fitted, design, press, t, material, springback, margin)
+    # 4. active punches: axes inside the plate as cut (the design's outline seen from above, grown by the margin)
     design_press = apply_tf(registration.tf, design)
-    gx, gy = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
     outline_xy = offset_convex(convex_outline(design_press[:, :2], "the placed design"), margin)
-    active = contains(outline_xy, np.column_stack([gx.ravel(), gy.ravel()])).reshape(press.shape)
-    if not active.any():
-        raise LimitError("the plate covers no punch axis", hint="check the plate size and the press pitch")
-    rows, cols = np.nonzero(active)
+    active = _active_punches(press, outline_xy)
     # 5. strokes: exact ball contact, with the offset and tilt of least travel
-    reporter.info(f"solving the contact of {2 * len(rows)} punches")
-    centre = np.array([0.0, 0.0, t / 2.0])
-    pose = optimise_pose(placed, gx[active], gy[active], [f"[{r},{c}]" for r, c in zip(rows, cols)],
-                         press, t, centre)
-    upper = np.full(press.shape, np.nan)
-    lower = np.full(press.shape, np.nan)
-    upper[active], lower[active] = pose.upper_mm, pose.lower_mm
+    reporter.info(f"solving the contact of {2 * int(active.sum())} punches")
+    pose = _optimise_pose(press, PlacedSurface(surface, registration.tf @ fitted.frame.tf_world_local), active, t)
+    upper, lower = _on_grid(press, active, pose.upper_mm), _on_grid(press, active, pose.lower_mm)
     tf_press_design = pose.tf_adjust @ registration.tf
     net_outline = convex_outline(apply_tf(pose.tf_adjust, design_press)[:, :2], "the placed design")
     outline = offset_convex(net_outline, margin)
-    # the design's mid-surface height at each active punch axis, as the tips would hold it
-    # (the loop's calibrated correction aims at it, mppf.forming.precompensate.calibrated_correction)
-    design_placed = PlacedSurface(fitted.surface, tf_press_design @ fitted.frame.tf_world_local)
-    up_d, lo_d = tip_heights(design_placed, gx[active], gy[active], tip_radius_mm=press.tip_radius_mm,
-                             thickness_mm=t)
-    target = np.full(press.shape, np.nan)
-    target[active] = 0.5 * (up_d.tip_mm + lo_d.tip_mm)
+    # 6. the design's mid-surface height at each active punch (the refinement's and the loop's target)
+    target = _design_heights(press, fitted, tf_press_design, active, t)
+    # 7. springback: virtual press cycles on the plate model (nominal material) against the design
     if springback:
-        # virtual press cycles on the plate model (nominal material) against the design
         reporter.info("refining the springback pre-compensation on the plate model")
-        refined = refine_strokes(press, upper, lower, active, target, outline, t, material)
-        upper, lower = refined.upper_mm, refined.lower_mm
-        springback_report["refinement"] = {"virtual_cycles": len(refined.history_mm) - 1,
-                                           "predicted_max_mm": refined.predicted_max_mm,
-                                           "history_mm": refined.history_mm}
-    # 6. press steps from flat to the target, within the dimpling limit
+        upper, lower, springback_report["refinement"] = _refine(press, upper, lower, active, target, outline, t,
+                                                                material)
+    # 8. press steps from flat to the target, within the dimpling limit
     n_steps = steps if steps is not None else steps_needed(upper, lower, active, press, t)
+    step_list = _split(upper, lower, active, press, t, n_steps)
+    # 9. validate everything before a job exists
+    validation = validate_steps(step_list, press, t)
+    validation["contact_exact_fraction"] = float(np.mean(pose.exact))
+    validation["contact_beyond_edge_mm"] = _check_trim(pose.contact_xy_mm, outline_xy, press)
+    extra = _reports(fitted, registration, belongs, pose, upper, lower, active, t, validation, placement,
+                     int(n_steps), inputs, springback_report)
+    layout = PlateLayout(outline_mm=outline, net_outline_mm=net_outline, margin_mm=margin, design_mid_mm=target,
+                         material=material)
+    return Job(press=press, thickness_mm=t, steps=step_list, tf_press_design=tf_press_design,
+               tf_press_flat=placement.tf_press_flat, layout=layout, extra=extra)
+
+
+def _check_inputs(design_points, flat_points, press: PressConfig, thickness_mm, steps, material, springback,
+                  margin_mm):
+    """Points as (n, 3) arrays, the thickness and margin as floats; every option checked before any work."""
+    design = as_points(design_points, "design points")
+    flat = as_points(flat_points, "flat points")
+    t = check_number("the plate thickness", thickness_mm, low=0.0, low_open=True, unit="mm",
+                     hint="give e.g. --thickness 20")
+    if springback and material is None:
+        raise InputError("springback compensation needs the plate material",
+                         hint="give --material steel|ah36 or --youngs/--poisson/--yield")
+    if steps is not None:
+        check_number("the number of steps", steps, low=1, high=MAX_STEPS, integer=True,
+                     hint="leave --steps out to get the fewest steps within the dimpling limit")
+    margin = check_number("the trim margin", press.margin_mm if margin_mm is None else margin_mm, low=0.0,
+                          high=MAX_MARGIN_MM, unit="mm",
+                          hint="give e.g. --margin 100 (or 0 to cut the plate to its net outline)")
+    return design, flat, float(t), float(margin)
+
+
+def _surface_to_press(fitted, design, press: PressConfig, t: float, material, springback: bool, margin: float):
+    """The design surface, or its over-bent version for springback; and the springback report."""
+    if not springback:
+        return fitted.surface, {"enabled": False}
+    reach = float(np.linalg.norm(fitted.frame.to_local(design)[:, :2], axis=1).max()) + margin \
+        + press.trim_allowance_mm
+    try:
+        surface = overbend(fitted.surface, t, material, reach)
+    except GeometryError as exc:  # the over-bent arcs do not reach: start the refinement from the design
+        return fitted.surface, {"enabled": True, "method": f"design start ({exc})"}
+    return surface, _springback_report(surface)
+
+
+def _active_punches(press: PressConfig, outline_xy) -> np.ndarray:
+    """(rows, cols) bool: the punch axes inside the plate as cut."""
+    gx, gy = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    active = contains(outline_xy, np.column_stack([gx.ravel(), gy.ravel()])).reshape(press.shape)
+    if not active.any():
+        raise LimitError("the plate covers no punch axis", hint="check the plate size and the press pitch")
+    return active
+
+
+def _optimise_pose(press: PressConfig, placed: PlacedSurface, active, t: float):
+    """The pose of least travel of the active punches, tilted about the plate centre."""
+    gx, gy = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    rows, cols = np.nonzero(active)
+    return optimise_pose(placed, gx[active], gy[active], [f"[{r},{c}]" for r, c in zip(rows, cols)], press, t,
+                         np.array([0.0, 0.0, t / 2.0]))
+
+
+def _on_grid(press: PressConfig, active, values) -> np.ndarray:
+    """Values of the active punches on the (rows, cols) grid, NaN elsewhere."""
+    grid = np.full(press.shape, np.nan)
+    grid[active] = values
+    return grid
+
+
+def _design_heights(press: PressConfig, fitted, tf_press_design, active, t: float) -> np.ndarray:
+    """The design's mid-surface height at each active punch axis, as the tips would hold it (NaN elsewhere).
+
+    The refinement and the loop's calibrated correction (:mod:`mppf.correct.calibrated`) aim at it.
+    """
+    gx, gy = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    placed = PlacedSurface(fitted.surface, tf_press_design @ fitted.frame.tf_world_local)
+    up, lo = tip_heights(placed, gx[active], gy[active], tip_radius_mm=press.tip_radius_mm, thickness_mm=t)
+    return _on_grid(press, active, 0.5 * (up.tip_mm + lo.tip_mm))
+
+
+def _refine(press: PressConfig, upper, lower, active, target, outline, t: float, material):
+    """Strokes refined on the plate model, and the refinement's report."""
+    refined = refine_strokes(press, upper, lower, active, target, outline, t, material)
+    report = {"virtual_cycles": len(refined.history_mm) - 1, "predicted_max_mm": refined.predicted_max_mm,
+              "history_mm": refined.history_mm}
+    return refined.upper_mm, refined.lower_mm, report
+
+
+def _split(upper, lower, active, press: PressConfig, t: float, n_steps: int):
+    """The press steps from flat to the final strokes; refused beyond ``MAX_STEPS``."""
     if n_steps > MAX_STEPS:
         raise LimitError(f"the plate needs {n_steps} press steps to keep within the dimpling limit of "
                          f"{press.max_neighbour_diff_mm:g} mm, more than the {MAX_STEPS} one job may hold",
                          hint="check [forming] max_neighbour_diff_mm in the press description")
-    step_list = split_steps(upper, lower, active, t, int(n_steps))
-    # 7. validate everything before a job exists
-    validation = validate_steps(step_list, press, t)
-    validation["contact_exact_fraction"] = float(np.mean(pose.exact))
-    validation["contact_beyond_edge_mm"] = _check_trim(pose.contact_xy_mm, outline_xy, press)
-    extra = {
+    return split_steps(upper, lower, active, t, int(n_steps))
+
+
+def _reports(fitted, registration, belongs, pose, upper, lower, active, t, validation, placement, n_steps, inputs,
+             springback_report) -> dict:
+    """The planner's reports stored in the job (``Job.extra``)."""
+    return {
         "planner": {"surface_kind": fitted.kind, "surface_degree": fitted.degree,
                     "surface_fit_rms_mm": fitted.rms_mm, "surface_fit_max_mm": fitted.max_abs_mm},
         "registration": {**registration.to_dict(), **belongs,
@@ -185,14 +233,10 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
         "plate_corners_mm": placement.corners_mm.tolist(),
         "plate_size_mm": placement.size_mm.tolist(),
         "n_active": int(active.sum()),
-        "n_steps": int(n_steps),
+        "n_steps": n_steps,
         "inputs": inputs or {},
         "springback": springback_report,
     }
-    layout = PlateLayout(outline_mm=outline, net_outline_mm=net_outline, margin_mm=margin, design_mid_mm=target,
-                         material=material)
-    return Job(press=press, thickness_mm=t, steps=step_list, tf_press_design=tf_press_design,
-               tf_press_flat=placement.tf_press_flat, layout=layout, extra=extra)
 
 
 def _check_trim(contact_xy_mm, outline_xy, press: PressConfig) -> float:

@@ -9,6 +9,7 @@ bottom of its ball.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import tomllib
 from dataclasses import dataclass
@@ -17,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from mppf.core.errors import ConfigError
+from mppf.core.validate import check_number
 
 MAX_ROWS = 32
 MAX_COLS = 32
@@ -25,18 +27,41 @@ MAX_VALUE = 1.0e6
 kilometre-sized value is a typing error, and would overflow the punch geometry."""
 
 
+def _length(name: str, value, *, low: float | None = -MAX_VALUE, low_open: bool = False) -> float:
+    """A press setting as a float within ``low``..``MAX_VALUE`` (:func:`mppf.core.validate.check_number`)."""
+    unit = "mm/s^2" if name.endswith("_mm_s2") else "mm/s" if name.endswith("_mm_s") else "mm"
+    return float(check_number(name, value, low=low, low_open=low_open, high=MAX_VALUE, unit=unit, error=ConfigError))
+
+
 @dataclass(frozen=True)
 class AxisLimits:
-    """Tip-height limits of one matrix (mm, press z)."""
+    """Tip-height limits of one matrix (mm, press z).
+
+    Checked when built: finite numbers of at most ``MAX_VALUE``, ``min_mm < max_mm`` and the
+    parking height within them (:class:`ConfigError` otherwise).
+    """
 
     min_mm: float
     max_mm: float
     park_mm: float
 
+    def __post_init__(self):
+        for f in dataclasses.fields(self):
+            object.__setattr__(self, f.name, _length(f.name, getattr(self, f.name)))
+        if not self.min_mm < self.max_mm:
+            raise ConfigError(f"min_mm ({self.min_mm}) must be below max_mm ({self.max_mm})")
+        if not self.min_mm <= self.park_mm <= self.max_mm:
+            raise ConfigError(f"park_mm ({self.park_mm}) must lie within min_mm..max_mm "
+                              f"({self.min_mm}..{self.max_mm})")
+
 
 @dataclass(frozen=True)
 class PressConfig:
     """A multi-point press.
+
+    Checked when built, in code as from a file (:func:`press_from_dict`): every number
+    finite and within its range (:func:`mppf.core.validate.check_number`), the balls not
+    overlapping; :class:`ConfigError` names the key (``[matrix] rows``) and the value seen.
 
     Attributes
     ----------
@@ -45,7 +70,7 @@ class PressConfig:
     pitch_x_mm, pitch_y_mm : float
         Centre distance of neighbouring columns / rows.
     tip_radius_mm : float
-        Radius of the spherical punch tips.
+        Radius of the spherical punch tips (at most half the smaller pitch).
     upper, lower : AxisLimits
         Tip-height limits and parking height of the upper and lower matrices.
     max_neighbour_diff_mm : float
@@ -72,12 +97,34 @@ class PressConfig:
     upper: AxisLimits
     lower: AxisLimits
     max_neighbour_diff_mm: float
-    trim_allowance_mm: float = 100.0
+    trim_allowance_mm: float = 100.0  # the surface extended 100 mm past the plate edge
     speed_mm_s: float = 20.0
     accel_mm_s2: float = 100.0
     position_tolerance_mm: float = 0.2
-    margin_mm: float = 0.0
+    margin_mm: float = 0.0  # cut to the net outline
     name: str = "press"
+
+    def __post_init__(self):
+        for table in ("matrix", "forming"):
+            for key in _TABLES[table]:
+                name = f"[{table}] {key}"
+                if key in _COUNTS:
+                    value = check_number(name, getattr(self, key), low=1, high=_COUNTS[key], integer=True,
+                                         error=ConfigError)
+                else:
+                    value = _length(name, getattr(self, key), low=0.0, low_open=key not in _AT_LEAST_ZERO)
+                object.__setattr__(self, key, value)
+        for side in ("upper", "lower"):
+            if not isinstance(getattr(self, side), AxisLimits):
+                raise ConfigError(f"[{side}] must be the tip-height limits (AxisLimits), got "
+                                  f"{getattr(self, side)!r}")
+        if 2 * self.tip_radius_mm > min(self.pitch_x_mm, self.pitch_y_mm):
+            raise ConfigError(
+                f"[matrix] tip_radius_mm {self.tip_radius_mm} is too large for the pitch "
+                f"({self.pitch_x_mm} x {self.pitch_y_mm} mm): neighbouring balls would overlap"
+            )
+        if not isinstance(self.name, str):
+            raise ConfigError(f"name must be a string, got {self.name!r}")
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -103,173 +150,90 @@ class PressConfig:
         """A plain dict in the TOML layout (for the job file)."""
         return {
             "name": self.name,
-            "matrix": {
-                "rows": self.rows,
-                "cols": self.cols,
-                "pitch_x_mm": self.pitch_x_mm,
-                "pitch_y_mm": self.pitch_y_mm,
-                "tip_radius_mm": self.tip_radius_mm,
-            },
+            "matrix": {key: getattr(self, key) for key in _TABLES["matrix"]},
             "upper": dataclasses.asdict(self.upper),
             "lower": dataclasses.asdict(self.lower),
-            "forming": {
-                "max_neighbour_diff_mm": self.max_neighbour_diff_mm,
-                "trim_allowance_mm": self.trim_allowance_mm,
-                "speed_mm_s": self.speed_mm_s,
-                "accel_mm_s2": self.accel_mm_s2,
-                "position_tolerance_mm": self.position_tolerance_mm,
-                "margin_mm": self.margin_mm,
-            },
+            "forming": {key: getattr(self, key) for key in _TABLES["forming"]},
         }
 
 
-_SPEC = {
-    "matrix": {
-        "rows": int,
-        "cols": int,
-        "pitch_x_mm": float,
-        "pitch_y_mm": float,
-        "tip_radius_mm": float,
-    },
-    "upper": {"min_mm": float, "max_mm": float, "park_mm": float},
-    "lower": {"min_mm": float, "max_mm": float, "park_mm": float},
-    "forming": {
-        "max_neighbour_diff_mm": float,
-        "trim_allowance_mm": (float, 100.0),
-        "speed_mm_s": (float, 20.0),
-        "accel_mm_s2": (float, 100.0),
-        "position_tolerance_mm": (float, 0.2),
-        "margin_mm": (float, 0.0),
-    },
+_TABLES = {
+    "matrix": ("rows", "cols", "pitch_x_mm", "pitch_y_mm", "tip_radius_mm"),
+    "upper": tuple(f.name for f in dataclasses.fields(AxisLimits)),
+    "lower": tuple(f.name for f in dataclasses.fields(AxisLimits)),
+    "forming": ("max_neighbour_diff_mm", "trim_allowance_mm", "speed_mm_s", "accel_mm_s2", "position_tolerance_mm",
+                "margin_mm"),
 }
+"""The tables of the TOML layout and their keys, in file order (the PressConfig and AxisLimits fields)."""
 
+_COUNTS = {"rows": MAX_ROWS, "cols": MAX_COLS}
+"""The whole-number keys and their largest values."""
 
-def _typed(source: str, table: str, key: str, value, kind):
-    if kind is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(
-                f"{source}: [{table}] {key} must be a whole number, got {value!r}",
-                hint="write it without a decimal point or quotes",
-            )
-        return value
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ConfigError(
-            f"{source}: [{table}] {key} must be a number in mm, got {value!r}",
-            hint="write a plain number without quotes or units",
-        )
-    if not np.isfinite(value):
-        raise ConfigError(f"{source}: [{table}] {key} must be finite, got {value!r}")
-    if abs(value) > MAX_VALUE:
-        raise ConfigError(f"{source}: [{table}] {key} is implausibly large, got {value!r}",
-                          hint=f"give it in mm (mm/s for speeds), at most {MAX_VALUE:g} in size")
-    return float(value)
+_AT_LEAST_ZERO = ("trim_allowance_mm", "margin_mm")
+"""Lengths that may be 0; every other press length must be positive."""
+
+_DEFAULTS = {f.name: f.default for f in dataclasses.fields(PressConfig) if f.default is not dataclasses.MISSING}
+"""Keys that may be left out of a press description (their defaults are the dataclass's)."""
 
 
 def press_from_dict(data: dict, source: str = "press description") -> PressConfig:
     """Build and validate a :class:`PressConfig` from the TOML layout.
 
+    The tables and keys are read here (missing, unknown, an integer key written with a
+    decimal point); the values are checked by the dataclasses themselves.
+
     Raises
     ------
     ConfigError
         On a missing table or key, an unknown key (likely mistyped), a wrong type or
-        inconsistent limits; the message names the key and the value seen.
+        inconsistent limits; the message starts with ``source`` and names the key and the
+        value seen.
     """
     if not isinstance(data, dict):
         raise ConfigError(f"{source}: expected a table of press settings, got {type(data).__name__}")
-    values: dict[str, object] = {}
-    unknown_top = set(data) - set(_SPEC) - {"name"}
+    unknown_top = set(data) - set(_TABLES) - {"name"}
     if unknown_top:
         raise ConfigError(
             f"{source}: unknown table(s) {sorted(unknown_top)}",
-            hint=f"the press description has the tables {sorted(_SPEC)} and 'name'",
+            hint=f"the press description has the tables {sorted(_TABLES)} and 'name'",
         )
-    for table, keys in _SPEC.items():
-        section = data.get(table)
-        if not isinstance(section, dict):
-            raise ConfigError(
-                f"{source}: missing table [{table}]",
-                hint="see examples/press.toml and docs/press.md",
-            )
-        unknown = set(section) - set(keys)
-        if unknown:
-            raise ConfigError(
-                f"{source}: unknown key(s) {sorted(unknown)} in [{table}]",
-                hint=f"[{table}] takes {sorted(keys)}; check the spelling",
-            )
-        for key, kind in keys.items():
-            default = None
-            if isinstance(kind, tuple):
-                kind, default = kind
-            if key not in section:
-                if default is None:
-                    raise ConfigError(
-                        f"{source}: missing key '{key}' in [{table}]",
-                        hint="see examples/press.toml and docs/press.md",
-                    )
-                values[f"{table}.{key}"] = default
-            else:
-                values[f"{table}.{key}"] = _typed(source, table, key, section[key], kind)
-
-    def v(name):
-        return values[name]
-
-    rows, cols = v("matrix.rows"), v("matrix.cols")
-    for key, n, top in (("rows", rows, MAX_ROWS), ("cols", cols, MAX_COLS)):
-        if not 1 <= n <= top:
-            raise ConfigError(f"{source}: [matrix] {key} must be 1..{top}, got {n}")
-    positive = [
-        "matrix.pitch_x_mm",
-        "matrix.pitch_y_mm",
-        "matrix.tip_radius_mm",
-        "forming.max_neighbour_diff_mm",
-        "forming.speed_mm_s",
-        "forming.accel_mm_s2",
-        "forming.position_tolerance_mm",
-    ]
-    for name in positive:
-        if v(name) <= 0:
-            table, key = name.split(".")
-            raise ConfigError(f"{source}: [{table}] {key} must be positive, got {v(name)}")
-    if v("forming.trim_allowance_mm") < 0:
-        raise ConfigError(
-            f"{source}: [forming] trim_allowance_mm must be >= 0, got {v('forming.trim_allowance_mm')}"
-        )
-    if v("forming.margin_mm") < 0:
-        raise ConfigError(f"{source}: [forming] margin_mm must be >= 0, got {v('forming.margin_mm')}")
-    if 2 * v("matrix.tip_radius_mm") > min(v("matrix.pitch_x_mm"), v("matrix.pitch_y_mm")):
-        raise ConfigError(
-            f"{source}: [matrix] tip_radius_mm {v('matrix.tip_radius_mm')} is too large for the pitch "
-            f"({v('matrix.pitch_x_mm')} x {v('matrix.pitch_y_mm')} mm): neighbouring balls would overlap"
-        )
+    tables = {table: _read_table(data, table, source) for table in _TABLES}
     limits = {}
     for side in ("upper", "lower"):
-        lo, hi, park = v(f"{side}.min_mm"), v(f"{side}.max_mm"), v(f"{side}.park_mm")
-        if not lo < hi:
-            raise ConfigError(f"{source}: [{side}] min_mm ({lo}) must be below max_mm ({hi})")
-        if not lo <= park <= hi:
-            raise ConfigError(
-                f"{source}: [{side}] park_mm ({park}) must lie within min_mm..max_mm ({lo}..{hi})"
-            )
-        limits[side] = AxisLimits(lo, hi, park)
-    name = data.get("name", "press")
-    if not isinstance(name, str):
-        raise ConfigError(f"{source}: name must be a string, got {name!r}")
-    return PressConfig(
-        rows=rows,
-        cols=cols,
-        pitch_x_mm=v("matrix.pitch_x_mm"),
-        pitch_y_mm=v("matrix.pitch_y_mm"),
-        tip_radius_mm=v("matrix.tip_radius_mm"),
-        upper=limits["upper"],
-        lower=limits["lower"],
-        max_neighbour_diff_mm=v("forming.max_neighbour_diff_mm"),
-        trim_allowance_mm=v("forming.trim_allowance_mm"),
-        speed_mm_s=v("forming.speed_mm_s"),
-        accel_mm_s2=v("forming.accel_mm_s2"),
-        position_tolerance_mm=v("forming.position_tolerance_mm"),
-        margin_mm=v("forming.margin_mm"),
-        name=name,
-    )
+        with _named(f"{source}: [{side}] "):
+            limits[side] = AxisLimits(**tables[side])
+    with _named(f"{source}: "):
+        return PressConfig(**tables["matrix"], **tables["forming"], **limits, name=data.get("name", "press"))
+
+
+def _read_table(data: dict, table: str, source: str) -> dict:
+    """The keys of one table, as given (missing optional keys left to the dataclass's defaults)."""
+    section = data.get(table)
+    if not isinstance(section, dict):
+        raise ConfigError(f"{source}: missing table [{table}]", hint="see examples/press.toml and docs/press.md")
+    keys = _TABLES[table]
+    unknown = set(section) - set(keys)
+    if unknown:
+        raise ConfigError(f"{source}: unknown key(s) {sorted(unknown)} in [{table}]",
+                          hint=f"[{table}] takes {sorted(keys)}; check the spelling")
+    for key in keys:
+        if key not in section and (table in ("upper", "lower") or key not in _DEFAULTS):
+            raise ConfigError(f"{source}: missing key '{key}' in [{table}]",
+                              hint="see examples/press.toml and docs/press.md")
+    for key in _COUNTS:
+        if isinstance(section.get(key), float):  # TOML tells 16 from 16.0: a count is written without a point
+            raise ConfigError(f"{source}: [{table}] {key} must be a whole number, got {section[key]!r}",
+                              hint="write it without a decimal point or quotes")
+    return dict(section)
+
+
+@contextlib.contextmanager
+def _named(prefix: str):
+    """Re-raise a dataclass's ConfigError with where it came from (file and table) in front."""
+    try:
+        yield
+    except ConfigError as exc:
+        raise ConfigError(prefix + exc.message, hint=exc.hint) from None
 
 
 def load_press(path) -> PressConfig:

@@ -15,8 +15,9 @@ import math
 
 import numpy as np
 
-from mppf.core.errors import InputError, LimitError
+from mppf.core.errors import LimitError
 from mppf.core.grid import largest_neighbour_difference, neighbour_differences
+from mppf.core.validate import check_number
 from mppf.planning.job import StepStrokes
 from mppf.planning.press import PressConfig
 
@@ -58,8 +59,7 @@ def split_steps(upper_mm, lower_mm, active, thickness_mm: float, n_steps: int) -
     -------
     list of StepStrokes
     """
-    if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps < 1:
-        raise InputError(f"the number of steps must be a whole number >= 1, got {n_steps!r}")
+    n_steps = check_number("the number of steps", n_steps, low=1, integer=True)
     up0, lo0 = flat_heights(thickness_mm)
     steps = []
     for k in range(1, n_steps + 1):

@@ -1,46 +1,31 @@
-"""The ICP machinery behind :func:`mppf.registration.register.register_icp`.
+"""The ICP loop behind :func:`mppf.registration.register.register_icp`.
 
-One :class:`Problem` holds the fixed target (kd-tree, lazily computed normals, plate
-frame, pair weighting); :func:`run` iterates "match closest points, weight the pairs,
-solve one step (quaternion or linearised point-to-plane), pin the outline, test the
-stop criteria"; :func:`evaluate` and :func:`uncertainty` describe the result. All
-lengths in mm, angles in radians unless a name says ``_deg``.
+:func:`run` iterates "match closest points of the fixed :class:`~mppf.registration.target.RegistrationTarget`,
+weight the pairs, solve one step (quaternion or linearised point-to-plane), pin the
+outline, test the stop criteria"; :func:`evaluate` and :func:`uncertainty` describe the
+result. How pairs are formed and weighted is a :class:`~mppf.registration.settings.Matching`.
+All lengths in mm, angles in radians unless a name says ``_deg``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from mppf.core.errors import GeometryError
-from mppf.core.polygon import area, convex_inset, convex_outline, moments
-from mppf.core.rigid import fit_rigid
 from mppf.core.progress import NULL_REPORTER, Reporter
-from mppf.core.transform import apply_tf, make_tf, quaternion_to_matrix
-
-PARALLEL_QUERY = 20000
-"""Closest-point queries of at least this many points run on all cores."""
-
-NORMAL_NEIGHBOURS = 10
-"""Target points used for each local PCA normal."""
+from mppf.core.rigid import fit_rigid
+from mppf.core.transform import apply_tf, make_tf
+from mppf.registration.settings import Matching
+from mppf.registration.target import RegistrationTarget, query
 
 HUBER_K = 1.345
 """Huber threshold in robust scales (95 % efficiency for Gaussian residuals)."""
 
 TUKEY_C = 4.685
 """Tukey biweight cut-off in robust scales (95 % efficiency for Gaussian residuals)."""
-
-SCORE_KEEP = 0.6
-"""Fraction of the best pair distances that scores a principal-axes candidate."""
-
-COVERAGE_TOL = 0.12
-"""Outline areas and extents of source and target within this fraction: same plate."""
-
-ELONGATED = 1.3
-"""Outline second-moment ratio above which the outline also pins the turn about the normal."""
 
 UNOBSERVABLE = 1e-5
 """Directions of a linearised step whose information is below this fraction of the largest are held."""
@@ -51,71 +36,6 @@ MAX_EXTRAPOLATION = 25.0
 STALL_ITERATIONS = 10
 """A stage stops when its MSE has not reached a new low (by the relative tolerance) for this
 many iterations: the closest-point sets cycle (seen with point-to-plane on 4,000 points)."""
-
-PIN_BAND_FRACTION = 0.02
-"""Width of the band of outline candidates along the convex outline, in plate sizes (sqrt area)."""
-
-OUTLINE_NEIGHBOURS = 8
-"""Neighbour rank whose distance tells isolated points (outliers) from the plate."""
-
-ISOLATED = 4.0
-"""Points whose neighbour distance exceeds this many times the median are not outline."""
-
-PIN_TURN_DEG = 0.05
-"""Point-to-plane: the outline also pins the turn about the normal when the surface fixes it
-worse than this (one sigma, in degrees, for 1 mm noise on the source points). Point-to-point
-always has it pinned (it sees the turn only through in-plane closest-point offsets)."""
-
-
-def query(tree, points: np.ndarray, k: int = 1):
-    """``tree.query`` on all cores for large batches (threads cost more than they save on small ones)."""
-    return tree.query(points, k=k, workers=-1 if points.shape[0] >= PARALLEL_QUERY else 1)
-
-
-@dataclass(eq=False)
-class Problem:
-    """The fixed side of an ICP: target points, kd-tree, frame and pair weighting.
-
-    Attributes
-    ----------
-    target : (m, 3) float, mm
-    tree : scipy.spatial.cKDTree of ``target``
-    frame : mppf.geometry.frame.LocalFrame of the target (plate plane, normal n)
-    method : {"point", "plane"}
-    trim_fraction : float or None
-    robust : {"huber", "tukey"} or None
-    """
-
-    target: np.ndarray
-    tree: object
-    frame: object
-    method: str
-    trim_fraction: float | None = None
-    robust: str | None = None
-    _normals: np.ndarray | None = field(default=None, repr=False)
-    _outline: tuple | None = field(default=None, repr=False)
-
-    def normals(self, idx: np.ndarray) -> np.ndarray:
-        """Unit normals (k, 3) of target points ``idx`` by local PCA (computed once each)."""
-        if self._normals is None:
-            self._normals = np.full(self.target.shape, np.nan)
-        missing = np.unique(idx)
-        missing = missing[np.isnan(self._normals[missing, 0])]
-        if missing.size:
-            k = min(NORMAL_NEIGHBOURS, self.target.shape[0])
-            _, nb = query(self.tree, self.target[missing], k=k)
-            hood = self.target[nb]
-            hood = hood - hood.mean(axis=1, keepdims=True)
-            cov = np.einsum("mki,mkj->mij", hood, hood)
-            _, vec = np.linalg.eigh(cov)
-            self._normals[missing] = vec[:, :, 0]
-        return self._normals[idx]
-
-    def target_outline(self):
-        """Area, centroid (2,) and central second moments (2, 2) of the target's outline."""
-        if self._outline is None:
-            self._outline = polygon_moments(self.frame.to_local(self.target)[:, :2])
-        return self._outline
 
 
 @dataclass(frozen=True, eq=False)
@@ -170,19 +90,65 @@ def pair_weights(residual: np.ndarray, trim_fraction, robust) -> np.ndarray:
     return w
 
 
-def match(problem: Problem, source: np.ndarray, tf: np.ndarray, metric: str | None = None) -> Pairs:
-    """Closest target points of the moved source, residuals and weights."""
-    metric = metric or problem.method
+class Nearest:
+    """Closest target points of one source's points, queried again only where they may change.
+
+    A point whose closest target point at its last queried position ``q`` was ``t1`` (at
+    ``d1``; the second closest at ``d2``) keeps ``t1`` as long as it stays within
+    ``(d2 - d1) / 2`` of ``q``: every other target point is then still farther (triangle
+    inequality). So each ICP iteration queries the k-d tree only for the points that
+    moved that far (in the late iterations, most points move far less); the others'
+    distances are recomputed exactly as the tree computes them. The pairs are the same
+    as a query of every point (exact ties are queried as such).
+    """
+
+    MARGIN_MM = 1e-6
+    """Kept off the bound (d2 - d1) / 2, for the round-off of the distances."""
+
+    def __init__(self, target: RegistrationTarget):
+        self.target = target
+        self.last = None  # (q, d1, d2, i1) of every point at its last query
+
+    def __call__(self, moved: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(distance (n,) mm, index (n,)) of the closest target point of each moved point."""
+        if self.last is None or self.last[0].shape != moved.shape:
+            redo = np.ones(moved.shape[0], dtype=bool)
+            self.last = (moved.copy(), np.zeros(moved.shape[0]), np.zeros(moved.shape[0]),
+                         np.zeros(moved.shape[0], dtype=np.intp))
+        else:
+            q, d1, d2, _ = self.last
+            shift = np.sqrt(((moved - q) ** 2).sum(axis=1))
+            redo = ~(shift < 0.5 * (d2 - d1) - self.MARGIN_MM)
+        q, d1, d2, i1 = self.last
+        if redo.any():
+            dist, idx = query(self.target.tree, moved[redo], k=2)  # targets have at least 3 points
+            first, second = dist[:, 0], dist[:, 1]
+            tie = first == second
+            if tie.any():  # the closest of equals: the one a plain query gives
+                idx[tie, 0] = query(self.target.tree, moved[redo][tie])[1]
+            q[redo], d1[redo], d2[redo], i1[redo] = moved[redo], first, second, idx[:, 0]
+        dist = np.sqrt(((moved - self.target.points[i1]) ** 2).sum(axis=1))
+        return dist, i1.copy()
+
+
+def match(target: RegistrationTarget, source: np.ndarray, tf: np.ndarray, matching: Matching,
+          nearest: Nearest | None = None) -> Pairs:
+    """Closest target points of the moved source, residuals and weights.
+
+    ``nearest`` (one per source, kept across the iterations of a loop) spares the k-d tree
+    queries of points that cannot have changed their closest target point.
+    """
+    metric = matching.metric
     moved = apply_tf(tf, source)
-    dist, idx = query(problem.tree, moved)
-    matched = problem.target[idx]
+    dist, idx = query(target.tree, moved) if nearest is None else nearest(moved)
+    matched = target.points[idx]
     normal = None
     if metric == "plane":
-        normal = problem.normals(idx)
+        normal = target.normals(idx)
         residual = np.einsum("ij,ij->i", moved - matched, normal)
     else:
         residual = dist
-    weight = pair_weights(residual, problem.trim_fraction, problem.robust)
+    weight = pair_weights(residual, matching.trim_fraction, matching.robust)
     needed = 6 if metric == "plane" else 3
     if np.count_nonzero(weight) < needed:
         raise GeometryError(
@@ -278,26 +244,36 @@ def increment(tf_old: np.ndarray, tf_new: np.ndarray, centre: np.ndarray) -> tup
     return rotvec, shift
 
 
-def run(problem: Problem, source: np.ndarray, tf0: np.ndarray, *, max_iterations: int,
-        tol: tuple[float, float, float], pin=None, metric: str | None = None,
-        accelerate: bool = True, reporter: Reporter = NULL_REPORTER) -> Stage:
+def run(target: RegistrationTarget, source: np.ndarray, tf0: np.ndarray, matching: Matching, *,
+        max_iterations: int, tol: tuple[float, float, float], pin=None, accelerate: bool = True,
+        nearest: Nearest | None = None, reporter: Reporter = NULL_REPORTER) -> Stage:
     """The ICP loop: match, weight, step, pin, test; from ``tf0``.
 
     Parameters
     ----------
+    target : RegistrationTarget
+        The fixed side (k-d tree, normals).
+    source : (n, 3) float, mm
+        The points that move.
+    tf0 : (4, 4) float
+        Start, source -> target.
+    matching : Matching
+        Metric and pair weights.
+    max_iterations : int
     tol : (translation mm, rotation rad, relative MSE change)
         Also: when the MSE has not fallen below its lowest value by more than the relative
         tolerance for ``STALL_ITERATIONS`` iterations, the lowest-MSE transform is returned.
-    pin : OutlinePin, optional
+    pin : mppf.registration.pin.OutlinePin, optional
         Applied after every step (and to the start).
-    metric : {"point", "plane"}, optional
-        Overrides ``problem.method`` (the principal-axes scoring uses "point").
     accelerate : bool
         When successive increments keep their direction and shrink (slow, linear
         convergence), jump ahead by the geometric remainder of the series (at most
         ``MAX_EXTRAPOLATION`` steps); the jump is undone if it raises the MSE.
+    nearest : Nearest, optional
+        The closest points of ``source`` kept from an earlier loop on the same points
+        (default: a new one).
     """
-    metric = metric or problem.method
+    metric = matching.metric
     tol_t, tol_r, tol_mse = tol
     centre = source.mean(axis=0)
     radius = max(float(np.sqrt(((source - centre) ** 2).sum(axis=1).mean())), 1e-9)
@@ -308,13 +284,14 @@ def run(problem: Problem, source: np.ndarray, tf0: np.ndarray, *, max_iterations
     fallback = None  # transform before an extrapolation, and the MSE it had to beat
     cooldown = 0
     best_mse, best_tf, stalled = np.inf, tf, 0
+    nearest = Nearest(target) if nearest is None else nearest
     for it in range(max_iterations):
-        pairs = match(problem, source, tf, metric)  # closest points and weights
+        pairs = match(target, source, tf, matching, nearest)  # closest points and weights
         mse = pairs.mse
         if fallback is not None:
             if mse > fallback[1]:  # the jump made it worse: undo it
                 tf, cooldown, last = fallback[0], 5, None
-                pairs = match(problem, source, tf, metric)
+                pairs = match(target, source, tf, matching, nearest)
                 mse = pairs.mse
             fallback = None
         history.append(float(np.sqrt(mse)))
@@ -352,23 +329,17 @@ def run(problem: Problem, source: np.ndarray, tf0: np.ndarray, *, max_iterations
     return Stage(tf, max_iterations, history, False, "iteration limit reached")
 
 
-def evaluate(problem: Problem, source: np.ndarray, tf: np.ndarray) -> Pairs:
-    """Pairs (with target normals) at the final transform."""
-    pairs = match(problem, source, tf)
+def evaluate(target: RegistrationTarget, source: np.ndarray, tf: np.ndarray, matching: Matching,
+             nearest: Nearest | None = None) -> Pairs:
+    """Pairs (with target normals) at the final transform (``nearest``: see :func:`match`)."""
+    pairs = match(target, source, tf, matching, nearest)
     if pairs.normal is None:
         pairs = Pairs(pairs.moved, pairs.matched, pairs.index, pairs.distance, pairs.residual,
-                      pairs.weight, problem.normals(pairs.index))
+                      pairs.weight, target.normals(pairs.index))
     return pairs
 
 
-def trimmed_rms(problem: Problem, source: np.ndarray, tf: np.ndarray) -> float:
-    """RMS of the best ``SCORE_KEEP`` fraction of closest-point distances, mm."""
-    dist, _ = query(problem.tree, apply_tf(tf, source))
-    keep = max(3, int(SCORE_KEEP * dist.size))
-    return float(np.sqrt(np.mean(np.partition(dist, keep - 1)[:keep] ** 2)))
-
-
-def uncertainty(problem: Problem, pairs: Pairs, sigma_mm: float | None = None) -> dict:
+def uncertainty(target: RegistrationTarget, pairs: Pairs, sigma_mm: float | None = None) -> dict:
     """One-sigma uncertainty per degree of freedom from the point-to-plane information.
 
     In the target's plate frame (u, v in-plane, n normal): translations in mm, turns
@@ -380,9 +351,9 @@ def uncertainty(problem: Problem, pairs: Pairs, sigma_mm: float | None = None) -
     mostly in them is reported as None, the others conditional on them. The noise is
     estimated from the normal residuals unless ``sigma_mm`` is given.
     """
-    axes = problem.frame.axes
+    axes = target.frame.axes
     w = pairs.weight
-    local = (pairs.moved - problem.frame.origin) @ axes.T
+    local = (pairs.moved - target.frame.origin) @ axes.T
     normal = pairs.normal @ axes.T
     centre = np.average(local, axis=0, weights=w)
     arm = local - centre
@@ -405,128 +376,3 @@ def uncertainty(problem: Problem, pairs: Pairs, sigma_mm: float | None = None) -
     out["noise_sigma_mm"] = float(np.sqrt(sigma2))
     out["observability"] = [float(v) for v in np.clip(eigval / eigval[-1], 0.0, None)]
     return out
-
-
-# ------------------------------------------------------------------ outline pinning
-
-
-def polygon_moments(points_2d: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """Area (mm^2), area centroid (2,) and central second moments (2, 2) of the convex outline.
-
-    Raises
-    ------
-    GeometryError
-        The points do not span an area in the plane.
-    """
-    return moments(convex_outline(points_2d, "the points of the plate"))
-
-
-def _major_axis_angle(moments: np.ndarray) -> tuple[float, float]:
-    """(angle of the major axis in rad, ratio of the second moments major/minor)."""
-    eigval, eigvec = np.linalg.eigh(moments)
-    major = eigvec[:, 1]
-    return float(np.arctan2(major[1], major[0])), float(eigval[1] / max(eigval[0], 1e-300))
-
-
-@dataclass(frozen=True, eq=False)
-class OutlinePin:
-    """Fixes the in-plane position of the source by the outline in the target's plane.
-
-    After each ICP step the moved source's convex outline (in the target's plate
-    plane) is brought onto the target's: area centroid onto area centroid, and for
-    elongated plates the major axis onto the major axis (a turn about the normal).
-    The normal offset and the tilts stay as the surface fit gives them.
-    """
-
-    frame: object
-    points: np.ndarray
-    centroid_t: np.ndarray
-    angle_t: float
-    pin_turn: bool
-
-    @property
-    def free(self) -> np.ndarray:
-        """(6,) bool: degrees of freedom (turns about u, v, n; shifts along u, v, n) left to ICP."""
-        return np.array([True, True, not self.pin_turn, False, False, True])
-
-    def apply(self, tf: np.ndarray) -> np.ndarray:
-        """``tf`` corrected in-plane, (4, 4)."""
-        local = self.frame.to_local(apply_tf(tf, self.points))[:, :2]
-        _, centroid_s, moments_s = polygon_moments(local)
-        turn = 0.0
-        if self.pin_turn:
-            angle_s, _ = _major_axis_angle(moments_s)
-            turn = (self.angle_t - angle_s + np.pi / 2) % np.pi - np.pi / 2
-        rot = Rotation.from_rotvec([0.0, 0.0, turn]).as_matrix()
-        c_s = np.array([centroid_s[0], centroid_s[1], 0.0])
-        c_t = np.array([self.centroid_t[0], self.centroid_t[1], 0.0])
-        correction = make_tf(rot, c_t - rot @ c_s)
-        return self.frame.tf_world_local @ correction @ self.frame.tf_local_world @ tf
-
-
-def outline_candidates(frame, points: np.ndarray, sample: np.ndarray) -> np.ndarray:
-    """Points of a cloud that may form its outline: a band along its convex outline.
-
-    The convex outline is first taken from ``sample`` (a subsample of ``points``)
-    without its isolated points (stray returns, outliers: their
-    ``OUTLINE_NEIGHBOURS``-th neighbour farther than ``ISOLATED`` times the median
-    such distance). The points of the whole cloud within ``PIN_BAND_FRACTION`` of the
-    plate size of that outline, and not isolated themselves, are returned; they lie in
-    the cloud's own plate plane (``frame``), so the outline can be recomputed cheaply in
-    any pose.
-    """
-
-    def not_isolated(tree, pts):
-        spacing = query(tree, pts, k=min(OUTLINE_NEIGHBOURS + 1, tree.n))[0][:, -1]
-        return spacing <= ISOLATED * np.median(spacing)
-
-    sample = sample[not_isolated(cKDTree(sample), sample)]
-    try:
-        outline = convex_outline(frame.to_local(sample)[:, :2])
-    except GeometryError:
-        return sample
-    depth = convex_inset(outline, frame.to_local(points)[:, :2])
-    band = points[np.abs(depth) <= PIN_BAND_FRACTION * np.sqrt(area(outline))]
-    if band.shape[0] < 3:
-        return band
-    tree = cKDTree(points) if points.shape[0] > sample.shape[0] else cKDTree(sample)
-    return band[not_isolated(tree, band)]
-
-
-def outline_pin(problem: Problem, candidates: np.ndarray, tf: np.ndarray, *,
-                require_coverage: bool, pin_turn: bool) -> tuple[OutlinePin | None, str]:
-    """Build the outline pin at ``tf``, or say why not.
-
-    Parameters
-    ----------
-    candidates : (k, 3) float, mm
-        Source points along its outline (:func:`outline_candidates`).
-    require_coverage : bool
-        Only pin when both outlines have areas and extents within ``COVERAGE_TOL``.
-    pin_turn : bool
-        Also pin the turn about the normal (for elongated outlines).
-
-    Returns
-    -------
-    (OutlinePin or None, str)
-        The pin, and a description of the coverage test.
-    """
-    area_t, centroid_t, moments_t = problem.target_outline()
-    near = candidates
-    if near.shape[0] < 10:
-        return None, "too few source points on the outline"
-    local = problem.frame.to_local(apply_tf(tf, near))[:, :2]
-    try:
-        area_s, _, moments_s = polygon_moments(local)
-    except GeometryError:
-        return None, "the source has no outline in the target's plane"
-    ext_s, ext_t = np.sqrt(np.linalg.eigvalsh(moments_s)), np.sqrt(np.linalg.eigvalsh(moments_t))
-    ratios = np.concatenate([[area_s / area_t], ext_s / ext_t])
-    coverage = (f"outline area ratio {ratios[0]:.3f}, extent ratios {ratios[1]:.3f} / {ratios[2]:.3f} "
-                f"(source / target)")
-    if require_coverage and np.any(np.abs(np.log(ratios)) > np.log1p(COVERAGE_TOL)):
-        return None, coverage + ": the clouds do not cover the same plate"
-    angle_t, elongation = _major_axis_angle(moments_t)
-    pin = OutlinePin(frame=problem.frame, points=near, centroid_t=centroid_t, angle_t=angle_t,
-                     pin_turn=pin_turn and elongation > ELONGATED)
-    return pin, coverage

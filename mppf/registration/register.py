@@ -5,15 +5,14 @@ coordinates into TARGET coordinates (``target ~ tf @ source``):
 
 - :func:`register_paired` - known correspondences (e.g. the point pairs of an
   unfolding): the closed-form unit-quaternion solution of the paper, eq. (2.3)-(2.10),
-  with its errata fixed (``Q(Sigma)`` is a symmetric 4 x 4 matrix; the rotation is the
-  standard quaternion matrix of :func:`mppf.core.transform.quaternion_to_matrix`;
-  ``t = mu_target - R mu_source``).
-- :func:`register_icp` - no correspondences: iterative closest points with
-  ``scipy.spatial.cKDTree``, point-to-point (the paper: one quaternion step per
-  iteration) or point-to-plane (linearised, normals of the target), a principal-axes
-  start that tries the sign-flip candidates, trimmed or robust (Huber/Tukey) weights,
+  with its errata fixed (:func:`mppf.core.rigid.fit_rigid`).
+- :func:`register_icp` - no correspondences: iterative closest points, point-to-point
+  (the paper: one quaternion step per iteration) or point-to-plane (linearised, normals
+  of the target), a principal-axes start that tries the sign-flip candidates
+  (:mod:`mppf.registration.starts`), trimmed or robust (Huber/Tukey) weights,
   coarse-to-fine subsampling, and outline pinning of the in-plane position of shallow
-  plates. The ICP loop itself lives in :mod:`mppf.registration.icp`.
+  plates (:mod:`mppf.registration.pin`). The ICP loop itself lives in
+  :mod:`mppf.registration.icp`, the fixed side in :mod:`mppf.registration.target`.
 
 The math, the defaults and the measured figures are in ``docs/math-registration.md``.
 """
@@ -23,36 +22,28 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial import cKDTree
 
-from mppf.registration import icp
-from mppf.core.errors import GeometryError, InputError
-from mppf.core.rigid import fit_rigid
-from mppf.geometry.frame import fit_frame
-from mppf.geometry.io import check_plate
+from mppf.core.errors import InputError
 from mppf.core.progress import NULL_REPORTER, Reporter
-from mppf.core.transform import apply_tf, as_points, make_tf, tf_to_list
+from mppf.core.rigid import fit_rigid
+from mppf.core.transform import apply_tf, as_points, tf_to_list
+from mppf.registration import icp
+from mppf.registration.pin import PIN_TURN_DEG, outline_candidates, outline_pin
+from mppf.registration.settings import IcpSettings, Matching, PrincipalStart
+from mppf.registration.starts import principal_start
+from mppf.registration.target import (
+    NORMAL_NEIGHBOURS,
+    Cloud,
+    RegistrationTarget,
+    build_target,
+    check_cloud,
+    check_min_points,
+    prepare,
+)
 
-METHODS = ("point", "plane")
-"""ICP error metrics: point-to-point (the paper) and point-to-plane."""
 
-ROBUST_KERNELS = ("huber", "tukey")
-"""Robust weight functions for ICP pairs (scale from the median absolute residual)."""
-
-FLAT_RATIO = 3e-3
-"""A cloud is flat when its spread along its normal is below this fraction of its in-plane spread."""
-
-AMBIGUOUS_RATIO = 1.25
-"""The principal-axes start is ambiguous when the second best candidate scores within this factor."""
-
-COARSE_POINTS = 4000
-"""Source points of the coarse stage (clouds larger than twice this are registered coarse-to-fine)."""
-
-SCORE_POINTS = 1000
-"""Source points used to score the principal-axes candidates."""
-
-SCORE_ITERATIONS = 8
-"""ICP iterations run from each principal-axes candidate before scoring it."""
+PRINCIPAL = PrincipalStart()
+"""Scoring of the principal-axes candidates (defaults of :class:`~mppf.registration.settings.PrincipalStart`)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -135,29 +126,6 @@ class Registration:
 # ------------------------------------------------------------------ paired closed form
 
 
-def _check_finite(points: np.ndarray, name: str) -> None:
-    bad = ~np.all(np.isfinite(points), axis=1)
-    if bad.any():
-        first = int(np.argmax(bad))
-        raise InputError(
-            f"{name}: point {first} has a NaN or infinite coordinate {points[first].tolist()}",
-            hint="remove or repair invalid points before registering",
-        )
-
-
-def _check_cloud(points, name: str, min_points: int = 3) -> np.ndarray:
-    """Shape, finiteness, count and spread checks of one point set."""
-    pts = as_points(points, name=name)
-    _check_finite(pts, name)
-    if pts.shape[0] < min_points:
-        raise GeometryError(
-            f"{name}: {pts.shape[0]} point(s), registration needs at least {min_points} "
-            "non-collinear points",
-            hint="give more points",
-        )
-    return check_plate(pts, min_points=min_points, source=name)
-
-
 def register_paired(source, target, weights=None) -> Registration:
     """Rigid transform of paired points by the closed-form unit quaternion.
 
@@ -187,7 +155,7 @@ def register_paired(source, target, weights=None) -> Registration:
             f"target {tgt.shape[0]}",
             hint="give point pairs in the same order, or use ICP (method point or plane)",
         )
-    src, tgt = _check_cloud(src, "source"), _check_cloud(tgt, "target")
+    src, tgt = check_cloud(src, "source"), check_cloud(tgt, "target")
     w = None
     if weights is not None:
         w = np.asarray(weights, dtype=float).reshape(-1)
@@ -207,72 +175,34 @@ def register_paired(source, target, weights=None) -> Registration:
     )
 
 
-# ------------------------------------------------------------------ ICP front end
-
-
-def _proper_axes(axes: np.ndarray) -> np.ndarray:
-    return axes if np.linalg.det(axes) > 0 else axes * np.array([[1.0], [1.0], [-1.0]])
-
-
-SIGN_FLIPS = ((1, 1, 1), (-1, -1, 1), (-1, 1, -1), (1, -1, -1))
-"""Proper sign flips of the (u, v, n) principal axes tried by the principal-axes start."""
-
-
-def principal_candidates(source_frame, target_frame) -> list[np.ndarray]:
-    """The four proper rotations that align the source's principal axes with the target's.
-
-    Returns
-    -------
-    list of (4, 4) float
-        ``tf`` candidates mapping source into target, centroid onto centroid.
-    """
-    a_s = _proper_axes(source_frame.axes)
-    a_t = _proper_axes(target_frame.axes)
-    out = []
-    for flip in SIGN_FLIPS:
-        rotation = a_t.T @ np.diag(flip) @ a_s
-        out.append(make_tf(rotation, target_frame.origin - rotation @ source_frame.origin))
-    return out
-
-
-def _spreads(frame, points: np.ndarray) -> tuple[float, float]:
-    """(in-plane RMS radius, RMS along the normal) of points in their frame, mm."""
-    local = frame.to_local(points)
-    return float(np.sqrt((local[:, :2] ** 2).sum(axis=1).mean())), float(local[:, 2].std())
-
-
 def _subsample(n: int, count: int, rng: np.random.Generator) -> np.ndarray:
     if count >= n:
         return np.arange(n)
     return np.sort(rng.choice(n, size=count, replace=False))
 
 
-def _check_options(method, init, max_iterations, trim_fraction, robust, max_points, pin_outline):
-    if method not in METHODS:
-        raise InputError(f"unknown ICP method {method!r}", hint=f"use one of {', '.join(METHODS)}")
+def _check_init(init) -> None:
     if isinstance(init, str):
         if init not in ("principal", "identity"):
             raise InputError(f"unknown init {init!r}", hint="use principal, identity or a 4x4 transform")
-    else:
-        tf0 = np.asarray(init, dtype=float)
-        if tf0.shape != (4, 4) or not np.all(np.isfinite(tf0)):
-            raise InputError(f"init must be a finite 4x4 transform, got shape {tf0.shape}")
-        rot = tf0[:3, :3]
-        if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-6) or np.linalg.det(rot) < 0:
-            raise InputError("init is not a rigid transform (its 3x3 part is not a rotation)",
-                             hint="give a proper rotation and a translation")
-    if int(max_iterations) < 1:
-        raise InputError(f"max_iterations must be at least 1, got {max_iterations}",
-                         hint="give the iteration limit per stage, e.g. 100")
-    if trim_fraction is not None and not 0.0 <= float(trim_fraction) < 0.9:
-        raise InputError(f"trim_fraction must be in [0, 0.9), got {trim_fraction}",
-                         hint="the fraction of the worst pairs dropped each iteration, e.g. 0.1")
-    if robust is not None and robust not in ROBUST_KERNELS:
-        raise InputError(f"unknown robust kernel {robust!r}", hint=f"use one of {', '.join(ROBUST_KERNELS)}")
-    if int(max_points) < 100:
-        raise InputError(f"max_points must be at least 100, got {max_points}")
-    if pin_outline not in ("auto", True, False):
-        raise InputError(f"pin_outline must be 'auto', True or False, got {pin_outline!r}")
+        return
+    tf0 = np.asarray(init, dtype=float)
+    if tf0.shape != (4, 4) or not np.all(np.isfinite(tf0)):
+        raise InputError(f"init must be a finite 4x4 transform, got shape {tf0.shape}")
+    rot = tf0[:3, :3]
+    if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-6) or np.linalg.det(rot) < 0:
+        raise InputError("init is not a rigid transform (its 3x3 part is not a rotation)",
+                         hint="give a proper rotation and a translation")
+
+
+def _as_target(target, method: str) -> RegistrationTarget:
+    """The target as a RegistrationTarget (built here from an array), with enough points for the metric."""
+    needed = 3 if method == "point" else NORMAL_NEIGHBOURS
+    if isinstance(target, RegistrationTarget):
+        check_min_points(target.n_points, target.name, needed)
+        return target
+    check_min_points(as_points(target, name="target").shape[0], "target", needed)
+    return build_target(target, "target")
 
 
 def register_icp(
@@ -296,10 +226,16 @@ def register_icp(
 
     Parameters
     ----------
-    source : (n, 3) float, mm
-        The cloud that moves (a scan, or a flat unfolded plate).
-    target : (m, 3) float, mm
-        The fixed cloud (the design); the closest points and normals come from it.
+    source : (n, 3) float, mm, or Cloud
+        The cloud that moves (a scan, or a flat unfolded plate); a
+        :class:`~mppf.registration.target.Cloud` prepared once
+        (:func:`~mppf.registration.target.prepare`) spares its checks and frame to repeated
+        registrations of the same cloud.
+    target : (m, 3) float, mm, or RegistrationTarget
+        The fixed cloud (the design); the closest points and normals come from it. A
+        :class:`~mppf.registration.target.RegistrationTarget` built once
+        (:func:`~mppf.registration.target.build_target`) spares its k-d tree, frame and
+        normals to repeated registrations onto the same target.
     method : {"point", "plane"}
         Point-to-point (the paper) or point-to-plane. A plane metric is never used
         between a flat and a curved plate: it is overridden by "point" (noted).
@@ -316,11 +252,11 @@ def register_icp(
     max_points : int
         The source is registered on at most this many points (a seeded random
         subsample); a coarse stage (unpinned, tolerances x 10) runs first, on
-        ``COARSE_POINTS`` of clouds above twice that. The target is always used whole.
+        ``IcpSettings.coarse_points`` of clouds above twice that. The target is always used whole.
     pin_outline : {"auto", True, False}
         Pin the in-plane position (and the turn about the normal for elongated
         plates: always with ``method="point"``, with "plane" where the surface fixes
-        it worse than ``mppf.registration.icp.PIN_TURN_DEG``) with the outline: the area centroid
+        it worse than ``mppf.registration.pin.PIN_TURN_DEG``) with the outline: the area centroid
         and principal axes of the convex outline in the target's plate plane. "auto"
         pins when both clouds cover the same plate (outline areas and extents within 12 %).
     tol_translation_mm, tol_rotation_rad : float
@@ -345,80 +281,90 @@ def register_icp(
     GeometryError
         Fewer than 3 points or points that do not span a plane (either cloud).
     """
-    _check_options(method, init, max_iterations, trim_fraction, robust, max_points, pin_outline)
-    src = _check_cloud(source, "source")
-    tgt = _check_cloud(target, "target", min_points=3 if method == "point" else icp.NORMAL_NEIGHBOURS)
+    settings = IcpSettings(method=method, max_iterations=max_iterations, trim_fraction=trim_fraction, robust=robust,
+                           max_points=max_points, pin_outline=pin_outline, tol_translation_mm=tol_translation_mm,
+                           tol_rotation_rad=tol_rotation_rad, tol_relative_mse=tol_relative_mse, seed=seed)
+    _check_init(init)
+    cloud = source if isinstance(source, Cloud) else prepare(source, "source")
+    tgt = _as_target(target, method)
+    src, frame_s = cloud.points, cloud.frame
     rng = np.random.default_rng(seed)
     notes: list[str] = []
 
-    # 1. frames of both clouds; detect flat against curved
-    frame_s, frame_t = fit_frame(src), fit_frame(tgt)
-    radius_s, thick_s = _spreads(frame_s, src)
-    radius_t, thick_t = _spreads(frame_t, tgt)
-    flat_s, flat_t = thick_s < FLAT_RATIO * radius_s, thick_t < FLAT_RATIO * radius_t
-    flat_vs_curved = flat_s != flat_t
+    # 1. never a plane metric between a flat and a curved plate
+    flat_vs_curved = cloud.flat != tgt.flat
     if flat_vs_curved and method == "plane":
         method = "point"
         notes.append("point-to-plane overridden by point-to-point: one plate is flat and the other "
                      "curved, and a plane metric slides the flat plate off the curved one")
+    matching = Matching(method, trim_fraction, robust)
 
-    # 2. the fixed target: kd-tree, lazily computed normals, outline
-    tree = cKDTree(tgt)
-    problem = icp.Problem(target=tgt, tree=tree, frame=frame_t, method=method,
-                          trim_fraction=trim_fraction, robust=robust)
-    fine_idx = _subsample(src.shape[0], int(max_points), rng)
-    coarse_idx = fine_idx[_subsample(fine_idx.size, COARSE_POINTS, rng)] if fine_idx.size > 2 * COARSE_POINTS else None
-
-    # 3. start
-    init_info: dict
-    ambiguous = False
-    if isinstance(init, str) and init == "principal":
-        score_idx = fine_idx[_subsample(fine_idx.size, SCORE_POINTS, rng)]
-        tf0, init_info = _principal_start(problem, src[score_idx], frame_s, frame_t)
-        ambiguous = init_info["ambiguous"]
-    elif isinstance(init, str):
-        tf0, init_info = np.eye(4), {"kind": "identity"}
-    else:
-        tf0, init_info = np.asarray(init, dtype=float).copy(), {"kind": "given"}
-
-    # 4. coarse stage, unpinned (on a subsample of large clouds)
-    tol = (tol_translation_mm, tol_rotation_rad, tol_relative_mse)
+    # 2. the source points of the fine stage, and of the coarse stage of large clouds
+    fine_idx = _subsample(src.shape[0], settings.max_points, rng)
+    coarse_idx = (fine_idx[_subsample(fine_idx.size, settings.coarse_points, rng)]
+                  if fine_idx.size > 2 * settings.coarse_points else None)
     fine_src = src[fine_idx]
     coarse_src = fine_src if coarse_idx is None else src[coarse_idx]
+
+    # 3. start: the best principal-axes candidate, the identity or the given transform
+    tf0, init_info = _start(init, tgt, src, fine_idx, frame_s, matching, rng)
+
+    # 4. coarse stage, unpinned (on a subsample of large clouds)
+    tol = settings.tolerances
+    nearest = icp.Nearest(tgt)  # the fine points' closest target points, kept from loop to loop
     reporter.start("registering", total=None)
-    stage = icp.run(problem, coarse_src, tf0, max_iterations=max_iterations,
-                    tol=(10 * tol[0], 10 * tol[1], 10 * tol[2]), reporter=reporter)
-    tf, total_iter, history = stage.tf, stage.iterations, list(stage.rms_history)
+    coarse = icp.run(tgt, coarse_src, tf0, matching, max_iterations=settings.max_iterations,
+                     tol=(10 * tol[0], 10 * tol[1], 10 * tol[2]), nearest=nearest if coarse_idx is None else None,
+                     reporter=reporter)
 
     # 5. outline pin: when both clouds cover the same plate, the outline fixes the in-plane
     #    position (and the turn about the normal where the metric leaves it loose)
-    pin = None
-    if pin_outline is not False:
-        # point-to-point sees the turn about the normal only through the in-plane offsets to the
-        # closest target points: on a differently sampled target these follow the sampling
-        # pattern (about the point spacing) rather than the shape, so the outline fixes the turn
-        # better; point-to-plane fixes it from the normals where the surface is curved enough
-        pin_turn = flat_vs_curved or method == "point"
-        if not pin_turn:
-            turn_sigma = icp.uncertainty(problem, icp.evaluate(problem, fine_src, tf), sigma_mm=1.0)["r_n_deg"]
-            pin_turn = turn_sigma is None or turn_sigma > icp.PIN_TURN_DEG
-        candidates = icp.outline_candidates(frame_s, src, fine_src)
-        pin, coverage = icp.outline_pin(problem, candidates, tf, require_coverage=pin_outline == "auto",
-                                        pin_turn=pin_turn)
-        if pin is None:
-            notes.append(f"outline not pinned: {coverage}")
+    pin = _outline_pin(tgt, src, fine_src, frame_s, coarse.tf, matching, settings.pin_outline, flat_vs_curved, notes,
+                       nearest)
 
     # 6. fine stage, pinned when the outline allows
-    stage = icp.run(problem, fine_src, tf, max_iterations=max_iterations, tol=tol, pin=pin,
-                    reporter=reporter)
+    fine = icp.run(tgt, fine_src, coarse.tf, matching, max_iterations=settings.max_iterations, tol=tol, pin=pin,
+                   nearest=nearest, reporter=reporter)
     reporter.finish()
-    total_iter += stage.iterations
-    history += list(stage.rms_history)
 
     # 7. final residuals and uncertainty at the result
-    final = icp.evaluate(problem, fine_src, stage.tf)
-    history.append(final.rms_mm)
-    uncertainty = icp.uncertainty(problem, final)
+    return _result(tgt, fine_src, coarse, fine, matching, pin, init_info, notes, nearest)
+
+
+def _start(init, target, src, fine_idx, frame_s, matching, rng) -> tuple[np.ndarray, dict]:
+    """The start transform and how it was chosen (``Registration.init``)."""
+    if isinstance(init, str) and init == "principal":
+        score_idx = fine_idx[_subsample(fine_idx.size, PRINCIPAL.points, rng)]
+        return principal_start(target, src[score_idx], frame_s, matching, PRINCIPAL)
+    if isinstance(init, str):
+        return np.eye(4), {"kind": "identity"}
+    return np.asarray(init, dtype=float).copy(), {"kind": "given"}
+
+
+def _outline_pin(target, src, fine_src, frame_s, tf, matching, pin_outline, flat_vs_curved, notes, nearest):
+    """The outline pin at ``tf``, or None (the reason added to ``notes``)."""
+    if pin_outline is False:
+        return None
+    # point-to-point sees the turn about the normal only through the in-plane offsets to the
+    # closest target points: on a differently sampled target these follow the sampling
+    # pattern (about the point spacing) rather than the shape, so the outline fixes the turn
+    # better; point-to-plane fixes it from the normals where the surface is curved enough
+    pin_turn = flat_vs_curved or matching.metric == "point"
+    if not pin_turn:
+        pairs = icp.evaluate(target, fine_src, tf, matching, nearest)
+        turn_sigma = icp.uncertainty(target, pairs, sigma_mm=1.0)["r_n_deg"]
+        pin_turn = turn_sigma is None or turn_sigma > PIN_TURN_DEG
+    candidates = outline_candidates(frame_s, src, fine_src)
+    pin, coverage = outline_pin(target, candidates, tf, require_coverage=pin_outline == "auto", pin_turn=pin_turn)
+    if pin is None:
+        notes.append(f"outline not pinned: {coverage}")
+    return pin
+
+
+def _result(target, fine_src, coarse, fine, matching, pin, init_info, notes, nearest) -> Registration:
+    """The Registration of the fine stage's transform: residuals, uncertainty, notes."""
+    final = icp.evaluate(target, fine_src, fine.tf, matching, nearest)
+    uncertainty = icp.uncertainty(target, final)
     uncertainty["in_plane"] = "pinned by the outline" if pin is not None else "from the surface shape"
     free = [axis for axis in ("u", "v") if uncertainty.get(f"t_{axis}_mm") is None]
     if pin is None and free:
@@ -426,31 +372,9 @@ def register_icp(
                      "(too shallow) and the outline was not used: it stays where the start put it; "
                      "scan the whole plate so the outline pins it, or check it against marks")
     return Registration(
-        tf=stage.tf, rms_mm=final.rms_mm, iterations=total_iter, rms_history=history,
-        converged=stage.converged, stop_reason=stage.stop_reason, method=method,
-        inlier_fraction=final.inlier_fraction, init=init_info, ambiguous_start=ambiguous,
-        uncertainty=uncertainty, outline_pinned=pin is not None, notes=tuple(notes),
+        tf=fine.tf, rms_mm=final.rms_mm, iterations=coarse.iterations + fine.iterations,
+        rms_history=[*coarse.rms_history, *fine.rms_history, final.rms_mm], converged=fine.converged,
+        stop_reason=fine.stop_reason, method=matching.metric, inlier_fraction=final.inlier_fraction,
+        init=init_info, ambiguous_start=bool(init_info.get("ambiguous", False)), uncertainty=uncertainty,
+        outline_pinned=pin is not None, notes=tuple(notes),
     )
-
-
-def _principal_start(problem, score_src: np.ndarray, frame_s, frame_t) -> tuple[np.ndarray, dict]:
-    """Run each principal-axes candidate a few iterations; keep the best by trimmed RMS."""
-    candidates = principal_candidates(frame_s, frame_t)
-    scores, refined = [], []
-    for tf in candidates:
-        stage = icp.run(problem, score_src, tf, max_iterations=SCORE_ITERATIONS, tol=(0.0, 0.0, 0.0),
-                        metric="point")
-        refined.append(stage.tf)
-        scores.append(icp.trimmed_rms(problem, score_src, stage.tf))
-    order = np.argsort(scores)
-    best, second = int(order[0]), int(order[1])
-    ambiguous = bool(scores[second] <= AMBIGUOUS_RATIO * scores[best] + 1e-9)
-    info = {
-        "kind": "principal",
-        "candidates": ["".join("+" if s > 0 else "-" for s in flip) for flip in SIGN_FLIPS],
-        "scores_mm": [float(s) for s in scores],
-        "chosen": best,
-        "ambiguous": ambiguous,
-    }
-    return refined[best], info
-

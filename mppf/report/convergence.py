@@ -3,7 +3,8 @@
 :func:`convergence_figure` plots the largest absolute and the RMS deviation of every
 cycle against the two limits; :func:`loop_report` is one self-contained HTML page with
 the cycle table, the convergence chart, pictures of the plate and of each cycle (built
-from :mod:`mppf.report.html`'s building blocks).
+from :mod:`mppf.report.html`'s building blocks); :func:`demo_report` draws everything of a
+demo run (:func:`mppf.loop.demo.run_demo`).
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from mppf.loop.history import CycleRecord, PlateRecord
+from mppf.loop.records import CycleRecord, PlateRecord
 from mppf.report.html import image_html, render_page, table_html
 from mppf.report.deviation import figure_png, punch_map_figure
 
@@ -116,3 +117,48 @@ def loop_report(
 
 def _figures(pictures: Sequence[tuple[str, bytes]]) -> str:
     return "\n".join(image_html(png, caption) + f"<p>{html.escape(caption)}</p>" for caption, png in pictures)
+
+
+def demo_report(run, intro: str) -> list[Path]:
+    """The pictures and the HTML report of a demo run, written into its folder.
+
+    Parameters
+    ----------
+    run : mppf.loop.demo.DemoRun
+    intro : str
+        The report's first paragraph (what ran: which press, how fast).
+
+    Returns
+    -------
+    list of Path
+        The flat shape, the strain and strokes pictures, the deviation pictures of each
+        cycle, the convergence chart and ``report.html``, in that order.
+    """
+    from mppf.report.deviation import plot_deviation
+    from mppf.report.strain import plot_strain
+    from mppf.report.strokes import plot_strokes
+
+    out, job = run.out, run.job
+    strain_title = f"{run.plate_name}: strain of the unfolding"
+    files = [run.flat_path, plot_strain(run.unfolding, out / "strain.png", strain_title),
+             plot_strokes(job, out / "strokes.png")]
+    cycle_pictures = {}
+    for n, comparison in sorted(run.comparisons.items()):
+        title = f"cycle {n}: deviation of the scan from the design"
+        punch_map = out / f"punch-deviation-cycle-{n}.png"
+        shots = [(title, plot_deviation(comparison, out / f"deviation-cycle-{n}.png", title)),
+                 (f"cycle {n}: deviation at the punches",
+                  plot_punch_deviation(comparison, job.punch_x_mm, job.punch_y_mm, punch_map))]
+        files += [path for _, path in shots]
+        cycle_pictures[n] = [(caption, path.read_bytes()) for caption, path in shots]
+    limits = {"tolerance_mm": run.settings.tolerance_mm, "rms_tolerance_mm": run.settings.rms_tolerance_mm}
+    files.append(plot_convergence(run.result.cycles, out / "convergence.png", **limits))
+    page = loop_report(
+        run.plate, run.result.cycles, **limits, cycle_pictures=cycle_pictures, intro=intro,
+        pictures=[("strain of the unfolding", (out / "strain.png").read_bytes()),
+                  ("strokes of the first cycle's last step", (out / "strokes.png").read_bytes())],
+    )
+    report = out / "report.html"
+    report.write_text(page)
+    files.append(report)
+    return files

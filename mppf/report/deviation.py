@@ -19,7 +19,7 @@ from matplotlib.figure import Figure
 from matplotlib.tri import Triangulation
 
 from mppf.core.polygon import convex_outline, offset_convex
-from mppf.measure.compare import Comparison
+from mppf.measure.result import Comparison
 
 CMAP = "RdBu_r"
 """Diverging colour map: blue = below the design, red = above."""

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from mppf import __version__
-from mppf.measure.compare import Comparison
+from mppf.measure.result import Comparison
 from mppf.report.deviation import deviation_map_figure, figure_png, histogram_figure, punch_map_figure
 
 _STYLE = """

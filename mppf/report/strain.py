@@ -17,7 +17,8 @@ from matplotlib.figure import Figure
 from matplotlib.tri import Triangulation
 
 from mppf.core.errors import InputError
-from mppf.geometry.unfold import Unfolding, boundary_edges
+from mppf.geometry.mesh import boundary_edges
+from mppf.geometry.unfold_report import Unfolding
 
 CMAP = "magma_r"
 """Sequential colour map: pale = no strain, dark = most strain."""

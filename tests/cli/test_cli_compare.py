@@ -8,8 +8,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+import margin_helpers as mh
 from mppf.cli import main
-from mppf.geometry.io import read_points, write_points
+from mppf.geometry.read import read_points
+from mppf.geometry.write import write_points
 from mppf.core.transform import apply_tf, make_tf
 
 
@@ -106,3 +108,29 @@ def test_unwritable_report_exits_2(files, capsys, tmp_path):
     code = main(["compare", files["design"], files["scan"], "--report", str(tmp_path / "no" / "such" / "r.html")])
     assert code == 2
     assert "cannot write" in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def margin_files(tmp_path_factory):
+    """A scan of the gross plate (net design + a 100 mm band) and its net design (tests/margin_helpers.py)."""
+    folder = tmp_path_factory.mktemp("margin")
+    _, _, scan = mh.scan(n=6000)
+    return (str(write_points(folder / "design.csv", mh.design())), str(write_points(folder / "scan.csv", scan)))
+
+
+def test_cli_margin(margin_files, capsys):
+    design, scan = margin_files
+    code = main(["compare", design, scan, "--margin", "-1"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "--margin" in err and "-1" in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1
+    code = main(["compare", design, scan, "--margin", "100", "--json"])
+    doc = json.loads(capsys.readouterr().out)
+    assert code == 0
+    assert doc["margin_mm"] == 100.0
+    assert doc["n_margin"] > 500
+    assert doc["rms_mm"] == pytest.approx(0.2, abs=0.03)
+    code = main(["compare", design, scan, "--margin", "100"])
+    out = capsys.readouterr().out
+    assert code == 0 and "trim margin" in out

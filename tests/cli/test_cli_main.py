@@ -10,12 +10,12 @@ import pytest
 
 import mppf
 from mppf.cli import cli, main
-from mppf.core.errors import EXIT_BUG, EXIT_INPUT, EXIT_LINK, EXIT_PRESS, PressRefused
+from mppf.core.errors import EXIT_BUG, EXIT_INPUT, EXIT_LINK, EXIT_PRESS, PlcError, PressRefused
 
 
 @pytest.fixture()
 def failing_commands():
-    """Two extra commands on the real group: one refused by the press, one with a bug."""
+    """Extra commands on the real group: refused by the press, refused by the PLC, a bug."""
 
     @click.command("qa-refused")
     def refused():
@@ -25,11 +25,17 @@ def failing_commands():
     def bug():
         return {}["missing key"]
 
+    @click.command("qa-plc-refused")
+    def plc_refused():
+        raise PlcError("the PLC at tcp://press:502?unit=1 refused writing 2 registers at 100: Modbus exception 3")
+
     cli.add_command(refused)
     cli.add_command(bug)
+    cli.add_command(plc_refused)
     yield
     del cli.commands["qa-refused"]
     del cli.commands["qa-bug"]
+    del cli.commands["qa-plc-refused"]
 
 
 def test_version(capsys):
@@ -82,6 +88,11 @@ def test_press_refusal_exit_4(failing_commands, capsys):
     assert main(["qa-refused"]) == EXIT_PRESS
     err = " ".join(capsys.readouterr().err.split())
     assert "refused GO: punch 3 not homed" in err and "home the punches" in err
+
+
+def test_a_plc_refusal_is_exit_4_not_a_link_failure(failing_commands, capsys):
+    assert main(["qa-plc-refused"]) == EXIT_PRESS
+    assert "Modbus exception 3" in " ".join(capsys.readouterr().err.split())
 
 
 def test_bug_exit_1_with_traceback_only_under_debug(failing_commands, capsys):

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from mppf.cli import main
-from mppf.geometry.io import read_points, write_points
+from mppf.geometry.read import read_points
+from mppf.geometry.write import write_points
 from mppf.planning.job import load_job
 from mppf.planning.press import example_press_path
 from mppf.geometry.unfold import unfold

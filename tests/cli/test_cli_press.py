@@ -12,7 +12,7 @@ from driver_helpers import small_job, small_press
 from mppf.cli import main
 from mppf.drivers.audit import AuditLog
 from mppf.planning.job import save_job
-from mppf.sim.plc import start_simulated_plc
+from mppf.sim.plc.host import start_simulated_plc
 
 
 @pytest.fixture

@@ -9,7 +9,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from mppf.cli import main
-from mppf.geometry.io import read_points, write_points
+from mppf.geometry.read import read_points
+from mppf.geometry.write import write_points
 from mppf.core.transform import apply_tf, make_tf
 
 

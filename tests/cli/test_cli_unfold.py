@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from mppf.cli import main
-from mppf.geometry.io import read_points
+from mppf.geometry.read import read_points
 from mppf.geometry.unfold import unfold
 
 HULL = Path(__file__).resolve().parents[2] / "mppf" / "examples" / "hull"

@@ -10,7 +10,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from mppf.cli import main
-from mppf.geometry.io import read_points, write_points
+from mppf.geometry.read import read_points
+from mppf.geometry.write import write_points
 from mppf.core.transform import apply_tf, make_tf
 
 TF_TRUE = make_tf(Rotation.from_euler("xyz", [25, -15, 40], degrees=True).as_matrix(), [1200.0, -700.0, 350.0])

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from mppf.cli import main
-from mppf.geometry.io import write_points
+from mppf.geometry.write import write_points
 from mppf.planning.press import example_press_path, load_press
 from plan_helpers import cylinder_points, developed_cylinder
 
@@ -107,11 +107,11 @@ def test_flat_with_another_point_count_uses_icp(cylinder_files, capsys):
 @pytest.mark.parametrize(
     "args, replace, message",
     [
-        (["--thickness", "0"], None, "thickness must be a positive number of mm, got 0.0"),
+        (["--thickness", "0"], None, "the plate thickness must be above 0 mm, got 0.0"),
         (["--thickness", "nan"], None, "got nan"),
         (["--thickness", "16"], ("tip_radius_mm = 60.0", "tip_radus_mm = 60.0"),
          "unknown key(s) ['tip_radus_mm'] in [matrix]"),
-        (["--thickness", "16"], ("pitch_x_mm = 150.0", "pitch_x_mm = 1e308"), "[matrix] pitch_x_mm is implausibly"),
+        (["--thickness", "16"], ("pitch_x_mm = 150.0", "pitch_x_mm = 1e308"), "[matrix] pitch_x_mm must be above 0 and at most 1e+06 mm, got 1e+308"),
         (["--thickness", "16"], ("rows = 16", "rows = 6"), "does not fit on the bed"),
         (["--thickness", "16"], ("max_mm = 300.0", "max_mm = 5.0", "-400.0", "-5.0"), "beyond the press limits"),
         (["--thickness", "16", "--steps", "1"], ("max_neighbour_diff_mm = 30.0", "max_neighbour_diff_mm = 2.0"),
@@ -160,7 +160,7 @@ def test_step_count_is_bounded(cylinder_files, tmp_path, capsys):
     design, flat, _ = cylinder_files
     job_path = tmp_path / "job.json"
     assert main(["plan", str(design), str(flat), "--thickness", "16", "--steps", "201", "-o", str(job_path)]) == 2
-    assert "the number of steps must be a whole number 1..200, got 201" in " ".join(capsys.readouterr().err.split())
+    assert "the number of steps must be from 1 to 200, got 201" in " ".join(capsys.readouterr().err.split())
     text = example_press_path().read_text().replace("max_neighbour_diff_mm = 30.0", "max_neighbour_diff_mm = 0.01")
     press = tmp_path / "press.toml"
     press.write_text(text)

@@ -6,7 +6,7 @@ import pytest
 
 from mppf.cli import main
 from mppf.core.errors import InputError
-from mppf.sim.plc import run_simulated_plc, start_simulated_plc
+from mppf.sim.plc.host import run_simulated_plc, start_simulated_plc
 
 
 def test_a_port_in_use_is_an_input_error_with_the_reason(capfd):

@@ -21,7 +21,7 @@ from mppf.drivers.modbus_adapter import ModbusAdapter
 from mppf.drivers.regmap import load_register_map
 from mppf.drivers.url import parse_plc_url
 from mppf.core.errors import Cancelled, ConfigError, InputError, LimitError, LinkError, PressFault, PressRefused
-from mppf.sim.plc import start_simulated_plc
+from mppf.sim.plc.host import start_simulated_plc
 
 FAST = 50.0  # simulated seconds per wall second for ordinary steps
 
@@ -464,3 +464,31 @@ def test_reads_are_retried_commands_are_not(start_sim):
         with pytest.raises(LinkError, match="no reply"):
             io.write_command(load_register_map()["master_heartbeat"].address, [7])
         assert io.requests == 4  # exactly one attempt
+
+
+def test_a_refusal_after_go_sends_stop_and_is_a_plc_error_not_a_link_failure(start_sim, press, audit):
+    """A PLC that refuses a request while the press moves: STOP is sent at once (the link works),
+    and the error is a PlcError (exit code 4), not a lost link (3)."""
+    from mppf.core.errors import EXIT_PRESS, PlcError
+
+    sim = start_sim(time_scale=2.0, watchdog_s=None)  # no watchdog: only a STOP ends the motion
+    upper, lower = step_setpoints(press)
+    with ModbusPress(sim.url, press, audit=audit) as plc:
+        read = plc._io.read_holding
+
+        def refuses_during_motion(address, count, **kw):
+            if sim.status_bits()["busy"] and address == load_register_map()["status_word"].address:
+                error = PlcError("the PLC at the test refused reading the status: Modbus exception 4")
+                error.exception_code = 4
+                raise error
+            return read(address, count, **kw)
+
+        plc._io.read_holding = refuses_during_motion
+        with pytest.raises(PlcError, match="while the press moved after GO; STOP was sent") as info:
+            plc.run_step(upper, lower)
+    assert not isinstance(info.value, LinkError) and info.value.exit_code == EXIT_PRESS
+    assert info.value.exception_code == 4
+    assert [(e.outcome, e.detail.split(":")[0]) for e in audit.entries() if e.action == "stop"] == [
+        ("ok", "refusal during motion")]
+    flags = sim.wait_idle(5.0)
+    assert not flags["busy"] and not flags["in_position"]  # stopped short of the targets

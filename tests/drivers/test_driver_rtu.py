@@ -10,7 +10,7 @@ from mppf.drivers.audit import AuditLog
 from mppf.drivers.modbus import ModbusPress
 from mppf.drivers.url import parse_plc_url
 from mppf.core.errors import PressFault
-from mppf.sim.plc import run_simulated_plc
+from mppf.sim.plc.host import run_simulated_plc
 
 pytestmark = pytest.mark.rtu
 

@@ -1,7 +1,8 @@
 """A third-party Modbus master (mbpoll, libmodbus) reads the simulated PLC.
 
-mbpoll is a Debian package; CI installs it. Locally the tests are skipped without it,
-but when the environment variable CI is "true" a missing mbpoll is a failure.
+mbpoll is a Debian package; CI installs it. The tests need that outside program, so they are
+``slow`` (``.ci/run`` runs them after the default suite). Locally they are skipped without
+it, but when the environment variable CI is "true" a missing mbpoll is a failure.
 """
 
 from __future__ import annotations
@@ -16,7 +17,9 @@ import pytest
 
 from mppf.drivers import regmap as rm
 from mppf.planning.press import example_press_path, load_press
-from mppf.sim.plc import run_simulated_plc
+from mppf.sim.plc.host import run_simulated_plc
+
+pytestmark = pytest.mark.slow  # needs mbpoll
 
 MAP = rm.load_register_map()
 PRESS = dataclasses.replace(load_press(example_press_path()), rows=3, cols=4)

@@ -2,33 +2,21 @@
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 
 from mppf.core.errors import InputError
-from mppf.forming.precompensate import _deviation, calibrated_correction, fit_yield_stress, predict_mid_heights, refine_strokes
-from mppf.planning.press import example_press_path, load_press
-from mppf.forming.material import Material
+from mppf.forming.precompensate import predict_mid_heights, refine_strokes
 from mppf.forming.springback import unloaded_curvature
+from plan_helpers import MODEL_THICKNESS_MM as T
+from plan_helpers import NOMINAL as STEEL
+from plan_helpers import model_grid, model_press, softer_plate_pressed
 
-T = 20.0
-PRESS = dataclasses.replace(load_press(example_press_path()), margin_mm=0.0)
-STEEL = Material()
-
-
-def _grid(active_cols=slice(2, 22), active_rows=slice(1, 15)):
-    px, py = np.meshgrid(PRESS.punch_x_mm, PRESS.punch_y_mm)
-    active = np.zeros(PRESS.shape, dtype=bool)
-    active[active_rows, active_cols] = True
-    outline = np.array([[px[active].min() - 50, py[active].min() - 50], [px[active].max() + 50, py[active].min() - 50],
-                        [px[active].max() + 50, py[active].max() + 50], [px[active].min() - 50, py[active].max() + 50]])
-    return px, py, active, outline
+PRESS = model_press()
 
 
 def test_a_sharp_cylinder_springs_back_by_the_law_in_the_middle():
-    px, py, active, outline = _grid()
+    px, py, active, outline = model_grid(PRESS)
     k = 1.0 / 2500.0  # loaded radius 2.5 m: plastic
     mid = np.where(active, py**2 * k / 2.0, np.nan)
     predicted = predict_mid_heights(PRESS, mid + T / 2, mid - T / 2, active, outline, T, STEEL)
@@ -40,9 +28,9 @@ def test_a_sharp_cylinder_springs_back_by_the_law_in_the_middle():
 
 
 def test_refinement_brings_the_predicted_plate_onto_the_target():
-    px, py, active, outline = _grid()
-    target = np.where(active, py**2 / (2 * 6000.0) + px * py / 2.0e7, np.nan)  # a twisted bilge
-    result = refine_strokes(PRESS, target + T / 2, target - T / 2, active, target, outline, T, STEEL)
+    # a twisted bilge, refined from the design's own strokes (the plate of the calibration tests)
+    plate = softer_plate_pressed()
+    active, result = plate.active, plate.planned
     assert result.history_mm[0] > 5.0  # pressing the design itself springs back far off
     assert result.predicted_max_mm < 0.5  # from 40+ mm
     assert len(result.history_mm) >= 3
@@ -54,7 +42,7 @@ def test_refinement_brings_the_predicted_plate_onto_the_target():
 
 
 def test_zero_iterations_only_predict():
-    px, py, active, outline = _grid()
+    px, py, active, outline = model_grid(PRESS)
     target = np.where(active, py**2 / (2 * 6000.0), np.nan)
     result = refine_strokes(PRESS, target + T / 2, target - T / 2, active, target, outline, T, STEEL, iterations=0)
     assert len(result.history_mm) == 1
@@ -63,51 +51,8 @@ def test_zero_iterations_only_predict():
 
 @pytest.mark.parametrize("iterations, tolerance", [(-1, 0.1), (3, 0.0), (3, float("nan"))])
 def test_bad_refinement_settings(iterations, tolerance):
-    px, py, active, outline = _grid()
+    px, py, active, outline = model_grid(PRESS)
     target = np.where(active, 0.0, np.nan)
     with pytest.raises(InputError, match="refinement"):
         refine_strokes(PRESS, target + T / 2, target - T / 2, active, target, outline, T, STEEL,
                        iterations=iterations, tolerance_mm=tolerance)
-
-
-def _softer_plate_pressed():
-    """Strokes refined for the nominal steel; the plate that took them is 15 % softer."""
-    px, py, active, outline = _grid()
-    target = np.where(active, py**2 / (2 * 6000.0) + px * py / 2.0e7, np.nan)
-    planned = refine_strokes(PRESS, target + T / 2, target - T / 2, active, target, outline, T, STEEL)
-    true = Material(yield_stress_mpa=0.85 * STEEL.yield_stress_mpa)
-    formed = predict_mid_heights(PRESS, planned.upper_mm, planned.lower_mm, active, outline, T, true)
-    measured = _deviation(PRESS, formed, target, active)
-    return px, py, active, outline, target, planned, true, measured
-
-
-def test_the_effective_yield_stress_is_found_from_one_measured_cycle():
-    px, py, active, outline, target, planned, true, measured = _softer_plate_pressed()
-    assert np.nanmax(np.abs(measured)) > 2.0  # the softer plate is measurably off
-    noisy = measured + np.where(active, np.random.default_rng(0).normal(0.0, 0.3, measured.shape), np.nan)
-    fit = fit_yield_stress(PRESS, [(planned.upper_mm, planned.lower_mm, noisy)], active, target, outline, T, STEEL)
-    assert fit.material.yield_stress_mpa == pytest.approx(true.yield_stress_mpa, abs=4.0)
-    assert fit.cost_fit_mm2 < 0.2 * fit.cost_nominal_mm2
-    assert fit.explained > 0.8
-
-
-def test_the_calibrated_correction_brings_the_true_plate_onto_the_design():
-    px, py, active, outline, target, planned, true, measured = _softer_plate_pressed()
-    refined, fit = calibrated_correction(PRESS, [(planned.upper_mm, planned.lower_mm, measured)], active, target,
-                                         outline, T, STEEL)
-    after = _deviation(PRESS, predict_mid_heights(PRESS, refined.upper_mm, refined.lower_mm, active, outline, T, true),
-                       target, active)
-    assert np.nanmax(np.abs(after)) < 0.25 * np.nanmax(np.abs(measured))
-    assert np.nanmax(np.abs(after)) < 0.5
-    assert "effective yield stress" in refined.notes[0]
-    np.testing.assert_allclose((refined.upper_mm - refined.lower_mm)[active], T)
-
-
-def test_the_calibrated_correction_needs_a_measured_cycle():
-    px, py, active, outline = _grid()
-    target = np.where(active, py**2 / (2 * 6000.0), np.nan)
-    with pytest.raises(InputError):
-        calibrated_correction(PRESS, [], active, target, outline, T, STEEL)
-    blind = np.full(PRESS.shape, np.nan)
-    with pytest.raises(InputError, match="measured deviation"):
-        calibrated_correction(PRESS, [(target + T / 2, target - T / 2, blind)], active, target, outline, T, STEEL)

@@ -8,7 +8,7 @@ from scipy.spatial.transform import Rotation
 
 from mppf.core.errors import GeometryError, InputError
 from mppf.geometry.frame import LocalFrame, check_height_field, fit_frame
-from mppf.geometry.io import read_points
+from mppf.geometry.read import read_points
 from mppf.core.transform import apply_tf
 
 OFFSET_MM = np.array([176000.0, 12500.0, 4200.0])

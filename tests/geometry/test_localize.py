@@ -7,9 +7,10 @@ import pytest
 from scipy.optimize import minimize
 
 from mppf.core.errors import InputError
-from mppf.geometry.io import read_points
+from mppf.geometry.read import read_points
 from mppf.geometry.localize import FootPoints, foot_points, project_vertical
-from mppf.geometry.surface import fit_plate, fit_polynomial
+from mppf.geometry.polynomial import fit_polynomial
+from mppf.geometry.surface import fit_plate
 
 
 @pytest.fixture(scope="module")

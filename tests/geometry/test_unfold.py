@@ -7,13 +7,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy.spatial import Delaunay
 from scipy.spatial.distance import pdist
 from scipy.spatial.transform import Rotation
 
 from mppf.core.errors import GeometryError, InputError
-from mppf.geometry.io import read_points
-from mppf.geometry.unfold import region_name, unfold
+from mppf.geometry.read import read_points
+from mppf.geometry.unfold import unfold
+
 
 HULL = Path(__file__).resolve().parents[2] / "mppf" / "examples" / "hull"
 
@@ -214,16 +214,6 @@ def test_real_hull_patches_unfold(name):
     assert result.warnings == ()
 
 
-def test_region_names():
-    uv = np.array([[0.0, 0.0], [3000.0, 0.0], [3000.0, 2000.0], [0.0, 2000.0], [1500.0, 1000.0]])
-    assert region_name(uv, 2) == "the +u/+v corner"
-    assert region_name(uv, 0) == "the -u/-v corner"
-    assert region_name(uv, 4) == "the middle"
-    assert region_name(np.vstack([uv, [[2900.0, 1000.0]]]), 5) == "the +u edge"
-    assert region_name(np.vstack([uv, [[3000.0, 1400.0]]]), 5) == "the +u edge"  # 70 % up: not a corner
-    assert region_name(np.vstack([uv, [[100.0, 1600.0]]]), 5) == "the -u/+v corner"
-
-
 def test_too_few_or_collinear_points_are_refused():
     with pytest.raises(GeometryError, match="2 point"):
         unfold([[0, 0, 0], [1, 0, 0]])
@@ -250,25 +240,6 @@ def test_bad_faces_and_limits_are_refused():
         unfold(points, faces=[[0, 1, 4]])
     with pytest.raises(InputError, match="strain limit"):
         unfold(points, strain_limit_pct=-1.0)
-
-
-def test_energy_jacobian_matches_finite_differences_with_the_fold_guard_active():
-    from mppf.geometry.unfold import _EdgeProblem, _edges, _triangle_areas
-
-    rng = np.random.default_rng(2)
-    pts = np.column_stack([rng.uniform(0, 100, (12, 2)), rng.uniform(0, 5, 12)])
-    tri = Delaunay(pts[:, :2]).simplices
-    edges, _ = _edges(tri)
-    lengths = np.linalg.norm(pts[edges[:, 0]] - pts[edges[:, 1]], axis=1)
-    problem = _EdgeProblem(edges, lengths, tri, _triangle_areas(pts, tri), len(pts))
-    z = (pts[:, :2] + rng.normal(0, 8.0, (12, 2))).ravel()  # squashes some triangles
-    assert np.any(problem.residuals(z)[len(edges):] > 0)  # the guard acts somewhere
-    numeric = np.empty((len(edges) + len(tri), z.size))
-    for k in range(z.size):
-        step = np.zeros_like(z)
-        step[k] = 1e-6
-        numeric[:, k] = (problem.residuals(z + step) - problem.residuals(z - step)) / 2e-6
-    np.testing.assert_allclose(problem.jacobian(z).toarray(), numeric, atol=1e-5)
 
 
 def test_non_convex_outline_is_not_bridged_by_slivers():

@@ -1,38 +1,23 @@
-"""``mppf demo``: the whole chain on a bundled hull plate, into a folder."""
+"""The demo as a library function: its inputs and its default press (the whole run: tests/cli/test_cli_demo.py)."""
 
 from __future__ import annotations
 
-import sqlite3
-
 import pytest
 
-from mppf.cli import main
-from mppf.loop.history import History
+from mppf.core.errors import InputError
+from mppf.loop.demo import DEMO_PLATE, bundled_plate, in_process_press, run_demo
+from mppf.planning.press import example_press_path, load_press
+from mppf.sim.plc.link import InProcessPress
 
 
-@pytest.mark.slow
-def test_demo_runs_end_to_end_with_pictures_and_summary(tmp_path, capsys):
-    out = tmp_path / "demo"
-    assert main(["demo", "--out", str(out), "--seed", "1"]) == 0
-    text = capsys.readouterr().out
-    assert "in_tolerance" in text and "simulated PLC" in text and "report.html" in text
-    for name in ("strain.png", "strokes.png", "deviation-cycle-1.png", "convergence.png"):
-        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
-    report = (out / "report.html").read_text()
-    assert report.count("data:image/png;base64,") >= 4 and "in_tolerance" in report
-    with History(out / "history.sqlite") as history:
-        (plate,) = history.plates()
-        cycles = history.cycles(plate.plate_id)
-    assert plate.status == "in_tolerance" and cycles[-1].max_abs_mm <= 2.5 and cycles[-1].rms_mm <= 1.0
-    for c in cycles:
-        assert (out / f"deviation-cycle-{c.cycle}.png").exists() and (out / f"punch-deviation-cycle-{c.cycle}.png").exists()
-    # the press was driven over Modbus: one GO per step in the audit log
-    (gos,) = sqlite3.connect(out / "audit.sqlite").execute(
-        "SELECT COUNT(*) FROM audit WHERE action = 'go' AND outcome = 'ok'").fetchone()
-    assert gos == sum(len(c.steps) for c in cycles)
+def test_an_unknown_plate_is_refused_naming_the_bundled_ones_before_anything_is_written(tmp_path):
+    with pytest.raises(InputError, match="no bundled plate named 'nope'") as info:
+        run_demo(tmp_path / "out", plate_name="nope")
+    assert DEMO_PLATE in info.value.hint and not (tmp_path / "out").exists()
+    assert bundled_plate(DEMO_PLATE).n_points > 1000
 
 
-def test_demo_with_an_unknown_plate_exits_2(tmp_path, capsys):
-    assert main(["demo", "--out", str(tmp_path / "d"), "--plate", "nope"]) == 2
-    err = capsys.readouterr().err
-    assert "no bundled plate named 'nope'" in err and "K1_midbody_bilge" in err
+def test_the_default_press_is_the_in_process_press():
+    press = load_press(example_press_path())
+    with in_process_press(press) as link:
+        assert isinstance(link, InProcessPress) and link.status().ready and link.status().simulated

@@ -146,3 +146,22 @@ def test_history_command_lists_plates_and_cycles(tmp_path, press, capsys):
     assert cycle["punch_deviation_mm"][3][4] == -1.25
     assert main(["history", "--history", str(path), "--plate-id", "nope"]) == 2
     assert "not in the history" in capsys.readouterr().err
+
+
+def test_states_are_stored_as_their_text_and_read_back_as_enums(tmp_path, press):
+    from mppf.loop.states import CycleState, Decision, PlateStatus
+
+    path = tmp_path / "h.sqlite"
+    with History(path) as history:
+        _new(history, press)
+        _through_compare(history, "P-1", 1, decision="in_tolerance")
+        history.mark_done("P-1", 1, Decision.IN_TOLERANCE)
+    raw = sqlite3.connect(path)
+    assert raw.execute("SELECT state, typeof(state), decision FROM cycles").fetchall() == [
+        ("done", "text", "in_tolerance")]
+    assert raw.execute("SELECT status FROM plates").fetchall() == [("in_tolerance",)]
+    with History(path) as history:  # what an earlier mppf wrote reads the same
+        cycle, plate = history.cycle("P-1", 1), history.plate("P-1")
+    assert cycle.state is CycleState.DONE and cycle.decision is Decision.IN_TOLERANCE
+    assert plate.status is PlateStatus.IN_TOLERANCE and plate.status == "in_tolerance"
+    assert json.loads(json.dumps(cycle.to_dict(grids=False)))["state"] == "done"

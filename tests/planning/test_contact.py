@@ -71,5 +71,5 @@ def test_upside_down_frame_gives_the_same_tips():
 
 def test_bad_thickness():
     placed = PlacedSurface(PlaneSurface(), np.eye(4))
-    with pytest.raises(InputError, match="positive"):
+    with pytest.raises(InputError, match="the plate thickness must be above 0 mm"):
         tip_heights(placed, [0.0], [0.0], tip_radius_mm=R_TIP, thickness_mm=0.0)

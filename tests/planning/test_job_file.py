@@ -1,4 +1,4 @@
-"""The job file (``mppf/job.py``): layout, round trip, atomic save and every load error."""
+"""The job file (``mppf/planning/job.py``): layout, round trip, atomic save and every load error."""
 
 from __future__ import annotations
 
@@ -113,9 +113,9 @@ def _set(doc, path, value):
         (("press",), KeyError, "missing key 'press'"),
         (("thickness_mm",), KeyError, "missing key 'thickness_mm'"),
         (("steps",), KeyError, "missing key 'steps'"),
-        (("thickness_mm",), 0, "thickness_mm must be a positive number, got 0"),
-        (("thickness_mm",), "12", "thickness_mm must be a positive number, got '12'"),
-        (("thickness_mm",), True, "thickness_mm must be a positive number"),
+        (("thickness_mm",), 0, "job.json: thickness_mm must be above 0 mm, got 0"),
+        (("thickness_mm",), "12", "job.json: thickness_mm must be a number, got '12'"),
+        (("thickness_mm",), True, "job.json: thickness_mm must be a number, got True"),
         (("steps",), [], "'steps' must be a non-empty list"),
         (("steps",), {"1": 2}, "'steps' must be a non-empty list"),
         (("steps", 0, "active"), KeyError, "step 1 needs upper_mm, lower_mm and active"),

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from mppf.core.errors import GeometryError, InputError, LimitError
-from mppf.geometry.io import read_points
+from mppf.geometry.read import read_points
 from mppf.planning.job import load_job, save_job
 from mppf.planning.plan import plan_job, plan_summary
 from mppf.forming.precompensate import predict_mid_heights

@@ -1,12 +1,14 @@
-"""The press description (``mppf/press.py``): loading, validation and every ConfigError."""
+"""The press description (``mppf/planning/press.py``): loading, validation in the dataclasses and every ConfigError."""
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 import pytest
 
 from mppf.core.errors import ConfigError
-from mppf.planning.press import AxisLimits, example_press_path, load_press, press_from_dict
+from mppf.planning.press import AxisLimits, PressConfig, example_press_path, load_press, press_from_dict
 
 EXAMPLE = load_press(example_press_path())
 
@@ -67,19 +69,19 @@ def test_integers_are_accepted_as_millimetres():
         ({"matrix__rows": "16"}, "[matrix] rows must be a whole number, got '16'"),
         ({"matrix__rows": 16.0}, "[matrix] rows must be a whole number, got 16.0"),
         ({"matrix__rows": True}, "[matrix] rows must be a whole number"),
-        ({"matrix__pitch_x_mm": "150 mm"}, "[matrix] pitch_x_mm must be a number in mm, got '150 mm'"),
-        ({"upper__max_mm": False}, "[upper] max_mm must be a number in mm"),
-        ({"matrix__pitch_y_mm": float("nan")}, "[matrix] pitch_y_mm must be finite, got nan"),
-        ({"lower__min_mm": float("-inf")}, "[lower] min_mm must be finite"),
-        ({"matrix__pitch_x_mm": 1e308}, "[matrix] pitch_x_mm is implausibly large, got 1e+308"),
-        ({"upper__max_mm": 2e6}, "[upper] max_mm is implausibly large"),
-        ({"matrix__rows": 0}, "[matrix] rows must be 1..32, got 0"),
-        ({"matrix__cols": 33}, "[matrix] cols must be 1..32, got 33"),
-        ({"matrix__pitch_x_mm": 0.0}, "[matrix] pitch_x_mm must be positive, got 0.0"),
-        ({"matrix__tip_radius_mm": -60.0}, "[matrix] tip_radius_mm must be positive"),
-        ({"forming__max_neighbour_diff_mm": 0.0}, "[forming] max_neighbour_diff_mm must be positive"),
-        ({"forming__speed_mm_s": -1.0}, "[forming] speed_mm_s must be positive"),
-        ({"forming__trim_allowance_mm": -5.0}, "[forming] trim_allowance_mm must be >= 0, got -5.0"),
+        ({"matrix__pitch_x_mm": "150 mm"}, "[matrix] pitch_x_mm must be a number, got '150 mm'"),
+        ({"upper__max_mm": False}, "[upper] max_mm must be a number, got False"),
+        ({"matrix__pitch_y_mm": float("nan")}, "[matrix] pitch_y_mm must be a finite number, got nan"),
+        ({"lower__min_mm": float("-inf")}, "[lower] min_mm must be a finite number, got -inf"),
+        ({"matrix__pitch_x_mm": 1e308}, "[matrix] pitch_x_mm must be above 0 and at most 1e+06 mm, got 1e+308"),
+        ({"upper__max_mm": 2e6}, "[upper] max_mm must be from -1e+06 to 1e+06 mm, got 2000000.0"),
+        ({"matrix__rows": 0}, "[matrix] rows must be from 1 to 32, got 0"),
+        ({"matrix__cols": 33}, "[matrix] cols must be from 1 to 32, got 33"),
+        ({"matrix__pitch_x_mm": 0.0}, "[matrix] pitch_x_mm must be above 0 and at most 1e+06 mm, got 0.0"),
+        ({"matrix__tip_radius_mm": -60.0}, "[matrix] tip_radius_mm must be above 0 and at most 1e+06 mm, got -60.0"),
+        ({"forming__max_neighbour_diff_mm": 0.0}, "[forming] max_neighbour_diff_mm must be above 0 and at most 1e+06 mm, got 0.0"),
+        ({"forming__speed_mm_s": -1.0}, "[forming] speed_mm_s must be above 0 and at most 1e+06 mm/s, got -1.0"),
+        ({"forming__trim_allowance_mm": -5.0}, "[forming] trim_allowance_mm must be from 0 to 1e+06 mm, got -5.0"),
         ({"matrix__tip_radius_mm": 80.0}, "tip_radius_mm 80.0 is too large for the pitch"),
         ({"upper__min_mm": 400.0}, "[upper] min_mm (400.0) must be below max_mm (400.0)"),
         ({"lower__park_mm": 301.0}, "[lower] park_mm (301.0) must lie within min_mm..max_mm"),
@@ -132,7 +134,7 @@ def test_load_press_file_errors(tmp_path):
         load_press(empty)
     nan = tmp_path / "nan.toml"
     nan.write_text(example_press_path().read_text().replace("pitch_x_mm = 150.0", "pitch_x_mm = nan"))
-    with pytest.raises(ConfigError, match=r"pitch_x_mm must be finite"):
+    with pytest.raises(ConfigError, match=r"pitch_x_mm must be a finite number"):
         load_press(nan)
 
 
@@ -140,3 +142,39 @@ def test_config_errors_carry_the_input_exit_code():
     with pytest.raises(ConfigError) as info:
         press_from_dict(_doc(matrix__rows=0))
     assert info.value.exit_code == 2
+
+
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        ({"rows": 0}, "[matrix] rows must be from 1 to 32, got 0"),
+        ({"cols": 2.5}, "[matrix] cols must be a whole number, got 2.5"),
+        ({"pitch_y_mm": float("nan")}, "[matrix] pitch_y_mm must be a finite number, got nan"),
+        ({"tip_radius_mm": 80.0}, "tip_radius_mm 80.0 is too large for the pitch"),
+        ({"speed_mm_s": 0.0}, "[forming] speed_mm_s must be above 0 and at most 1e+06 mm/s, got 0.0"),
+        ({"margin_mm": -1.0}, "[forming] margin_mm must be from 0 to 1e+06 mm, got -1.0"),
+        ({"name": 42}, "name must be a string, got 42"),
+        ({"upper": (-300.0, 400.0, 400.0)}, "[upper] must be the tip-height limits"),
+    ],
+)
+def test_a_press_built_in_code_is_checked_like_one_read_from_a_file(changes, message):
+    with pytest.raises(ConfigError) as info:
+        dataclasses.replace(EXAMPLE, **changes)
+    assert message in info.value.message
+
+
+def test_axis_limits_built_in_code_are_checked():
+    with pytest.raises(ConfigError, match=r"min_mm \(400.0\) must be below max_mm \(300.0\)"):
+        AxisLimits(400.0, 300.0, 300.0)
+    with pytest.raises(ConfigError, match="park_mm must be a finite number"):
+        AxisLimits(-300.0, 400.0, float("nan"))
+    limits = AxisLimits(-300, 400, 400)  # whole numbers are millimetres too
+    assert limits == AxisLimits(-300.0, 400.0, 400.0) and isinstance(limits.min_mm, float)
+
+
+def test_a_valid_press_built_in_code_keeps_its_values_and_defaults():
+    press = PressConfig(rows=4, cols=6, pitch_x_mm=160, pitch_y_mm=150.0, tip_radius_mm=60.0,
+                        upper=EXAMPLE.upper, lower=EXAMPLE.lower, max_neighbour_diff_mm=30.0)
+    assert press.shape == (4, 6) and isinstance(press.pitch_x_mm, float)
+    assert (press.trim_allowance_mm, press.speed_mm_s, press.margin_mm, press.name) == (100.0, 20.0, 0.0, "press")
+    assert press_from_dict(press.to_dict()) == press

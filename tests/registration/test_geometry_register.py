@@ -8,7 +8,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from mppf.geometry.frame import fit_frame
-from mppf.geometry.io import read_points
+from mppf.geometry.read import read_points
 from mppf.registration.register import register_icp
 from mppf.core.transform import apply_tf, make_tf
 from mppf.geometry.unfold import unfold

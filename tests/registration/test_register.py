@@ -1,4 +1,4 @@
-"""Registration: paired closed form and ICP (mppf.registration.register, mppf.registration.icp)."""
+"""Registration: paired closed form and ICP end to end (mppf.registration.register)."""
 
 from __future__ import annotations
 
@@ -8,42 +8,20 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
-from mppf.registration import icp
 from mppf.core.errors import GeometryError, InputError
-from mppf.geometry.frame import fit_frame
 from mppf.core.rigid import fit_rigid
-from mppf.geometry.io import read_points
-from mppf.registration.register import principal_candidates, register_icp, register_paired
-from mppf.core.transform import apply_tf, invert_tf, make_tf, quaternion_to_matrix, rotation_angle_deg
+from mppf.geometry.read import read_points
+from mppf.registration.register import register_icp, register_paired
+from mppf.core.transform import apply_tf, make_tf, quaternion_to_matrix
+from registration_helpers import PLATE_POSE, asymmetric_surface, motion_error, random_motion, sampled_scan
 
 HULL_FILES = [
     "P1_midbody_bilge.csv", "P1_midbody_bilge_smooth.csv", "P2_bow_flare.csv",
     "P2_bow_flare_smooth.csv", "P3_stern_saddle.csv", "P3_stern_saddle_smooth.csv",
     "K1_midbody_bilge.csv", "K2_fwd_bilge_convex.csv", "K3_stern_saddle.csv",
 ]
-
-
-def random_motion(seed: int, shift_mm: float = 2000.0) -> np.ndarray:
-    rng = np.random.default_rng(seed)
-    return make_tf(Rotation.random(random_state=seed).as_matrix(), rng.uniform(-shift_mm, shift_mm, 3))
-
-
-def motion_error(tf: np.ndarray, tf_true: np.ndarray, at: np.ndarray) -> tuple[float, float]:
-    """(rotation error deg, displacement error mm at the point ``at`` of the source)."""
-    diff = tf @ invert_tf(tf_true)
-    moved = apply_tf(tf_true, at[None])
-    return rotation_angle_deg(diff), float(np.linalg.norm(apply_tf(diff, moved) - moved))
-
-
-def asymmetric_surface(n_u: int = 40, n_v: int = 25) -> np.ndarray:
-    """A plate-like grid with no symmetry (3 x 2 m, 200 mm deep, cubic terms)."""
-    u, v = np.meshgrid(np.linspace(-1500, 1500, n_u), np.linspace(-1000, 1000, n_v))
-    u, v = u.ravel(), v.ravel()
-    w = u**2 / 9000 + u * v / 20000 + v**3 / 4e6 + u**3 / 3e7
-    return np.column_stack([u, v, w])
 
 
 @pytest.fixture(scope="module")
@@ -173,25 +151,6 @@ def test_each_hull_patch_registers_to_a_moved_noisy_copy(hull, name):
     assert 0.6 < result.rms_mm < 1.1
 
 
-def random_plate(n: int, rng: np.random.Generator) -> np.ndarray:
-    """n random points on an asymmetric 3 x 1.5 m plate, about 140 mm deep (mm)."""
-    u, v = rng.uniform(-1500, 1500, n), rng.uniform(-750, 750, n)
-    return np.column_stack([u, v, u * u / 16000 - v * v / 24000 + u**3 / 3e8])
-
-
-PLATE_POSE = make_tf(Rotation.from_euler("xyz", [12.0, -8.0, 20.0], degrees=True).as_matrix(),
-                    [250.0, -150.0, 400.0])
-"""Pose of the scanner frame relative to the design in the differently-sampled cases."""
-
-
-def sampled_scan(n_design: int, n_scan: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """(design, scan in the scanner frame with 0.5 mm noise), sampled independently."""
-    rng = np.random.default_rng(seed)
-    design = random_plate(n_design, rng)
-    scan = random_plate(n_scan, rng) + rng.normal(scale=0.5, size=(n_scan, 3))
-    return design, apply_tf(invert_tf(PLATE_POSE), scan)
-
-
 def test_point_to_point_turn_on_a_differently_sampled_100k_scan():
     # design and scan sampled independently: the closest-point offsets in the plane are about
     # the point spacing and follow the sampling, not the shape; point-to-point left the turn
@@ -202,22 +161,6 @@ def test_point_to_point_turn_on_a_differently_sampled_100k_scan():
     assert result.outline_pinned and result.converged
     assert rot_err < 0.025, result.stop_reason
     assert shift_err < 0.5
-
-
-def test_icp_stage_stops_when_the_closest_points_cycle():
-    # point-to-plane on 4,000 scan points swings between a few closest-point sets here and
-    # ran to the iteration limit (150) before the stall test
-    design, scan = sampled_scan(20_000, 4000, seed=0)
-    problem = icp.Problem(target=design, tree=cKDTree(design), frame=fit_frame(design), method="plane")
-    start = min(principal_candidates(fit_frame(scan), fit_frame(design)),
-                key=lambda tf: rotation_angle_deg(tf @ invert_tf(PLATE_POSE)))
-    stage = icp.run(problem, scan, start, max_iterations=150, tol=(1e-2, 1e-4, 1e-8))
-    assert stage.converged and stage.iterations <= 3 * icp.STALL_ITERATIONS
-    assert "cycle" in stage.stop_reason
-    # the lowest-MSE transform comes back; its tilt and turn are as good as after 150 iterations
-    # (0.059 degree; the in-plane shift is loose without the outline pin)
-    assert icp.match(problem, scan, stage.tf).rms_mm <= min(stage.rms_history) * (1 + 1e-6)
-    assert motion_error(stage.tf, PLATE_POSE, scan.mean(axis=0))[0] < 0.08
 
 
 def test_icp_reports_iteration_limit_and_history():
@@ -241,25 +184,6 @@ def test_to_dict_is_json(hull):
     assert np.allclose(np.array(data["transform"]), result.tf)
     assert data["method"] == "plane"
     assert len(data["init"]["scores_mm"]) == 4
-
-
-@pytest.mark.parametrize(
-    ("kwargs", "words"),
-    [
-        ({"method": "plain"}, "unknown ICP method"),
-        ({"init": "pca"}, "unknown init"),
-        ({"init": np.eye(3)}, "4x4"),
-        ({"init": np.diag([1.0, 1.0, -1.0, 1.0])}, "not a rigid"),
-        ({"robust": "cauchy"}, "robust kernel"),
-        ({"trim_fraction": 0.95}, "trim_fraction"),
-        ({"max_iterations": 0}, "max_iterations"),
-        ({"pin_outline": "yes"}, "pin_outline"),
-    ],
-)
-def test_icp_bad_options(kwargs, words):
-    pts = asymmetric_surface(6, 5)
-    with pytest.raises(InputError, match=words):
-        register_icp(pts, pts, **kwargs)
 
 
 def test_icp_bad_points():

@@ -157,7 +157,7 @@ def test_overbend_field_follows_a_curvature_that_changes_over_the_plate():
     from mppf.planning.overbend import overbend
     from mppf.forming.material import Material
     from mppf.forming.springback import loaded_curvature
-    from mppf.geometry.surface import curvatures
+    from mppf.geometry.curvature import curvatures
 
     class Saddle:
         bounds = ((-1500.0, 1500.0), (-1000.0, 1000.0))

@@ -10,7 +10,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from mppf.core.errors import InputError
-from mppf.geometry.io import read_points
+from mppf.geometry.read import read_points
 from mppf.planning.press import example_press_path, load_press
 from mppf.sim.forming import PlateSample, form_plate
 from mppf.sim.scanner import SimulatedScanner

@@ -17,13 +17,12 @@ from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 from pymodbus.exceptions import ConnectionException, ModbusIOException
 
 from mppf.cli import main
-from mppf.drivers import regmap as rm
+from mppf.drivers import codec, regmap as rm
 from mppf.drivers.url import parse_plc_url
 from mppf.core.errors import InputError
 from mppf.planning.press import example_press_path, load_press
 from mppf.sim.faults import parse_fault_spec
-from mppf.sim.hydraulics import Hydraulics
-from mppf.sim.plc import run_simulated_plc
+from mppf.sim.plc.host import run_simulated_plc
 from mppf.sim.serial_pty import PtyPair
 
 MAP = rm.load_register_map()
@@ -57,13 +56,13 @@ class Master:
     def upload(self, upper_mm, lower_mm):
         words = {}
         for side, values in (("upper", upper_mm), ("lower", lower_mm)):
-            words[side] = rm.encode_int32(rm.mm_to_counts(np.ravel(values)), self.word_order)
-            for address, part in rm.chunks(MAP[f"{side}_setpoints"].address, words[side]):
+            words[side] = codec.encode_int32(codec.mm_to_counts(np.ravel(values)), self.word_order)
+            for address, part in codec.chunks(MAP[f"{side}_setpoints"].address, words[side]):
                 assert self.write(address, part) is None
-        return rm.setpoint_crc32(words["upper"], words["lower"])
+        return codec.setpoint_crc32(words["upper"], words["lower"])
 
     def validate(self, crc, sequence):
-        return self.write(MAP["setpoint_crc"].address, rm.encode_uint32([crc], self.word_order) + [sequence])
+        return self.write(MAP["setpoint_crc"].address, codec.encode_uint32([crc], self.word_order) + [sequence])
 
     def command(self, name, arg=0):
         return self.write(MAP["command"].address, [MAP.command(name), arg])
@@ -71,7 +70,7 @@ class Master:
     def actuals_mm(self, side):
         n = PRESS.rows * PRESS.cols
         words = self.read(f"{side}_actuals", 2 * n)
-        return rm.counts_to_mm(rm.decode_int32(words, self.word_order)).reshape(PRESS.shape)
+        return codec.counts_to_mm(codec.decode_int32(words, self.word_order)).reshape(PRESS.shape)
 
     def wait_idle(self, timeout_s=5.0):
         deadline = time.monotonic() + timeout_s
@@ -103,53 +102,16 @@ def refusal(master):
     return MAP.fault_codes[master.read("refusal_code")[0]].name
 
 
-# ---------------------------------------------------------------- hydraulics ------
-def run_until_rest(hyd, dt_s=0.001, limit_s=20.0):
-    t = 0.0
-    while hyd.moving:
-        hyd.step(dt_s)
-        t += dt_s
-        assert t < limit_s
-    return t
-
-
-@pytest.mark.parametrize(
-    "distance_mm, expected_s",
-    [
-        (100.0, 100.0 / 20.0 + 20.0 / 100.0),  # trapezoid: cruise at 20 mm/s, 0.2 s to accelerate
-        (1.0, 2.0 * np.sqrt(1.0 / 100.0)),  # triangle: never reaches full speed
-    ],
-)
-def test_trapezoidal_motion_time(distance_mm, expected_s):
-    hyd = Hydraulics(np.zeros((2, 1, 2)), speed_mm_s=20.0, accel_mm_s2=100.0)
-    target = np.array([[[distance_mm, -distance_mm]], [[0.0, distance_mm / 2]]])
-    hyd.move_to(target)
-    assert run_until_rest(hyd) == pytest.approx(expected_s, rel=0.02)
-    assert np.array_equal(hyd.position, target)
-
-
-def test_stop_brakes_within_the_braking_distance():
-    hyd = Hydraulics(np.zeros((2, 1, 1)), speed_mm_s=20.0, accel_mm_s2=100.0)
-    hyd.move_to(np.full((2, 1, 1), 100.0))
-    for _ in range(1000):  # 1 s: at full speed
-        hyd.step(0.001)
-    at_stop = hyd.position.copy()
-    hyd.stop()
-    run_until_rest(hyd)
-    braked = hyd.position - at_stop
-    assert np.allclose(braked, 20.0**2 / (2 * 100.0), atol=0.05)  # v^2 / 2a = 2 mm
-
-
 # ------------------------------------------------------------------ identity ------
 @pytest.mark.parametrize("word_order", ["ABCD", "CDAB"])
 def test_magic_and_identity_in_both_word_orders(word_order):
     with run_simulated_plc(PRESS, word_order=word_order) as sim:
         master = Master(sim, word_order)
         words = master.read("magic")
-        assert rm.detect_word_order(words, MAP.magic) == word_order
+        assert codec.detect_word_order(words, MAP.magic) == word_order
         assert master.read("map_version") == [MAP.version]
         assert master.read("rows") + master.read("cols") == [PRESS.rows, PRESS.cols]
-        limit = rm.decode_int32(master.read("upper_max"), word_order)[0]
+        limit = codec.decode_int32(master.read("upper_max"), word_order)[0]
         assert limit * MAP.count_mm == pytest.approx(PRESS.upper.max_mm)
         # power-on: punches parked, setpoints equal to the actual positions
         assert np.allclose(master.actuals_mm("lower"), PRESS.lower.park_mm)
@@ -241,7 +203,7 @@ def test_job_block_refused_on_wrong_crc_and_beyond_limits(plc):
     assert master.validate(crc, 4) == MAP.exceptions["refused"]
     assert refusal(master) == "LIMIT"
     # writing the matching CRC alone (no job_sequence) does not validate: GO checks again
-    assert master.write(MAP["setpoint_crc"].address, rm.encode_uint32([crc], "ABCD")) is None
+    assert master.write(MAP["setpoint_crc"].address, codec.encode_uint32([crc], "ABCD")) is None
     assert master.command("GO", 4) == MAP.exceptions["refused"]
     assert refusal(master) == "LIMIT"
     assert not master.flags()["busy"]
@@ -357,7 +319,7 @@ def test_stuck_punch_with_fault_timer_sets_its_fault_bit(plc):
     assert master.command("GO", 1) is None
     flags = master.wait_idle()
     assert flags["fault"] and MAP.fault_codes[master.read("fault_code")[0]].name == "STUCK_PUNCH"
-    bits = rm.unpack_bits(master.read("upper_fault_bits", 2), PRESS.rows * PRESS.cols)
+    bits = codec.unpack_bits(master.read("upper_fault_bits", 2), PRESS.rows * PRESS.cols)
     assert np.flatnonzero(bits).tolist() == [MAP.punch_index(1, 4, PRESS.cols)]
     assert master.command("RESET") is None
     assert not any(master.read("upper_fault_bits", 2)) and not master.flags()["fault"]
@@ -383,21 +345,21 @@ def test_dropped_connection_and_recovery(plc):
     time.sleep(0.8)
     master.client.close()
     assert master.client.connect()
-    assert rm.detect_word_order(master.read("magic"), MAP.magic) == "ABCD"
+    assert codec.detect_word_order(master.read("magic"), MAP.magic) == "ABCD"
 
 
 def test_drop_on_a_write_leaves_it_unapplied(plc):
     sim, master = plc
     sim.inject("drop", after_writes=2, duration_s=0.3)
     upper, lower = targets()
-    assert master.write(MAP["upper_setpoints"].address, rm.encode_int32([100], "ABCD")) is None
+    assert master.write(MAP["upper_setpoints"].address, codec.encode_int32([100], "ABCD")) is None
     with pytest.raises((ConnectionException, ModbusIOException)):
-        master.write(MAP["upper_setpoints"].address + 2, rm.encode_int32([200], "ABCD"))
+        master.write(MAP["upper_setpoints"].address + 2, codec.encode_int32([200], "ABCD"))
     time.sleep(0.6)
     master.client.close()
     assert master.client.connect()
     words = master.read("upper_setpoints", 4)
-    assert rm.decode_int32(words, "ABCD").tolist() == [100, round(PRESS.upper.park_mm * 100)]
+    assert codec.decode_int32(words, "ABCD").tolist() == [100, round(PRESS.upper.park_mm * 100)]
 
 
 def test_restart_loses_the_sequence(plc):
@@ -440,13 +402,14 @@ def test_rtu_over_a_pty_pair(word_order):
         try:
             rr = client.read_holding_registers(MAP["magic"].address, count=2, device_id=1)
             assert not rr.isError(), rr
-            assert rm.detect_word_order(rr.registers, MAP.magic) == word_order
+            assert codec.detect_word_order(rr.registers, MAP.magic) == word_order
             rr = client.write_registers(MAP["status_word"].address, [1], device_id=1)
             assert rr.isError() and rr.exception_code == MAP.exceptions["read_only"]
         finally:
             client.close()
 
 
+@pytest.mark.slow  # needs socat
 @pytest.mark.rtu
 def test_rtu_on_a_serial_device_made_by_socat(tmp_path):
     """The rtu_port= path (a real serial device), on a socat pty pair."""
@@ -555,7 +518,7 @@ def test_sim_command_serves_until_interrupted():
         assert client.connect()
         rr = client.read_holding_registers(MAP["magic"].address, count=2, device_id=1)
         client.close()
-        assert rm.detect_word_order(rr.registers, MAP.magic) == "CDAB"
+        assert codec.detect_word_order(rr.registers, MAP.magic) == "CDAB"
         time.sleep(0.3)
         proc.send_signal(signal.SIGINT)
         out, err = proc.communicate(timeout=10)

@@ -1,4 +1,4 @@
-"""Reading and writing point and mesh files: the only file I/O of the geometry core.
+"""Reading point and mesh files (with :mod:`mppf.geometry.write`, the only file I/O of the geometry core).
 
 Supported formats (see ``docs/file-formats.md``, section "Point and mesh files"):
 
@@ -30,19 +30,14 @@ from pathlib import Path
 
 import numpy as np
 
-from mppf.core.errors import FileFormatError, GeometryError, InputError
-from mppf.core.transform import as_points
+from mppf.core.errors import FileFormatError, InputError
 
 TEXT_SUFFIXES = (".csv", ".txt", ".xyz")
 PLY_SUFFIXES = (".ply",)
 MESH_SUFFIXES = (".stl", ".obj")
 READ_SUFFIXES = TEXT_SUFFIXES + PLY_SUFFIXES + MESH_SUFFIXES
-WRITE_SUFFIXES = TEXT_SUFFIXES + PLY_SUFFIXES
 
 UNIT_SCALE_MM = {"mm": 1.0, "m": 1000.0}
-
-MAX_COORDINATE_MM = 1e9
-"""Largest coordinate magnitude (1000 km) a plate may have; beyond it the unit or export is wrong."""
 
 _SUPPORTED = ", ".join(READ_SUFFIXES)
 
@@ -361,129 +356,3 @@ def _read_mesh(path: Path, suffix: str) -> tuple[np.ndarray, np.ndarray | None]:
     if vertices is None:
         raise FileFormatError(path, f"holds no points ({type(loaded).__name__})")
     return np.asarray(vertices, dtype=float), None
-
-
-# --------------------------------------------------------------------- writing
-
-
-def write_points(path, points, header: str | None = None, *, faces=None) -> Path:
-    """Write points (mm) to a ``.csv``, ``.txt``, ``.xyz`` or ``.ply`` file.
-
-    Text files get a ``#`` comment line (``header`` or ``x_mm,y_mm,z_mm``) and one
-    point per line with the shortest decimal that reads back to the same float. PLY
-    files are binary little-endian; ``faces`` ((m, 3) int) are written to PLY only.
-
-    Parameters
-    ----------
-    path : str or Path
-    points : (n, 3) float, mm
-    header : str, optional
-        One comment line (text) or PLY comment.
-    faces : (m, 3) int, optional
-        Triangles (PLY only).
-
-    Returns
-    -------
-    Path
-        The path written.
-
-    Raises
-    ------
-    InputError
-        Unknown suffix, faces for a text file, or the file cannot be written.
-    """
-    path = Path(path)
-    pts = as_points(points)
-    suffix = path.suffix.lower()
-    if suffix not in WRITE_SUFFIXES:
-        raise InputError(
-            f"cannot write {path}: unknown point file type {path.suffix or '(no suffix)'!r}",
-            hint=f"use one of {', '.join(WRITE_SUFFIXES)}",
-        )
-    if header is not None and ("\n" in header or "\r" in header):
-        raise InputError(f"header must be one line, got {header!r}")
-    try:
-        if suffix in PLY_SUFFIXES:
-            _write_ply(path, pts, header, faces)
-        else:
-            if faces is not None:
-                raise InputError(f"cannot write faces to {path}", hint="write meshes as .ply")
-            sep = "," if suffix == ".csv" else " "
-            first = header if header is not None else sep.join(("x_mm", "y_mm", "z_mm"))
-            body = "\n".join(sep.join(map(repr, row)) for row in pts.tolist())
-            path.write_text(f"# {first}\n{body}\n", encoding="utf-8")
-    except OSError as exc:
-        raise InputError(
-            f"cannot write {path}: {exc.strerror or exc}",
-            hint="check that the folder exists and is writable",
-        ) from None
-    return path
-
-
-def _write_ply(path: Path, pts: np.ndarray, header: str | None, faces) -> None:
-    import plyfile
-
-    vertex = np.empty(pts.shape[0], dtype=[("x", "f8"), ("y", "f8"), ("z", "f8")])
-    vertex["x"], vertex["y"], vertex["z"] = pts.T
-    elements = [plyfile.PlyElement.describe(vertex, "vertex")]
-    if faces is not None:
-        tri = np.asarray(faces, dtype=np.int64)
-        if tri.ndim != 2 or tri.shape[1] != 3 or (tri.size and (tri.min() < 0 or tri.max() >= len(pts))):
-            raise InputError(f"faces must be (m, 3) indices below {len(pts)}, got shape {tri.shape}")
-        face = np.empty(tri.shape[0], dtype=[("vertex_indices", "i4", (3,))])
-        face["vertex_indices"] = tri
-        elements.append(plyfile.PlyElement.describe(face, "face"))
-    comments = [header] if header else []
-    plyfile.PlyData(elements, text=False, byte_order="<", comments=comments).write(str(path))
-
-
-# --------------------------------------------------------------------- plate checks
-
-
-def check_plate(points, min_points: int, source: str = "points") -> np.ndarray:
-    """Check that points can describe a plate; return them as an (n, 3) float array.
-
-    Parameters
-    ----------
-    points : (n, 3) float, mm
-    min_points : int
-        Fewest points the caller needs (e.g. 16 for a bicubic fit).
-    source : str
-        Name used in messages (a file name).
-
-    Raises
-    ------
-    GeometryError
-        A coordinate beyond ``MAX_COORDINATE_MM``; too few points; all points
-        coincident (spread below 1e-9 of the coordinate magnitude, at least 1e-9 mm);
-        collinear (second principal spread below 1e-6 of the first).
-    """
-    pts = as_points(points, name=source)
-    n = pts.shape[0]
-    magnitude = float(np.abs(pts).max()) if pts.size else 0.0
-    if magnitude > MAX_COORDINATE_MM:
-        raise GeometryError(
-            f"{source}: a coordinate of {magnitude:.3g} mm, beyond {MAX_COORDINATE_MM:.0e} mm",
-            hint="check the file's unit (--units) and the export; plate coordinates are mm",
-        )
-    if n < min_points:
-        raise GeometryError(
-            f"{source}: {n} point(s), the fit needs at least {min_points}",
-            hint="give more points or a lower degree",
-        )
-    if not np.all(np.isfinite(pts)):
-        raise GeometryError(f"{source}: NaN or infinite coordinates", hint="repair the input")
-    centred = pts - pts.mean(axis=0)
-    spread = np.linalg.svd(centred, compute_uv=False) / math.sqrt(n)
-    if spread[0] <= 1e-9 * max(magnitude, 1.0):
-        raise GeometryError(
-            f"{source}: all {n} points coincide (spread {spread[0]:.3g} mm)",
-            hint="the plate has no extent; check the file and its units",
-        )
-    if spread[1] <= 1e-6 * spread[0]:
-        raise GeometryError(
-            f"{source}: the {n} points are collinear (spread {spread[0]:.3g} mm along a line, "
-            f"{spread[1]:.3g} mm across)",
-            hint="a plate needs points spread over an area",
-        )
-    return pts

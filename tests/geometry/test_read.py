@@ -1,4 +1,4 @@
-"""Reading and writing point and mesh files (mppf.geometry.io)."""
+"""Reading point and mesh files (mppf.geometry.read)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,9 @@ import plyfile
 import pytest
 import trimesh
 
-from mppf.core.errors import FileFormatError, GeometryError, InputError
-from mppf.geometry.io import PointCloud, check_plate, read_points, write_points
+from mppf.core.errors import FileFormatError, InputError
+from mppf.geometry.read import PointCloud, read_points
+from mppf.geometry.write import write_points
 
 
 @pytest.fixture()
@@ -26,9 +27,6 @@ def write(tmp_path, name, text, mode="w"):
     else:
         path.write_bytes(text)
     return path
-
-
-# ----------------------------------------------------------------- good text files
 
 
 def test_csv_with_header_and_comments(tmp_path):
@@ -74,9 +72,6 @@ def test_slow_and_fast_parsers_agree(tmp_path, cloud):
     mixed_lines = [line.replace(",", " ") if i % 2 else line for i, line in enumerate(lines)]
     mixed = write(tmp_path, "b.txt", "\n".join(mixed_lines) + "\n")
     np.testing.assert_array_equal(read_points(regular).points, read_points(mixed).points)
-
-
-# ----------------------------------------------------------------- bad input, one test each
 
 
 def test_missing_file(tmp_path):
@@ -186,23 +181,6 @@ def test_ply_face_with_missing_vertex(tmp_path):
         read_points(path)
 
 
-# ----------------------------------------------------------------- round trips
-
-
-@pytest.mark.parametrize("suffix", [".csv", ".txt", ".xyz", ".ply"])
-def test_write_read_round_trip_exact(tmp_path, cloud, suffix):
-    path = write_points(tmp_path / f"c{suffix}", cloud, header="round trip")
-    np.testing.assert_array_equal(read_points(path).points, cloud)
-
-
-def test_write_ply_with_faces(tmp_path):
-    mesh = trimesh.creation.icosphere(subdivisions=1, radius=500.0)
-    path = write_points(tmp_path / "m.ply", mesh.vertices, faces=mesh.faces)
-    pc = read_points(path)
-    np.testing.assert_allclose(pc.points, mesh.vertices)
-    np.testing.assert_array_equal(pc.faces, mesh.faces)
-
-
 @pytest.mark.parametrize("text", [True, False])
 def test_ply_ascii_and_binary_with_quads(tmp_path, text):
     vertex = np.array([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 1)], dtype=[("x", "f4"), ("y", "f4"), ("z", "f4")])
@@ -239,45 +217,3 @@ def test_obj_with_only_vertices(tmp_path):
     pc = read_points(path)
     np.testing.assert_array_equal(pc.points, [[1, 2, 3], [4, 5, 6], [7, 8, 10]])
     assert pc.faces is None
-
-
-def test_write_unknown_suffix(tmp_path, cloud):
-    with pytest.raises(InputError, match="unknown point file type"):
-        write_points(tmp_path / "c.dat", cloud)
-
-
-def test_write_into_missing_folder(tmp_path, cloud):
-    with pytest.raises(InputError, match="cannot write"):
-        write_points(tmp_path / "no" / "such" / "c.csv", cloud)
-
-
-def test_write_bad_shape(tmp_path):
-    with pytest.raises(InputError, match=r"\(n, 3\)"):
-        write_points(tmp_path / "c.csv", np.zeros((4, 2)))
-
-
-# ----------------------------------------------------------------- plate checks
-
-
-def test_check_plate_accepts_a_plate(cloud):
-    assert check_plate(cloud, min_points=16, source="c.csv").shape == (50, 3)
-
-
-def test_check_plate_too_few_points(cloud):
-    with pytest.raises(GeometryError, match="needs at least 16") as info:
-        check_plate(cloud[:10], min_points=16, source="c.csv")
-    assert "c.csv" in str(info.value)
-
-
-def test_check_plate_coincident():
-    pts = np.tile([176000.0, 5000.0, 2000.0], (20, 1))
-    with pytest.raises(GeometryError, match="coincide"):
-        check_plate(pts, min_points=3)
-
-
-def test_check_plate_collinear_with_noise_far_below_tolerance():
-    t = np.linspace(0.0, 3000.0, 40)
-    pts = np.column_stack([176000.0 + t, 5000.0 + 0.5 * t, 2000.0 - 0.2 * t])
-    pts += np.random.default_rng(3).normal(scale=1e-9, size=pts.shape)
-    with pytest.raises(GeometryError, match="collinear"):
-        check_plate(pts, min_points=3)

@@ -1,10 +1,11 @@
 """Crash safety: kill -9 of ``mppf loop`` mid-cycle, then ``mppf loop --resume``.
 
 The loop runs as a real subprocess (with its simulated PLC in-process, real Modbus over
-loopback); the test watches the history database, kills the process the moment a cycle is
-recorded as "pressing" (motion slowed so that the kill lands during the motion), and
-resumes. Nothing may be lost and no cycle may be pressed twice: checked in the history
-and in the audit log's GO commands per cycle (job hash) and per sequence number.
+loopback) on a plate recorded from the session's planned job; the test watches the history
+database, kills the process the moment a cycle is recorded as "pressing" (motion slowed so
+that the kill lands during the motion), and resumes. Nothing may be lost and no cycle may be
+pressed twice: checked in the history and in the audit log's GO commands per cycle (job hash)
+and per sequence number.
 """
 
 from __future__ import annotations
@@ -19,14 +20,10 @@ import time
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from mppf.loop.history import History
-from mppf.geometry.io import read_points, write_points
-from mppf.planning.press import example_press_path
-from mppf.geometry.unfold import unfold
-
-PLATE = "K2_fwd_bilge_convex"
+from mppf.loop.plate import record_plate
+from mppf.loop.settings import LoopSettings
 
 
 def _mppf(*args) -> list[str]:
@@ -49,15 +46,17 @@ def _state(db: Path, plate_id: str) -> tuple[str, int] | None:
     return row
 
 
-@pytest.mark.slow
-def test_kill_while_pressing_then_resume_loses_nothing_and_presses_nothing_twice(hull_dir, tmp_path):
-    design = hull_dir / f"{PLATE}.csv"
-    flat = write_points(tmp_path / "flat.csv", unfold(read_points(design).points).flat)
+def test_kill_while_pressing_then_resume_loses_nothing_and_presses_nothing_twice(planned_plate, tmp_path):
     env = {**os.environ, "MPPF_HOME": str(tmp_path / "home")}
     db = tmp_path / "home" / "history.sqlite"
+    design, flat, press, job = planned_plate
+    # the plate as 'mppf loop DESIGN FLAT --plate-id K2-crash --seed 3 --max-cycles 2' records it
+    with History(db) as history:
+        record_plate(history, design, flat, press, 20.0, job, plate_id="K2-crash",
+                     work_dir=tmp_path / "home" / "plates" / "K2-crash", settings=LoopSettings(max_cycles=2),
+                     setup={"plc": None, "scanner": "sim", "seed": 3, "units": "mm", "material": "steel"})
     # slow motion (4x real speed): the first press step takes seconds
-    args = _mppf("loop", str(design), str(flat), "--press", str(example_press_path()), "--thickness", "20",
-                 "--plate-id", "K2-crash", "--seed", "3", "--time-scale", "4", "--max-cycles", "2")
+    args = _mppf("loop", "--resume", "--plate-id", "K2-crash", "--time-scale", "4")
     err = tmp_path / "loop.err"
     with err.open("wb") as err_file:
         proc = subprocess.Popen(args, env=env, stdout=subprocess.DEVNULL, stderr=err_file)

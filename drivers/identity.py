@@ -1,0 +1,117 @@
+"""What a press PLC says about itself on connect, and the checks made before anything is written.
+
+:func:`identify` reads the magic (which gives the word order), the register map version,
+the matrix size and the PLC's own stroke limits in one read, and refuses a device that is
+not an mppf press PLC, speaks another map version, uses another word order than asked
+for, or drives another matrix than the press description.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from mppf.core.errors import ConfigError, InputError, LinkError, PlcError
+from mppf.drivers import codec
+from mppf.drivers.regmap import RegisterMap
+from mppf.planning.press import PressConfig
+
+SIDES = ("upper", "lower")
+
+
+@dataclass(frozen=True)
+class PlcIdentity:
+    """What the PLC says about itself on connect.
+
+    Attributes
+    ----------
+    word_order : {"ABCD", "CDAB"}
+        Detected from the magic.
+    map_version, rows, cols : int
+    limits_mm : dict of str to (float, float)
+        The PLC's own stroke limits, ``{"upper": (min, max), "lower": (min, max)}``.
+    """
+
+    word_order: str
+    map_version: int
+    rows: int
+    cols: int
+    limits_mm: dict
+
+
+def identify(io, rmap: RegisterMap, url, unit: int, word_order: str, press: PressConfig | None) -> PlcIdentity:
+    """Read and check magic, map version, size and limits.
+
+    Parameters
+    ----------
+    io
+        The register transport (``read_holding``).
+    rmap : RegisterMap
+    url : str or PlcUrl
+        Where the PLC is (for the messages).
+    unit : int
+        Its unit id (for the messages).
+    word_order : {"auto", "ABCD", "CDAB"}
+    press : PressConfig or None
+        Checked against the PLC's matrix size when given.
+
+    Raises
+    ------
+    LinkError
+        Not an mppf press PLC (or not at this unit id), another map version or word order.
+    ConfigError
+        The press description has another matrix size.
+    """
+    first = rmap["magic"].address
+    last = max(rmap[n].end for n in ("map_version", "rows", "cols", "lower_max"))
+    try:
+        words = io.read_holding(first, last - first, max_chunk=rmap.max_read_registers)
+    except PlcError as exc:
+        raise LinkError(
+            f"the device at {url} is not an mppf press PLC with unit id {unit}: reading its "
+            f"identity (registers {first}-{last - 1}) was refused: {exc.message}",
+            hint="check the unit id (unit=N in the URL), the host and the port: another Modbus device answered",
+        ) from None
+
+    def get(name: str) -> list[int]:
+        f = rmap[name]
+        return words[f.address - first : f.end - first]
+
+    try:
+        detected = codec.detect_word_order(get("magic"), rmap.magic)
+    except InputError:
+        magic = get("magic")
+        raise LinkError(
+            f"the device at {url} is not an mppf press PLC: registers "
+            f"{rmap['magic'].address}-{rmap['magic'].end - 1} hold "
+            f"0x{magic[0]:04X} 0x{magic[1]:04X}, expected the magic 0x{rmap.magic:08X} "
+            "in ABCD or CDAB word order",
+            hint="check the URL (host, port, unit id): another Modbus device answered",
+        ) from None
+    if word_order != "auto" and word_order != detected:
+        raise LinkError(
+            f"the PLC at {url} uses word order {detected}, but {word_order} was requested",
+            hint="use --word-order auto or fix the PLC's word-order setting",
+        )
+    (version,) = get("map_version")
+    if version != rmap.version:
+        raise LinkError(
+            f"the PLC at {url} implements register map version {version}, "
+            f"this mppf speaks version {rmap.version}",
+            hint="update the PLC program or mppf so that both use the same register map",
+        )
+    (rows,), (cols,) = get("rows"), get("cols")
+    limits = {}
+    for side in SIDES:
+        lo, hi = (
+            float(codec.counts_to_mm(codec.decode_int32(get(f"{side}_{end}"), detected)[0], rmap.count_mm))
+            for end in ("min", "max")
+        )
+        limits[side] = (lo, hi)
+    ident = PlcIdentity(detected, version, rows, cols, limits)
+    if press is not None and (rows, cols) != press.shape:
+        raise ConfigError(
+            f"the PLC at {url} drives {rows} x {cols} punches, the press description "
+            f"'{press.name}' has {press.rows} x {press.cols}",
+            hint="use the press description (or job) made for this press",
+        )
+    return ident

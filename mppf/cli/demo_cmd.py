@@ -1,0 +1,72 @@
+"""``mppf demo``: the whole chain on a bundled hull plate, all simulated (thin over :mod:`mppf.loop.demo`).
+
+A faithful dry run: the simulated PLC in this process, driven over loopback Modbus by the
+real driver (:func:`mppf.cli.press_policy.press_link` without a PLC URL); the pictures and
+the report come from :func:`mppf.report.convergence.demo_report`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import time
+from pathlib import Path
+
+import click
+
+from mppf.cli._common import RichReporter, console
+from mppf.cli._cycles import cycle_table, print_cycle
+from mppf.cli.press_policy import press_link, time_scale_option
+from mppf.loop.demo import DEMO_PLATE, DEMO_SEED, DEMO_THICKNESS_MM
+
+
+@click.command("demo")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=Path("mppf-demo"),
+              show_default=True, help="Output folder (pictures, report, history).")
+@click.option("--plate", "plate_name", default=DEMO_PLATE, show_default=True,
+              help="Bundled hull plate (mppf/examples/hull/NAME.csv).")
+@click.option("--seed", type=int, default=DEMO_SEED, show_default=True, help="Seed of the simulated plate and scans.")
+@click.option("--thickness", type=float, default=DEMO_THICKNESS_MM, show_default=True, help="Plate thickness (mm).")
+@time_scale_option
+def demo(out_dir, plate_name, seed, thickness, time_scale):
+    """Unfold, plan, press, scan, compare and loop on a bundled hull plate, all simulated.
+
+    A dry run: the simulated PLC runs in this process and is driven over loopback Modbus
+    by the real driver; the plate and the scanner are simulated. Writes pictures (strain,
+    strokes, deviation per cycle, convergence), an HTML report and the history into
+    --out, and prints a summary table.
+    """
+    from mppf.drivers.audit import AuditLog
+    from mppf.loop.demo import run_demo
+    from mppf.report.convergence import demo_report
+
+    started = time.monotonic()
+    reporter = RichReporter()
+    dry_run = f"simulated PLC over loopback Modbus, motion {time_scale:g}x faster than the real press"
+
+    @contextlib.contextmanager
+    def connect(press):  # the demo's press: the dry run of mppf press and mppf loop, audited in --out
+        with AuditLog(out_dir / "audit.sqlite") as audit, \
+                press_link(press, None, audit=audit, time_scale=time_scale, reporter=reporter) as link:
+            yield link
+
+    try:
+        run = run_demo(out_dir, plate_name=plate_name, seed=seed, thickness_mm=thickness, connect=connect,
+                       reporter=reporter, on_cycle=print_cycle)
+        files = demo_report(run, intro=(
+            f"Dry run of mppf demo on the bundled hull plate {plate_name}, {thickness:g} mm, seed {seed}: "
+            f"{dry_run} (the real driver), simulated plate (true material scattered around the nominal) "
+            "and simulated scanner."))
+    finally:
+        reporter.finish()
+    result = run.result
+    console.print(cycle_table(result.cycles, f"demo plate {plate_name} ({thickness:g} mm, seed {seed}): "
+                                             f"{result.status}"))
+    console.print(f"dry run: {dry_run}", soft_wrap=True)
+    console.print(f"pictures and report in {out_dir}{os.sep}:", soft_wrap=True)
+    for path in files:
+        console.print(f"  {path}", soft_wrap=True)
+    console.print(f"done in {time.monotonic() - started:.1f} s")
+
+
+COMMANDS = [demo]

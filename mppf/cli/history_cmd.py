@@ -1,0 +1,64 @@
+"""``mppf history``: the plates of the history and their press cycles (thin over :mod:`mppf.loop.history`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+from rich.table import Table
+
+from mppf.cli._common import console, print_json
+from mppf.cli._cycles import cycle_table
+from mppf.core.errors import InputError
+
+history_option = click.option(
+    "--history", "history_path", type=click.Path(dir_okay=False, path_type=Path),
+    help="History database [default: $MPPF_HOME/history.sqlite or ~/.local/share/mppf/].",
+)
+
+
+def open_history(path):
+    """The plate history at ``path`` (None: the default one)."""
+    from mppf.loop.history import History
+
+    return History(path)
+
+
+@click.command("history")
+@history_option
+@click.option("--plate-id", help="Show this plate's cycles only.")
+@click.option("--json", "as_json", is_flag=True, help="Print as JSON (with strokes and deviation grids).")
+def history(history_path, plate_id, as_json):
+    """List the plates of the history and their press cycles."""
+    if history_path is not None and not history_path.exists():
+        raise InputError(f"history {history_path} does not exist", hint="check the path given with --history")
+    with open_history(history_path) as hist:
+        plates = [hist.plate(plate_id)] if plate_id else hist.plates()
+        if as_json:
+            print_json({"history": str(hist.path), "plates": [
+                {**p.to_dict(), "cycles": [c.to_dict() for c in hist.cycles(p.plate_id)]} for p in plates]})
+            return
+        if not plates:
+            console.print(f"no plates in {hist.path}")
+            return
+        console.print(_plates_table(hist, plates))
+        if plate_id:
+            console.print(cycle_table(hist.cycles(plate_id), f"cycles of {plate_id}"))
+
+
+def _plates_table(hist, plates) -> Table:
+    table = Table(title=f"plates in {hist.path}", title_justify="left",
+                  caption="max|dev|, RMS: deviations (mm) of the last measured cycle; t: thickness (mm)",
+                  caption_justify="left")
+    for name in ("plate", "status", "cycles", "max|dev|", "RMS", "t", "updated (UTC)"):
+        table.add_column(name, no_wrap=name == "status", overflow="fold", min_width=5 if name != "t" else 2)
+    for p in plates:
+        cycles = hist.cycles(p.plate_id)
+        done = [c for c in cycles if c.max_abs_mm is not None]
+        table.add_row(p.plate_id, p.status, str(len(cycles)),
+                      f"{done[-1].max_abs_mm:.2f}" if done else "-", f"{done[-1].rms_mm:.2f}" if done else "-",
+                      f"{p.thickness_mm:g}", p.updated_utc[:16].replace("T", " "))
+    return table
+
+
+COMMANDS = [history]

@@ -1,0 +1,202 @@
+"""The B-spline plate surface: a bicubic least-squares (fixed knots) or smoothing B-spline.
+
+Fitted by scipy's FITPACK, evaluated through its bicubic pieces, and extended beyond its
+bounds by its first-order Taylor expansion (the tangent plane at the edge). The
+mathematics is in ``docs/math-surfaces.md``.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import LSQBivariateSpline, SmoothBivariateSpline
+
+from mppf.core.errors import GeometryError, InputError
+from mppf.geometry.surface_math import Bounds, bounds_of, check_uvz, powers, residual_stats, unit_normals, uv_arrays
+
+SPLINE_MIN_POINTS_PER_CELL = 16
+"""Default knot spacing of the least-squares spline: about this many points per knot cell."""
+SPLINE_MIN_POINTS_IN_CELL = 4
+"""Fewest points any knot cell must hold; otherwise the knot grid is made coarser."""
+SPLINE_MAX_INTERVALS = 12
+
+
+@dataclass(frozen=True, eq=False)
+class SplineSurface:
+    """A bicubic B-spline z = S(u, v) with a C1 extension beyond its bounds.
+
+    Inside ``bounds`` it is the scipy spline. For fast vectorized evaluation the
+    spline is converted once into its bicubic pieces (one 4 x 4 polynomial per knot
+    cell, exact to round-off). Outside, with c the nearest point of the bounds and
+    (du, dv) = (u, v) - c, it is S(c) + S_u(c) du + S_v(c) dv (the tangent plane at
+    the edge), so the heights and slopes are continuous.
+
+    Attributes
+    ----------
+    spline : scipy.interpolate.BivariateSpline
+    bounds, rms_mm, max_abs_mm, degree, kind
+        As in :class:`mppf.geometry.surface.Surface`.
+    smoothing : float or None
+        Target RMS (mm) of a smoothing spline, None for fixed-knot least squares.
+    """
+
+    spline: object
+    bounds: Bounds
+    rms_mm: float = 0.0
+    max_abs_mm: float = 0.0
+    smoothing: float | None = None
+    degree: int = field(default=3, init=False)
+    kind: str = field(default="spline", init=False)
+    _breaks: tuple = field(default=(), init=False, repr=False)
+    _patches: np.ndarray | None = field(default=None, init=False, repr=False)
+
+    def __post_init__(self):
+        tx, ty = self.spline.get_knots()
+        bu, bv = np.unique(tx), np.unique(ty)
+        # sample each cell at 4 x 4 points and solve for its bicubic coefficients
+        nodes = np.linspace(0.0, 1.0, 4)
+        gu = (bu[:-1, None] + np.diff(bu)[:, None] * nodes).ravel()
+        gv = (bv[:-1, None] + np.diff(bv)[:, None] * nodes).ravel()
+        mu, mv = np.meshgrid(gu, gv, indexing="ij")
+        values = self.spline.ev(mu.ravel(), mv.ravel()).reshape(len(bu) - 1, 4, len(bv) - 1, 4)
+        inv = np.linalg.inv(np.vander(nodes, 4, increasing=True))
+        patches = np.einsum("pk,ikjl,ql->ijpq", inv, values, inv)  # (cells u, cells v, 4, 4)
+        object.__setattr__(self, "_breaks", (bu, bv))
+        object.__setattr__(self, "_patches", patches)
+
+    @property
+    def knots(self) -> tuple[np.ndarray, np.ndarray]:
+        """Knot vectors (u, v) in mm, end knots included."""
+        return self.spline.get_knots()
+
+    def _split(self, u, v):
+        u_arr, v_arr = uv_arrays(u, v)
+        (umin, umax), (vmin, vmax) = self.bounds
+        uu, vv = u_arr.ravel(), v_arr.ravel()
+        cu, cv = np.clip(uu, umin, umax), np.clip(vv, vmin, vmax)
+        return u_arr.shape, cu, cv, uu - cu, vv - cv
+
+    def _pieces(self, cu, cv, orders) -> list[np.ndarray]:
+        """Partial derivatives d^(a+b) S / du^a dv^b at points inside the bounds, per (a, b)."""
+        bu, bv = self._breaks
+        i = np.clip(np.searchsorted(bu, cu, side="right") - 1, 0, len(bu) - 2)
+        j = np.clip(np.searchsorted(bv, cv, side="right") - 1, 0, len(bv) - 2)
+        hu, hv = bu[i + 1] - bu[i], bv[j + 1] - bv[j]
+        top = max(max(a for a, _ in orders), max(b for _, b in orders))
+        pa = powers((cu - bu[i]) / hu, 3, order=top)
+        pb = powers((cv - bv[j]) / hv, 3, order=top)
+        # coefficients c_pq of each point's cell as (4, 4, n): contiguous rows, fast sums
+        coef = self._patches.reshape(-1, 16).T[:, i * (len(bv) - 1) + j].reshape(4, 4, -1)
+        cache: dict[int, np.ndarray] = {}
+        out = []
+        for a, b in orders:
+            if b not in cache:  # sum over q of c_pq d^b(beta^q), (4, n)
+                cache[b] = np.einsum("pqn,qn->pn", coef, pb[b])
+            out.append(np.einsum("pn,pn->n", cache[b], pa[a]) / (hu**a * hv**b))
+        return out
+
+    def evaluate(self, u, v) -> np.ndarray:
+        """Heights z (mm) at (u, v) (mm); same shape as the broadcast inputs."""
+        shape, cu, cv, du, dv = self._split(u, v)
+        s, su, sv = self._pieces(cu, cv, [(0, 0), (1, 0), (0, 1)])
+        return (s + su * du + sv * dv).reshape(shape)
+
+    def derivatives(self, u, v) -> tuple[np.ndarray, ...]:
+        """(z, zu, zv, zuu, zuv, zvv) at (u, v), each shaped like the inputs."""
+        shape, cu, cv, du, dv = self._split(u, v)
+        inside_u = (du == 0).astype(float)
+        inside_v = (dv == 0).astype(float)
+        s, su, sv, suu, suv, svv, suuv, suvv = self._pieces(
+            cu, cv, [(0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2), (2, 1), (1, 2)]
+        )
+        out = (
+            s + su * du + sv * dv,
+            su + inside_u * suv * dv,
+            sv + inside_v * suv * du,
+            inside_u * (suu + suuv * dv),
+            np.where((inside_u + inside_v) > 0, suv, 0.0),
+            inside_v * (svv + suvv * du),
+        )
+        return tuple(x.reshape(shape) for x in out)
+
+    def normals(self, u, v) -> np.ndarray:
+        """Unit normals (..., 3) toward +w."""
+        _, zu, zv, *_ = self.derivatives(u, v)
+        return unit_normals(zu, zv)
+
+
+def _uniform_knots(lo: float, hi: float, intervals: int) -> np.ndarray:
+    return np.linspace(lo, hi, intervals + 1)[1:-1]
+
+
+def fit_spline(u, v, z, smoothing: float | None = None) -> SplineSurface:
+    """Fit a bicubic B-spline z = S(u, v).
+
+    Parameters
+    ----------
+    u, v, z : (n,) float, mm
+    smoothing : float, optional
+        Target RMS residual in mm: a FITPACK smoothing spline with s = n * smoothing^2
+        places its own knots. None: least squares on uniform knots, about 16 points per
+        knot cell (at most 12 intervals per axis); the knot grid is halved until every
+        cell holds at least 4 points (holes in a scan) and FITPACK reports no rank
+        deficiency.
+
+    Returns
+    -------
+    SplineSurface
+
+    Raises
+    ------
+    GeometryError
+        Too few points (16) or FITPACK cannot reach the requested smoothing.
+    """
+    u, v, z = check_uvz(u, v, z)
+    if len(u) < 16:
+        raise GeometryError(f"{len(u)} points, a bicubic spline needs at least 16", hint="give more points")
+    (umin, umax), (vmin, vmax) = bounds = bounds_of(u, v)
+    if umax - umin <= 0 or vmax - vmin <= 0:
+        raise GeometryError("the points span no area in (u, v)", hint="a surface needs points spread over the plate")
+    if smoothing is not None:
+        if not 0 < smoothing < np.inf:
+            raise InputError(f"spline smoothing must be a positive, finite RMS in mm, got {smoothing!r}",
+                             hint="give the residual RMS you accept, e.g. 0.5, or leave it out")
+        spline = _fitpack(lambda: SmoothBivariateSpline(u, v, z, s=len(u) * smoothing**2, kx=3, ky=3),
+                          f"smoothing {smoothing} mm")
+    else:
+        aspect = (umax - umin) / (vmax - vmin)
+        cells = len(u) / SPLINE_MIN_POINTS_PER_CELL
+        nu = int(np.clip(np.sqrt(cells * aspect), 1, SPLINE_MAX_INTERVALS))
+        nv = int(np.clip(np.sqrt(cells / aspect), 1, SPLINE_MAX_INTERVALS))
+        while True:
+            # every knot cell needs data, or the spline is arbitrary there (holes in a scan)
+            counts, _, _ = np.histogram2d(u, v, bins=[nu, nv], range=[[umin, umax], [vmin, vmax]])
+            tx, ty = _uniform_knots(umin, umax, nu), _uniform_knots(vmin, vmax, nv)
+            try:
+                if counts.min() < SPLINE_MIN_POINTS_IN_CELL:
+                    raise GeometryError(f"a {nu}x{nv} knot grid has cells with {int(counts.min())} points")
+                spline = _fitpack(lambda: LSQBivariateSpline(u, v, z, tx, ty, kx=3, ky=3), f"{nu}x{nv} knot intervals")
+                break
+            except GeometryError:
+                if nu == 1 and nv == 1:
+                    raise
+                nu, nv = max(1, nu // 2), max(1, nv // 2)
+    rms, max_abs = residual_stats(z - spline.ev(u, v))
+    return SplineSurface(spline=spline, bounds=bounds, rms_mm=rms, max_abs_mm=max_abs, smoothing=smoothing)
+
+
+def _fitpack(build, what: str):
+    """Run a FITPACK fit, turning its warnings (rank deficiency, storage) into GeometryError."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            spline = build()
+        except ValueError as exc:
+            raise GeometryError(f"B-spline fit with {what} failed: {exc}",
+                                hint="use more points or the polynomial surface") from None
+    if caught:
+        raise GeometryError(f"B-spline fit with {what} is unreliable: {str(caught[0].message).strip()[:200]}",
+                            hint="use a larger smoothing, more points, or the polynomial surface")
+    return spline

@@ -1,0 +1,45 @@
+"""The decision after a compared cycle: in tolerance, diverged, out of cycles, or go on."""
+
+from __future__ import annotations
+
+from mppf.loop.settings import LoopSettings
+from mppf.loop.states import Decision
+
+GROWTH_MARGIN_MM = 0.1
+"""An RMS increase below this is scan noise, not growth (for the divergence rule)."""
+
+
+def decide(rms_history_mm: list[float], max_abs_mm: float, cycle: int, settings: LoopSettings) -> Decision:
+    """The decision after a compared cycle.
+
+    Parameters
+    ----------
+    rms_history_mm : list of float
+        RMS deviation of every cycle so far, the current one last.
+    max_abs_mm : float
+        Largest absolute form deviation of the current cycle
+        (:attr:`mppf.measure.result.Comparison.form_max_abs_mm`).
+    cycle : int
+        The current cycle (1-based).
+    settings : LoopSettings
+
+    Returns
+    -------
+    Decision
+        IN_TOLERANCE when the largest absolute deviation and the RMS are both within
+        their limits; DIVERGED when the RMS (the robust measure: the largest deviation of
+        a scan is one noisy point) grew by more than ``divergence_factor`` since the last
+        cycle, or grew two cycles in a row, each time by more than
+        :data:`GROWTH_MARGIN_MM` (the scan's noise floor); MAX_CYCLES when no cycles are
+        left; else CONTINUE.
+    """
+    e = [float(v) for v in rms_history_mm]
+    if max_abs_mm <= settings.tolerance_mm and e[-1] <= settings.rms_tolerance_mm:
+        return Decision.IN_TOLERANCE
+    if len(e) >= 2 and e[-1] > settings.divergence_factor * e[-2] and e[-1] > settings.rms_tolerance_mm:
+        return Decision.DIVERGED
+    if len(e) >= 3 and e[-1] > e[-2] + GROWTH_MARGIN_MM and e[-2] > e[-3] + GROWTH_MARGIN_MM:
+        return Decision.DIVERGED
+    if cycle >= settings.max_cycles:
+        return Decision.MAX_CYCLES
+    return Decision.CONTINUE

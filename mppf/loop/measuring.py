@@ -1,0 +1,105 @@
+"""Measuring a pressed cycle: take the scan, compare it with the design.
+
+A scan that cannot be read, or that does not match the design (another plate, other
+units), is recorded as rejected (never taken again) and the cycle waits in "pressed" for
+another one. Every file the loop reads back (design, scan, job) is checked against the
+SHA-256 recorded for it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from mppf.core.errors import ConfigError, GeometryError, InputError
+from mppf.core.progress import Reporter
+from mppf.core.scanner import Scanner
+from mppf.geometry.read import PointCloud, read_points
+from mppf.loop.history import History
+from mppf.loop.pressing import scan_context
+from mppf.loop.records import CycleRecord, PlateRecord
+from mppf.loop.settings import LoopSettings
+from mppf.measure.compare import compare
+from mppf.measure.mark import reference_mark
+from mppf.planning.job import Job, load_job
+from mppf.planning.press import PressConfig
+
+
+def read_checked(path, sha256: str, what: str, units: str = "mm") -> PointCloud:
+    """Read a point file the history names; InputError when it changed since it was recorded."""
+    cloud = read_points(path, units=units)
+    if cloud.sha256 != sha256:
+        raise InputError(
+            f"the {what} file {path} changed since the plate was planned "
+            f"(SHA-256 {cloud.sha256[:12]}..., recorded {sha256[:12]}...)",
+            hint=f"restore the original {what} file, or start a new plate",
+        )
+    return cloud
+
+
+def load_cycle_job(record: CycleRecord) -> Job:
+    """The job file of a cycle; ConfigError when it changed since it was recorded."""
+    job = load_job(record.job_path)
+    if job.sha256() != record.job_sha256:
+        raise ConfigError(
+            f"job file {record.job_path} of cycle {record.cycle} changed since it was recorded",
+            hint="restore it; the strokes are also in the history ('mppf history --json')",
+        )
+    return job
+
+
+def acquire_scan(history: History, plate: PlateRecord, record: CycleRecord, press: PressConfig, scanner: Scanner,
+                 reporter: Reporter) -> None:
+    """Get the scan of the pressed cycle from the scanner and record it ("scanned").
+
+    Raises
+    ------
+    InputError
+        No scan came, or it cannot be read (FileFormatError: recorded as rejected).
+    """
+    context = scan_context(history, plate, record, press, reporter)
+    path = Path(scanner.acquire(record.cycle, context)).resolve()
+    try:
+        scan = read_points(path)
+    except InputError as exc:  # unreadable: never taken again, wait for another
+        history.reject_scan(plate.plate_id, record.cycle, path, "", exc.message)
+        raise
+    history.mark_scanned(plate.plate_id, record.cycle, path, scan.sha256)
+
+
+def compare_cycle(history: History, plate: PlateRecord, record: CycleRecord, design: PointCloud,
+                  settings: LoopSettings):
+    """The comparison of the cycle's scan with the design (:func:`mppf.measure.compare.compare`).
+
+    Raises
+    ------
+    GeometryError
+        The scan is not of this plate (or in other units): recorded as rejected, the cycle
+        goes back to "pressed".
+    """
+    try:
+        return _compare(plate, record, design, settings)
+    except GeometryError as exc:  # not this plate (or units): back to "pressed", wait for another
+        history.reject_scan(plate.plate_id, record.cycle, record.scan_path, record.scan_sha256, exc.message)
+        raise
+
+
+def _compare(plate: PlateRecord, record: CycleRecord, design: PointCloud, settings: LoopSettings):
+    scan = read_checked(record.scan_path, record.scan_sha256, "scan")
+    job = load_cycle_job(record)
+    offset_mm = plate.thickness_mm / 2.0 if settings.offset_mm is None else settings.offset_mm
+    x, y = np.meshgrid(job.punch_x_mm, job.punch_y_mm)
+    return compare(
+        design.points, scan.points, tolerance_mm=settings.tolerance_mm, offset_mm=offset_mm,
+        punch_xy_mm=np.stack([x, y], axis=-1), tf_press_design=job.tf_press_design,
+        reference_mark=reference_mark(record.scan_path, design.points, job),
+        margin_mm=0.0 if job.layout is None else job.layout.margin_mm,
+    )
+
+
+def comparison_summary(comparison) -> dict:
+    """The comparison as stored with the cycle (the punch deviations have their own column)."""
+    doc = comparison.to_dict()
+    doc.pop("punch_deviation_mm", None)
+    return doc

@@ -1,0 +1,143 @@
+"""A new plate in the loop: plan its first cycle and record it in the history."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from pathlib import Path
+
+from mppf.core.errors import InputError
+from mppf.core.progress import NULL_REPORTER, Reporter
+from mppf.forming.material import Material
+from mppf.geometry.read import PointCloud
+from mppf.loop.history import History
+from mppf.loop.records import PlateRecord
+from mppf.loop.settings import LoopSettings
+from mppf.planning.job import Job, save_job
+from mppf.planning.plan import plan_job
+from mppf.planning.press import PressConfig
+
+
+def new_plate_id(design_path) -> str:
+    """A readable, unique-enough plate id: design file stem and the local time."""
+    return f"{Path(design_path).stem}-{datetime.now().strftime('%Y%m%d-%H%M%S')}"
+
+
+def plan_first_cycle(design: PointCloud, flat: PointCloud, press: PressConfig, thickness_mm: float, *,
+                     settings: LoopSettings = LoopSettings(), material: Material = Material(),
+                     reporter: Reporter = NULL_REPORTER) -> Job:
+    """The job of a plate's first cycle: every step, springback pre-compensated unless the settings say no.
+
+    Parameters
+    ----------
+    design, flat : PointCloud
+        The design surface and its flat (unfolded) shape (their paths and SHA-256 go into
+        the job's inputs).
+    press : PressConfig
+    thickness_mm : float
+    settings : LoopSettings
+        ``springback`` and ``margin_mm`` are used.
+    material : Material
+        Nominal plate material.
+
+    Raises
+    ------
+    InputError
+        Bad or mismatched inputs (from the planner).
+    """
+    inputs = {"design": {"path": str(design.path), "sha256": design.sha256},
+              "flat": {"path": str(flat.path), "sha256": flat.sha256}}
+    return plan_job(design.points, flat.points, press, thickness_mm, material=material,
+                    springback=settings.springback, reporter=reporter, inputs=inputs, margin_mm=settings.margin_mm)
+
+
+def record_plate(history: History, design: PointCloud, flat: PointCloud, press: PressConfig, thickness_mm: float,
+                 job: Job, *, plate_id: str, work_dir, settings: LoopSettings = LoopSettings(),
+                 setup: dict | None = None) -> PlateRecord:
+    """Record a plate with its first cycle ("planned") pressing ``job``; its job file goes into ``work_dir``.
+
+    Parameters
+    ----------
+    history : History
+    design, flat : PointCloud
+        As given to :func:`plan_first_cycle`.
+    press : PressConfig
+    thickness_mm : float
+    job : Job
+        The first cycle's job (:func:`plan_first_cycle`).
+    plate_id : str
+    work_dir : path-like
+        Folder for the plate's job files and scans (created).
+    settings : LoopSettings
+    setup : dict, optional
+        More to record with the plate (PLC URL, scanner, seed...), JSON-ready; a
+        ``"units"`` entry (the length unit of the design file) is used to re-read it.
+
+    Raises
+    ------
+    InputError
+        The plate id already exists, or the work folder cannot be created.
+    """
+    work_dir = Path(work_dir)
+    history.check_new_plate(plate_id)
+    try:
+        work_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create the work folder {work_dir}: {exc.strerror}",
+                         hint="give a writable folder with --work-dir") from None
+    job_path = save_job(job, work_dir / "cycle-01.job.json")
+    history.create_plate(
+        plate_id,
+        design_path=design.path.resolve(), design_sha256=design.sha256,
+        flat_path=flat.path.resolve(), flat_sha256=flat.sha256,
+        thickness_mm=thickness_mm, press=press.to_dict(),
+        settings={"loop": settings.to_dict(), "work_dir": str(work_dir.resolve()), **(setup or {})},
+    )
+    history.add_cycle(plate_id, 1, job_path=job_path.resolve(), job_sha256=job.sha256(), steps=job.steps)
+    return history.plate(plate_id)
+
+
+def start_plate(
+    history: History,
+    design: PointCloud,
+    flat: PointCloud,
+    press: PressConfig,
+    thickness_mm: float,
+    *,
+    plate_id: str,
+    work_dir,
+    settings: LoopSettings = LoopSettings(),
+    material: Material = Material(),
+    setup: dict | None = None,
+    reporter: Reporter = NULL_REPORTER,
+) -> PlateRecord:
+    """Plan a new plate and record it with its first cycle ("planned").
+
+    Parameters
+    ----------
+    design, flat : PointCloud
+        The design surface and its flat (unfolded) shape, read by
+        :func:`mppf.geometry.read.read_points` (their paths and SHA-256 are recorded).
+    press : PressConfig
+    thickness_mm : float
+    plate_id : str
+    work_dir : path-like
+        Folder for the plate's job files and scans (created).
+    settings : LoopSettings
+    material : Material
+        Nominal plate material (springback pre-compensation of the first cycle).
+    setup : dict, optional
+        As :func:`record_plate`.
+
+    Raises
+    ------
+    InputError
+        Bad or mismatched inputs (from the planner), or the plate id already exists.
+    """
+    # refuse a duplicate id before the (slow) planning
+    history.check_new_plate(plate_id)
+    # plan all steps of the first cycle, with springback pre-compensation
+    reporter.info(f"planning plate {plate_id}")
+    job = plan_first_cycle(design, flat, press, thickness_mm, settings=settings, material=material, reporter=reporter)
+    # record the plate, then its first cycle
+    return record_plate(history, design, flat, press, thickness_mm, job, plate_id=plate_id, work_dir=work_dir,
+                        settings=settings, setup=setup)

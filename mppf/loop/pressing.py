@@ -1,0 +1,85 @@
+"""Pressing a planned cycle, step by step, and what the plate saw last (for its scan).
+
+Each step is committed in the history before anything is sent to the press and again with
+the press's read-back when it is done, so a crash never presses a step twice
+(:meth:`mppf.loop.history.History.mark_step_started`). A step the press refused before any
+motion (limits, verification, GO refused) is recorded as not started and may run later.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+from pathlib import Path
+
+from mppf.core.errors import InputError, PressRefused
+from mppf.core.presslink import PressLink, StepResult
+from mppf.core.progress import Reporter
+from mppf.core.scanner import ScanContext
+from mppf.loop.history import History
+from mppf.loop.records import CycleRecord, PlateRecord
+from mppf.planning.job import StepStrokes, grid_from_json, grid_to_json
+from mppf.planning.press import PressConfig
+
+
+def press_cycle(history: History, record: CycleRecord, press: PressConfig, link: PressLink,
+                reporter: Reporter) -> None:
+    """Press the steps of a planned cycle, recording each before and after; the cycle ends "pressed".
+
+    Raises
+    ------
+    InputError, PressRefused
+        Refused before any motion: the step is recorded as not started.
+    LinkError, PlcError, PressFault, Cancelled
+        From the press during a step: the cycle stays "pressing" (never pressed again).
+    """
+    n = len(record.steps)
+    if hasattr(link, "job_sha256"):  # the press driver writes it into the audit log
+        link.job_sha256 = record.job_sha256
+    for index, step in enumerate(record.steps, start=1):
+        reporter.info(f"cycle {record.cycle}: press step {index} of {n}")
+        # committed before anything is sent: a crash from here on never presses this step again
+        history.mark_step_started(record.plate_id, record.cycle, index)
+        upper_mm, lower_mm = step.setpoints_mm(press)
+        try:
+            result = link.run_step(upper_mm, lower_mm, reporter=reporter)
+        except (InputError, PressRefused) as exc:
+            # refused before any motion (limits, verification, GO refused): the step may run later
+            history.mark_step_not_started(record.plate_id, record.cycle, index, exc.message)
+            raise
+        history.mark_step_done(record.plate_id, record.cycle, index, result_to_dict(result))
+    history.mark_pressed(record.plate_id, record.cycle)
+
+
+def result_to_dict(result: StepResult) -> dict:
+    """A step's read-back as stored in the history."""
+    return {
+        "sequence": int(result.sequence),
+        "max_error_mm": round(float(result.max_error_mm), 4),
+        "duration_s": round(float(result.duration_s), 3),
+        "actual_upper_mm": grid_to_json(result.actual_upper_mm),
+        "actual_lower_mm": grid_to_json(result.actual_lower_mm),
+    }
+
+
+def last_step(record: CycleRecord) -> StepStrokes:
+    """The strokes the plate saw last in this cycle (the interrupted step after a crash)."""
+    return record.steps[max(record.step_started, 1) - 1]
+
+
+def scan_context(history: History, plate: PlateRecord, record: CycleRecord, press: PressConfig,
+                 reporter: Reporter) -> ScanContext:
+    """What the scanner may want to know about the cycle: the tip heights the plate saw last and more."""
+    step = last_step(record)
+    if record.results and record.steps_done == record.step_started:
+        upper_mm = grid_from_json(record.results[-1]["actual_upper_mm"])
+        lower_mm = grid_from_json(record.results[-1]["actual_lower_mm"])
+    else:  # read-back lost in a crash: the setpoints of the interrupted step
+        upper_mm, lower_mm = step.setpoints_mm(press)
+    since = datetime.fromisoformat(record.created_utc).timestamp()  # when the cycle was planned
+    cycles = history.cycles(plate.plate_id)
+    used = tuple([c.scan_path for c in cycles if c.scan_path and c.cycle != record.cycle]
+                 + [r["path"] for c in cycles for r in c.rejected_scans])
+    return ScanContext(
+        plate_id=plate.plate_id, work_dir=Path(plate.settings["work_dir"]), since_s=since,
+        upper_mm=upper_mm, lower_mm=lower_mm, active=step.active, used_paths=used, reporter=reporter,
+    )

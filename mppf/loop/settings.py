@@ -1,0 +1,85 @@
+"""The loop's settings: when it stops and how hard it corrects (stored with each plate)."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+from mppf.core.defaults import RMS_TOLERANCE_MM, TOLERANCE_MM
+from mppf.core.validate import check_number
+
+MAX_CYCLES_LIMIT = 50
+"""Most press cycles a plate may be given."""
+
+
+@dataclass(frozen=True)
+class LoopSettings:
+    """When the loop stops and how hard it corrects.
+
+    Attributes
+    ----------
+    tolerance_mm : float
+        Largest absolute deviation accepted (mm; default :data:`mppf.core.defaults.TOLERANCE_MM`).
+    rms_tolerance_mm : float
+        Largest RMS deviation accepted (mm; default :data:`mppf.core.defaults.RMS_TOLERANCE_MM`).
+        In tolerance = both limits met.
+    max_cycles : int
+        Press cycles at most (the first, planned one included), 1 to :data:`MAX_CYCLES_LIMIT`.
+    gain : float
+        Displacement-adjustment gain lambda (with ``model_gain``: a factor on the
+        springback-model correction).
+    model_gain : bool
+        Correct through the springback model with the nominal material of the job (the
+        slope of the springback law at the loaded curvature, per punch and per curvature
+        component). Off: the secant gains of the displacement adjustment (gain ``gain`` in
+        the first correction); see :func:`mppf.correct.compensate.compensate`.
+    divergence_factor : float
+        The loop stops as diverged when the RMS deviation grows by more than this
+        factor (> 1) from one cycle to the next, or grows two cycles in a row (see
+        :func:`mppf.loop.decide.decide`).
+    springback : bool
+        Plan the first cycle with springback pre-compensation (over-bend).
+    offset_mm : float or None
+        Normal offset from the design surface to the scanned skin (mm); None = half the
+        thickness (the design is the moulded mid-surface, the scanner sees the top skin).
+    margin_mm : float or None
+        Trim margin the flat plate is cut with (mm, see :func:`mppf.planning.plan.plan_job`);
+        None = the press's ``[forming] margin_mm``. The scans carry it; the tolerance is
+        judged on the net plate.
+    calibrate : bool
+        With ``model_gain``: fit the plate's effective yield stress to the measured cycles
+        and solve the next strokes on the calibrated plate model
+        (:func:`mppf.correct.calibrated.calibrated_step`); the model step of
+        :func:`mppf.correct.compensate.compensate` when the fit explains too little.
+    """
+
+    tolerance_mm: float = TOLERANCE_MM
+    rms_tolerance_mm: float = RMS_TOLERANCE_MM
+    max_cycles: int = 5
+    gain: float = 1.0
+    divergence_factor: float = 1.5
+    springback: bool = True
+    offset_mm: float | None = None
+    model_gain: bool = True
+    margin_mm: float | None = None
+    calibrate: bool = True
+
+    def __post_init__(self):
+        checks = {  # name: (lower bound, exclusive)
+            "tolerance_mm": 0.0, "rms_tolerance_mm": 0.0, "gain": 0.0, "divergence_factor": 1.0,
+        }
+        for name, low in checks.items():
+            object.__setattr__(self, name, check_number(f"loop setting {name}", getattr(self, name), low=low,
+                                                        low_open=True))
+        object.__setattr__(self, "max_cycles", check_number("loop setting max_cycles", self.max_cycles, low=1,
+                                                            high=MAX_CYCLES_LIMIT, integer=True))
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict (stored with the plate)."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, doc: dict) -> LoopSettings:
+        """Inverse of :meth:`to_dict` (unknown keys ignored)."""
+        names = {f.name for f in dataclasses.fields(cls)}
+        return cls(**{k: v for k, v in doc.items() if k in names})

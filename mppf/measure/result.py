@@ -1,0 +1,165 @@
+"""The result of a comparison of a scanned plate with its design: statistics, deviations, registration."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mppf.core.transform import tf_to_list
+from mppf.geometry.frame import LocalFrame
+from mppf.registration.register import Registration
+
+
+@dataclass(frozen=True, eq=False)
+class Comparison:
+    """The result of :func:`mppf.measure.compare.compare`. Lengths in mm.
+
+    Attributes
+    ----------
+    rms_mm, max_abs_mm, mean_mm, std_mm : float
+        Statistics of the inlier deviations, point by point (scanner noise included).
+    form_rms_mm, form_max_abs_mm : float
+        The same of the form deviation: the plate's deviation with the scanner's point
+        noise averaged out by a local plane through each point's
+        :data:`mppf.measure.outliers.FORM_NEIGHBOURS` nearest inliers. The tolerance decision (:attr:`in_tolerance`) uses
+        ``form_max_abs_mm``: a smooth steel plate has no 1 mm bumps 20 mm wide, its scan
+        has (0.3 mm noise gives about +-1.2 mm extremes over 15 000 points).
+    within_tolerance_pct : float
+        Percent of the inliers with ``|deviation| <= tolerance_mm``.
+    tolerance_mm, offset_mm : float
+        As given.
+    histogram_edges_mm : (b + 1,) float
+    histogram_counts : (b,) int
+        Histogram of the inlier deviations.
+    transform : (4, 4) float
+        Maps measured coordinates into design coordinates.
+    registration : Registration
+        The ICP report.
+    deviation_mm : (n,) float
+        Signed normal deviation of every measured point (NaN where the foot point search
+        failed).
+    inlier : (n,) bool
+        Points used in the statistics.
+    is_outlier : (n,) bool
+        Points flagged as outliers (off the surface relative to their neighbours).
+    is_outside : (n,) bool
+        Points whose foot point is outside the design plate (or did not converge).
+    measured_in_design : (n, 3) float
+        The measured points moved into design coordinates.
+    measured_uv_mm : (n, 2) float
+        Their foot points' (u, v) in the design's local frame (for maps).
+    design_frame : LocalFrame
+        The design's local frame (u, v, n rows, as :func:`mppf.geometry.frame.fit_frame` gives it).
+    normal_sign : float
+        +1 when positive deviations lie on the frame's +n side, -1 when on its -n side
+        (the normal was turned to point up in press coordinates).
+    design_uv_mm : (m, 2) float
+        The design points in that frame (for the outline of maps).
+    design_fit_rms_mm : float
+        RMS residual of the surface fitted to the design points.
+    form_deviation_mm : (n,) float
+        The form deviation of every inlier and of every trim-margin point that is not an
+        outlier (NaN elsewhere; the margin points' are not in the form statistics).
+    punch_deviation_mm : (rows, cols) float or None
+        Deviation of the plate at each punch along press z (the stroke direction):
+        positive = plate above the design. NaN where the punch is off the plate.
+    punch_normal_deviation_mm : (rows, cols) float or None
+        The same along the design normal.
+    punch_interpolated : (rows, cols) bool or None
+        Punches without measured points nearby (occlusion) whose value is interpolated.
+    notes : list of str
+    margin_mm : float
+        Width of the trim margin (excess band around the design outline), as given.
+    in_margin : (n,) bool
+        Points whose foot point lies in the trim margin: beyond the design's convex
+        outline, within the outline grown by ``margin_mm``. Measured, used for the punch
+        deviations, not in the statistics (nor in ``inlier`` or ``is_outside``). All False
+        when ``margin_mm`` is 0; default (None given): all False.
+    """
+
+    rms_mm: float
+    max_abs_mm: float
+    mean_mm: float
+    std_mm: float
+    within_tolerance_pct: float
+    tolerance_mm: float
+    offset_mm: float
+    histogram_edges_mm: np.ndarray
+    histogram_counts: np.ndarray
+    transform: np.ndarray
+    registration: Registration
+    deviation_mm: np.ndarray
+    inlier: np.ndarray
+    is_outlier: np.ndarray
+    is_outside: np.ndarray
+    measured_in_design: np.ndarray
+    measured_uv_mm: np.ndarray
+    design_frame: LocalFrame
+    normal_sign: float
+    design_uv_mm: np.ndarray
+    design_fit_rms_mm: float
+    form_rms_mm: float = float("nan")
+    form_max_abs_mm: float = float("nan")
+    form_deviation_mm: np.ndarray | None = None
+    punch_deviation_mm: np.ndarray | None = None
+    punch_normal_deviation_mm: np.ndarray | None = None
+    punch_interpolated: np.ndarray | None = None
+    notes: list[str] = field(default_factory=list)
+    margin_mm: float = 0.0
+    in_margin: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.in_margin is None:
+            object.__setattr__(self, "in_margin", np.zeros(self.deviation_mm.shape[0], dtype=bool))
+
+    @property
+    def n_points(self) -> int:
+        """Number of measured points."""
+        return int(self.deviation_mm.shape[0])
+
+    @property
+    def n_inliers(self) -> int:
+        """Points in the statistics."""
+        return int(self.inlier.sum())
+
+    @property
+    def in_tolerance(self) -> bool:
+        """Largest absolute form deviation within the tolerance (see ``form_max_abs_mm``)."""
+        return bool(self.form_max_abs_mm <= self.tolerance_mm)
+
+    def to_dict(self) -> dict:
+        """JSON-able summary: statistics, transform (4x4 lists), histogram, registration, punches."""
+        doc = {
+            "rms_mm": self.rms_mm,
+            "max_abs_mm": self.max_abs_mm,
+            "mean_mm": self.mean_mm,
+            "std_mm": self.std_mm,
+            "within_tolerance_pct": self.within_tolerance_pct,
+            "form_rms_mm": self.form_rms_mm,
+            "form_max_abs_mm": self.form_max_abs_mm,
+            "tolerance_mm": self.tolerance_mm,
+            "offset_mm": self.offset_mm,
+            "in_tolerance": self.in_tolerance,
+            "n_points": self.n_points,
+            "n_inliers": self.n_inliers,
+            "n_outliers": int(self.is_outlier.sum()),
+            "n_outside": int(self.is_outside.sum()),
+            "margin_mm": self.margin_mm,
+            "n_margin": int(self.in_margin.sum()),
+            "inlier_fraction": self.n_inliers / max(self.n_points, 1),
+            "transform": tf_to_list(self.transform),
+            "histogram": {"edges_mm": self.histogram_edges_mm.tolist(), "counts": self.histogram_counts.tolist()},
+            "design_fit_rms_mm": self.design_fit_rms_mm,
+            "registration": self.registration.to_dict(),
+            "notes": list(self.notes),
+        }
+        if self.punch_deviation_mm is not None:
+            doc["punch_deviation_mm"] = _nan_to_none(self.punch_deviation_mm)
+            doc["punch_normal_deviation_mm"] = _nan_to_none(self.punch_normal_deviation_mm)
+            doc["punch_interpolated"] = self.punch_interpolated.tolist()
+        return doc
+
+
+def _nan_to_none(grid: np.ndarray) -> list:
+    return [[None if not np.isfinite(v) else float(v) for v in row] for row in grid]

@@ -1,0 +1,302 @@
+"""A simulated steel plate on the press: pressed step by step, it keeps its plastic memory.
+
+:class:`SteelPlate` is one physical plate (seeded) on one press. Each
+:meth:`SteelPlate.press_step` takes the tip heights the PLC read back for a step:
+
+1. the tips move from where they last were to the step's tips in ``load_increments``
+   sub-increments (parked pairs start at their park heights), the plate in equilibrium
+   under the unilateral contacts, the press compliance and its weight at each
+   (:func:`mppf.sim.plate.solve.solve_loaded`), the plastic state committed after each;
+2. the punches retract and the plate springs back free
+   (:func:`mppf.sim.plate.solve.solve_unloaded`), unless ``springback=False``;
+3. the plate keeps the unloaded shape and plastic state for the next step and cycle.
+
+Before the first step the plate is flat and stress free, its bottom skin on z = 0, held
+by the flat stroke set (lower tips 0, upper tips at the local thickness).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict
+
+import numpy as np
+
+from mppf.core.errors import GeometryError, InputError
+from mppf.core.validate import check_number, check_positive
+from mppf.planning.press import PressConfig, press_from_dict
+from mppf.sim.plate.contact import Compliance, Punches
+from mppf.sim.plate.formed import FormedSteelPlate
+from mppf.sim.plate.grid import PlateGrid
+from mppf.sim.plate.material import PlateSteel
+from mppf.sim.plate.scatter import PhysicalPlate, Scatter, sample_plate
+from mppf.sim.plate.section import LAYERS, LayerLaw, SectionState
+from mppf.sim.plate.predict import ContactPredictor
+from mppf.sim.plate.solve import PlateModel, PlateSolveError, solve_loaded, solve_unloaded
+
+GRID_SPACING_MM = 50.0
+"""Default cell size of the plate grid."""
+
+LOAD_INCREMENTS = 2
+"""Default sub-increments of the tip path of one press step."""
+
+INCREMENT_ITERATIONS = 15
+"""Newton iterations an increment may take before it is halved."""
+
+SMALLEST_INCREMENT = 1.0 / 64
+"""Smallest share of the tip path in one increment."""
+
+STATE_ARRAYS = ("q", "loaded_q", "force_n", "frame_mm", "tips_lower_mm", "tips_upper_mm", "tips_enabled")
+"""Attributes of :class:`SteelPlate` saved by :meth:`SteelPlate.state_dict` (besides the plastic state)."""
+
+
+
+class SteelPlate:
+    """One simulated physical steel plate on a press.
+
+    Parameters
+    ----------
+    press : PressConfig
+        Punch positions and tip radius.
+    outline_xy_mm : (k, 2) float
+        The plate as cut (trim margin included) in press x, y, mm.
+    thickness_mm : float
+        Nominal thickness, mm.
+    steel : PlateSteel
+        Nominal steel.
+    seed : int or None
+        Seed of the plate's scatter (one seed, one physical plate); None: exactly nominal.
+    scatter : Scatter
+    compliance : Compliance
+    grid_spacing_mm : float
+        Cell size of the plate grid.
+    layers : int
+        Gauss points through the half thickness.
+    load_increments, unload_increments : int
+        Sub-increments of loading (tip path) and unloading.
+    springback : bool
+        False: the formed shape is the loaded one (the plate stays as held).
+    cylindrical : bool
+        Plane-strain kinematics w(u) (closed-form checks of wide plates).
+    """
+
+    def __init__(self, press: PressConfig, outline_xy_mm, thickness_mm: float, steel: PlateSteel = PlateSteel(), *,
+                 seed: int | None = 0, scatter: Scatter = Scatter(), compliance: Compliance = Compliance(),
+                 grid_spacing_mm: float = GRID_SPACING_MM, layers: int = LAYERS,
+                 load_increments: int = LOAD_INCREMENTS, unload_increments: int = 1,
+                 springback: bool = True, cylindrical: bool = False):
+        options = {"grid_spacing_mm": grid_spacing_mm, "layers": layers, "load_increments": load_increments,
+                   "unload_increments": unload_increments, "springback": springback, "cylindrical": cylindrical}
+        self._build(press, outline_xy_mm, sample_plate(steel, thickness_mm, scatter, seed), compliance, options)
+
+    @classmethod
+    def from_physical(cls, press: PressConfig, outline_xy_mm, plate: PhysicalPlate, *,
+                      compliance: Compliance = Compliance(), **options) -> SteelPlate:
+        """A flat plate of a given physical plate (e.g. one drawn by :func:`sample_plate`).
+
+        Parameters
+        ----------
+        press, outline_xy_mm, compliance
+            As for the constructor.
+        plate : PhysicalPlate
+        **options
+            ``grid_spacing_mm``, ``layers``, ``load_increments``, ``unload_increments``,
+            ``springback``, ``cylindrical`` (defaults as for the constructor).
+        """
+        self = cls.__new__(cls)
+        defaults = {"grid_spacing_mm": GRID_SPACING_MM, "layers": LAYERS, "load_increments": LOAD_INCREMENTS,
+                    "unload_increments": 1, "springback": True, "cylindrical": False}
+        unknown = set(options) - set(defaults)
+        if unknown:
+            raise InputError(f"unknown plate option(s) {', '.join(sorted(unknown))}",
+                             hint=f"use {', '.join(defaults)}")
+        self._build(press, outline_xy_mm, plate, compliance, {**defaults, **options})
+        return self
+
+    def _build(self, press, outline_xy_mm, plate, compliance, options):
+        """Grid, punches, model and predictor of the flat, stress-free plate."""
+        self.press, self.plate, self.compliance = press, plate, compliance
+        self.options = {
+            "grid_spacing_mm": check_positive("grid spacing", options["grid_spacing_mm"], unit="mm"),
+            "layers": check_number("layers", options["layers"], low=2, high=64, integer=True),
+            "load_increments": check_number("load increments", options["load_increments"], low=1, high=1000,
+                                            integer=True),
+            "unload_increments": check_number("unload increments", options["unload_increments"], low=1, high=1000,
+                                              integer=True),
+            "springback": bool(options["springback"]), "cylindrical": bool(options["cylindrical"]),
+        }
+        self.grid = PlateGrid(outline_xy_mm, self.options["grid_spacing_mm"], cylindrical=self.options["cylindrical"])
+        self.punches = Punches(press, self.grid, plate.thickness_at)
+        law = LayerLaw(plate.steel, self.options["layers"])
+        self.model = PlateModel(self.grid, law, plate, self.punches, compliance)
+        self.predictor = ContactPredictor(self.model)
+        # the flat, stress-free plate (bottom skin on z = 0) between the flat stroke set
+        m = self.punches.count
+        self.q = np.full(self.grid.n_dof, 0.5 * plate.thickness_mm)
+        self.loaded_q = self.q.copy()
+        self.state = SectionState.virgin(len(self.grid.gauss_uv), self.options["layers"])
+        self.force_n = np.zeros(2 * m)
+        self.frame_mm = np.zeros(2)
+        self.tips_lower_mm = np.zeros(m)
+        self.tips_upper_mm = self.punches.thickness_mm.copy()
+        self.tips_enabled = np.ones(m, dtype=bool)
+        self.steps = 0
+        self.last_iterations: list[int] = []
+
+    # --- pressing ----------------------------------------------------------------
+    def press_step(self, upper_mm, lower_mm, active) -> FormedSteelPlate:
+        """Press one step and let the plate spring back.
+
+        Parameters
+        ----------
+        upper_mm, lower_mm : (rows, cols) float
+            Tip heights as the PLC read them back (compliance is applied inside), mm;
+            entries of inactive punches are ignored (may be NaN).
+        active : (rows, cols) bool
+            Punch pairs in use; the others are parked and do not touch.
+
+        Returns
+        -------
+        FormedSteelPlate
+            The plate after the step (:attr:`formed`).
+
+        Raises
+        ------
+        InputError
+            Grids of the wrong shape, NaN tips at active pairs, a gap below half the thickness.
+        GeometryError
+            Fewer than 3 active pairs over the plate.
+        PlateSolveError
+            The equilibrium did not converge.
+        """
+        lower, upper, enabled = self._check_step(upper_mm, lower_mm, active)
+        start_lower = np.where(self.tips_enabled, self.tips_lower_mm, self.press.lower.park_mm)
+        start_upper = np.where(self.tips_enabled, self.tips_upper_mm, self.press.upper.park_mm)
+        # 1. load: the tips travel from where they were to the step's tips
+        loaded, iterations = self._load(start_lower, start_upper, lower, upper, enabled)
+        # 2. unload: the punches retract, the plate springs back
+        q, state = loaded.q, loaded.state
+        if self.options["springback"]:
+            unloaded = solve_unloaded(self.model, loaded, self.options["unload_increments"])
+            q, state = unloaded.q, unloaded.state
+            iterations.append(unloaded.iterations)
+        # 3. the plate keeps its shape and plastic state
+        self.loaded_q, self.q, self.state, self.force_n = loaded.q, q, state, loaded.force_n
+        self.frame_mm = loaded.frame_mm
+        self.tips_lower_mm, self.tips_upper_mm, self.tips_enabled = lower, upper, enabled
+        self.steps += 1
+        self.last_iterations = iterations
+        return self.formed
+
+    def _load(self, start_lower, start_upper, lower, upper, enabled):
+        """Equilibria along the tip path in sub-increments (halved where Newton struggles).
+
+        Each increment starts from the elastic contact prediction from the last loaded
+        state (:class:`mppf.sim.plate.predict.ContactPredictor`); its plastic state is
+        committed before the next.
+
+        Returns
+        -------
+        loaded : Equilibrium
+            At the step's tips.
+        iterations : list of int
+            Newton iterations of each increment.
+        """
+        ref_q, ref_force, ref_frame, state = self.loaded_q, self.force_n, self.frame_mm, self.state
+        done, size, iterations = 0.0, 1.0 / self.options["load_increments"], []
+        while done < 1.0 - 1e-12:
+            s = min(1.0, done + size)
+            tips_lower = start_lower + s * (lower - start_lower)
+            tips_upper = start_upper + s * (upper - start_upper)
+            q0, frame0, guess = self.predictor.predict(ref_q, ref_force, ref_frame, tips_lower, tips_upper, enabled)
+            try:
+                loaded = solve_loaded(self.model, q0, frame0, state, tips_lower, tips_upper, enabled, guess,
+                                      INCREMENT_ITERATIONS)
+            except PlateSolveError:
+                if size <= SMALLEST_INCREMENT:
+                    raise
+                size *= 0.5
+                continue
+            done, iterations = s, iterations + [loaded.iterations]
+            ref_q, ref_force, ref_frame, state = loaded.q, loaded.force_n, loaded.frame_mm, loaded.state
+        return loaded, iterations
+
+    @property
+    def formed(self) -> FormedSteelPlate:
+        """The plate as it is now (unloaded after its last step), scanner compatible."""
+        return FormedSteelPlate.build(self.grid, self.plate, self.loaded_q, self.q, self.punches, self.force_n)
+
+    def _check_step(self, upper_mm, lower_mm, active):
+        """Tips (m,) of the pairs over the plate and which of them are active."""
+        shape = self.press.shape
+        upper = np.asarray(upper_mm, dtype=float)
+        lower = np.asarray(lower_mm, dtype=float)
+        act = np.asarray(active, dtype=bool)
+        for name, arr in (("upper_mm", upper), ("lower_mm", lower), ("active", act)):
+            if arr.shape != shape:
+                raise InputError(f"{name} has shape {arr.shape}, the press has {shape}")
+        if not (np.all(np.isfinite(upper[act])) and np.all(np.isfinite(lower[act]))):
+            raise InputError("NaN or infinite tip height at an active punch", hint="every active punch needs a height")
+        enabled = self.punches.pick(act)
+        if enabled.sum() < 3:
+            raise GeometryError(f"a plate needs at least 3 active punch pairs over it, got {int(enabled.sum())}")
+        p_lower = np.where(enabled, self.punches.pick(lower), 0.0)
+        p_upper = np.where(enabled, self.punches.pick(upper), 0.0)
+        gap = np.where(enabled, p_upper - p_lower, np.inf)
+        half = 0.5 * self.punches.thickness_mm
+        if np.any(gap < half):
+            i = int(np.argmin(gap - half))
+            raise InputError(f"the gap between upper and lower tips is {gap[i]:.3f} mm at punch "
+                             f"{tuple(self.punches.index[i])}, less than half the plate thickness {2 * half[i]:.3f} mm",
+                             hint="the step would crush the plate; check the strokes")
+        return p_lower, p_upper, enabled
+
+    # --- save / restore ------------------------------------------------------------
+    def state_dict(self) -> dict:
+        """Everything to rebuild this plate as it is now: JSON-able settings + numpy arrays.
+
+        Returns
+        -------
+        dict
+            ``"config"`` (a JSON string: press, outline, physical plate, options, compliance),
+            ``"steps"`` and the arrays of :data:`STATE_ARRAYS` plus ``plastic_strain`` and
+            ``alpha``. Save it with ``np.savez(path, **state)``.
+        """
+        config = {"press": self.press.to_dict(), "outline_xy_mm": self.grid.outline_xy_mm.tolist(),
+                  "plate": self.plate.to_dict(), "options": self.options, "compliance": asdict(self.compliance)}
+        state = {name: np.array(getattr(self, name)) for name in STATE_ARRAYS}
+        state.update(config=json.dumps(config), steps=np.array(self.steps),
+                     plastic_strain=self.state.plastic_strain.copy(), alpha=self.state.alpha.copy())
+        return state
+
+    @classmethod
+    def from_state(cls, state) -> SteelPlate:
+        """The plate of :meth:`state_dict` (a dict, or the mapping ``np.load`` returns).
+
+        Raises
+        ------
+        InputError
+            Something is missing, or the arrays do not fit the plate the settings describe.
+        """
+        missing = {"config", "steps", "plastic_strain", "alpha", *STATE_ARRAYS} - set(state)
+        if missing:
+            raise InputError(f"saved plate state lacks {', '.join(sorted(missing))}",
+                             hint="save it with SteelPlate.state_dict()")
+        config = json.loads(str(np.asarray(state["config"])))
+        plate = PhysicalPlate.from_dict(config["plate"])
+        press = press_from_dict(config["press"], "saved plate state")
+        self = cls.from_physical(press, np.asarray(config["outline_xy_mm"]), plate,
+                                 compliance=Compliance(**config["compliance"]), **config["options"])
+        arrays = {name: getattr(self, name) for name in STATE_ARRAYS}
+        arrays.update(plastic_strain=self.state.plastic_strain, alpha=self.state.alpha)
+        restored = {}
+        for name, like in arrays.items():
+            value = np.array(state[name], dtype=like.dtype)
+            if value.shape != like.shape:
+                raise InputError(f"saved plate state: {name} has shape {value.shape}, the plate needs {like.shape}")
+            restored[name] = value
+        for name in STATE_ARRAYS:
+            setattr(self, name, restored[name])
+        self.state = SectionState(restored["plastic_strain"], restored["alpha"])
+        self.steps = int(np.asarray(state["steps"]))
+        return self

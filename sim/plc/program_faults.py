@@ -1,0 +1,144 @@
+"""Injectable faults of the simulated PLC's program: stuck punch, e-stop, overpressure, halt.
+
+:class:`ProgramFaults` is the fault part of :class:`mppf.sim.plc.program.PlcProgram`: the
+injected conditions, the timers that trigger them during motion, and how they latch. The
+faults of the link (slow replies, dropped connections, restarts) are the Modbus server's
+(:mod:`mppf.sim.plc.server`). The grammar of ``--fault`` specs is :mod:`mppf.sim.faults`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mppf.core.errors import InputError
+from mppf.sim.faults import KINDS
+from mppf.sim.plc.commands import MATRICES
+
+PROGRAM_FAULTS = ("stuck", "estop", "overpressure", "freeze")
+"""Faults of the PLC program (the rest of :data:`mppf.sim.faults.KINDS` act on the link)."""
+
+
+class ProgramFaults:
+    """Fault injection and fault timers of the PLC program (a mixin of ``PlcProgram``).
+
+    Attributes
+    ----------
+    estop_pressed : bool
+        The e-stop circuit is open (until :meth:`release_estop` or :meth:`clear_faults`).
+    frozen : bool
+        The program is halted: no scan, writes land in memory unacted.
+    """
+
+    def _init_faults(self) -> None:
+        self.estop_pressed = False
+        self.frozen = False
+        self._motion_faults: list[tuple[float, str]] = []  # (after simulated s of motion, kind)
+        self._stuck_fault_after_s: dict[tuple[int, int, int], float] = {}
+
+    def inject(self, kind: str, **params) -> None:
+        """Inject a fault of the program (see docs/simulator.md).
+
+        Parameters
+        ----------
+        kind : {"stuck", "estop", "overpressure", "freeze"}
+        **params
+            stuck: ``matrix`` ("upper"/"lower"), ``row``, ``col``, ``percent`` (of each
+            move done before it sticks, default 50), ``fault_after_s`` (simulated s after
+            the other punches arrived until fault STUCK_PUNCH and the punch's fault bit;
+            None: no fault, motion simply ends short). estop / overpressure / freeze:
+            ``after_s`` (simulated s of motion of the next or current GO; None: now).
+
+        Raises
+        ------
+        InputError
+            Unknown fault, a fault of the link, or bad parameters.
+        """
+        if kind not in PROGRAM_FAULTS:
+            if kind in KINDS:
+                raise InputError(f"fault {kind!r} acts on the Modbus link, which this PLC program does not have",
+                                 hint="inject it into a simulated PLC served over Modbus (mppf.sim.plc.run_simulated_plc)")
+            raise InputError(f"unknown fault {kind!r}", hint=f"known faults: {', '.join(KINDS)}")
+        try:
+            if kind == "stuck":
+                self._inject_stuck(**params)
+            else:
+                self._inject_timed(kind, **params)
+        except TypeError as exc:
+            raise InputError(f"fault {kind!r}: {exc}", hint="see docs/simulator.md for the parameters") from None
+        self.publish()
+
+    def _inject_stuck(self, matrix, row, col, percent=50.0, fault_after_s=None) -> None:
+        if matrix not in MATRICES:
+            raise InputError(f"stuck punch: matrix must be 'upper' or 'lower', got {matrix!r}")
+        if not (0 <= row < self.press.rows and 0 <= col < self.press.cols):
+            raise InputError(
+                f"stuck punch: row {row}, col {col} outside the {self.press.rows} x {self.press.cols} matrix",
+                hint="rows and columns count from 0",
+            )
+        if not 0 <= percent <= 100:
+            raise InputError(f"stuck punch: percent must be 0..100, got {percent}")
+        idx = (MATRICES.index(matrix), int(row), int(col))
+        self.hydraulics.set_stuck(idx, percent / 100.0)
+        if fault_after_s is not None:
+            self._stuck_fault_after_s[idx] = float(fault_after_s)
+
+    def _inject_timed(self, kind, after_s=None) -> None:
+        if after_s is None:
+            self._trigger(kind)
+        else:
+            self._motion_faults.append((float(after_s), kind))
+
+    def _trigger(self, kind: str) -> None:
+        if kind == "freeze":
+            self.frozen = True
+            self.hydraulics.halt()  # outputs off: the valves close
+        elif kind == "estop":
+            self.estop_pressed = True
+            self._latch("ESTOP")
+        elif kind == "overpressure":
+            self._latch("OVERPRESSURE")
+
+    def _run_motion_faults(self) -> None:
+        """Trigger the faults whose time of motion has come."""
+        for after_s, kind in list(self._motion_faults):
+            if self.motion_time_s >= after_s:
+                self._motion_faults.remove((after_s, kind))
+                self._trigger(kind)
+
+    def _stuck_short(self) -> np.ndarray:
+        """(2, rows, cols) bool: stuck punches short of their goal."""
+        stuck = ~np.isnan(self.hydraulics.stuck_fraction)
+        off = np.abs(self.hydraulics.position - self.goal_mm) > self.press.position_tolerance_mm
+        return stuck & off
+
+    def _stuck_pending(self) -> bool:
+        """A stuck punch whose fault timer is still running keeps the PLC busy."""
+        if self.fault_code:
+            return False
+        return any(self._stuck_short()[idx] for idx in self._stuck_fault_after_s)
+
+    def _check_stuck(self) -> None:
+        if self.fault_code or not self._stuck_fault_after_s or self.hydraulics.moving:
+            return
+        if self._arrived_at_s is None:
+            self._arrived_at_s = self.motion_time_s
+        short = self._stuck_short()
+        for idx, after_s in self._stuck_fault_after_s.items():
+            if short[idx] and self.motion_time_s - self._arrived_at_s >= after_s:
+                self.punch_faults[idx] = True
+                self._latch("STUCK_PUNCH")
+
+    def release_estop(self) -> None:
+        """Release a pressed e-stop (the ESTOP fault stays latched until RESET)."""
+        self.estop_pressed = False
+        self.publish()
+
+    def clear_faults(self) -> None:
+        """Remove every injected condition of the program (stuck punches, pending triggers, a
+        pressed e-stop, a halted program). Latched faults stay until the master sends RESET."""
+        self.hydraulics.free_all()
+        self._stuck_fault_after_s.clear()
+        self._motion_faults = []
+        self.estop_pressed = False
+        self.frozen = False
+        self.publish()

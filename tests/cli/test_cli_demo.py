@@ -1,0 +1,35 @@
+"""``mppf demo``: the whole chain on a bundled hull plate, into a folder."""
+
+from __future__ import annotations
+
+import sqlite3
+
+from mppf.cli import main
+from mppf.loop.history import History
+
+
+def test_demo_runs_end_to_end_with_pictures_and_summary(tmp_path, capsys):
+    out = tmp_path / "demo"
+    assert main(["demo", "--out", str(out), "--seed", "1"]) == 0
+    text = capsys.readouterr().out
+    assert "in_tolerance" in text and "simulated PLC" in text and "report.html" in text
+    for name in ("strain.png", "strokes.png", "deviation-cycle-1.png", "convergence.png"):
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
+    report = (out / "report.html").read_text()
+    assert report.count("data:image/png;base64,") >= 4 and "in_tolerance" in report
+    with History(out / "history.sqlite") as history:
+        (plate,) = history.plates()
+        cycles = history.cycles(plate.plate_id)
+    assert plate.status == "in_tolerance" and cycles[-1].max_abs_mm <= 2.5 and cycles[-1].rms_mm <= 1.0
+    for c in cycles:
+        assert (out / f"deviation-cycle-{c.cycle}.png").exists() and (out / f"punch-deviation-cycle-{c.cycle}.png").exists()
+    # the press was driven over Modbus: one GO per step in the audit log
+    (gos,) = sqlite3.connect(out / "audit.sqlite").execute(
+        "SELECT COUNT(*) FROM audit WHERE action = 'go' AND outcome = 'ok'").fetchone()
+    assert gos == sum(len(c.steps) for c in cycles)
+
+
+def test_demo_with_an_unknown_plate_exits_2(tmp_path, capsys):
+    assert main(["demo", "--out", str(tmp_path / "d"), "--plate", "nope"]) == 2
+    err = capsys.readouterr().err
+    assert "no bundled plate named 'nope'" in err and "K1_midbody_bilge" in err

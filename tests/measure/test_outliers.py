@@ -1,0 +1,54 @@
+"""Outliers and the form deviation of a comparison (mppf.measure.outliers)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import scan_helpers as sh
+from mppf.core.transform import rotation_angle_deg
+from mppf.measure.compare import compare
+
+
+def test_form_deviation_averages_out_the_scanner_noise():
+    """The plate's form deviation keeps the 5 mm bump but not the 0.3 mm point noise."""
+    u, v, c = sh.bump_result()
+    form = c.form_deviation_mm
+    assert np.isnan(form[~c.inlier]).all() and np.isfinite(form[c.inlier]).all()
+    assert c.form_max_abs_mm == pytest.approx(np.max(np.abs(form[c.inlier])))
+    # the bump's peak survives the local planes (150 mm wide bump, planes over ~12 points)
+    assert c.form_max_abs_mm == pytest.approx(5.0, abs=0.2)
+    # away from the bump the form deviation is the noise averaged over about 12 points
+    far = sh.bump(u, v) < 5e-3
+    raw_spread = np.std(c.deviation_mm[far & c.inlier])
+    form_spread = np.std(form[far & c.inlier])
+    assert raw_spread == pytest.approx(0.3, abs=0.05)
+    assert form_spread < 0.5 * raw_spread
+    doc = c.to_dict()
+    assert doc["form_max_abs_mm"] == pytest.approx(c.form_max_abs_mm)
+    assert doc["in_tolerance"] is False
+
+
+def test_noise_alone_never_fails_the_tolerance_but_its_raw_extremes_would():
+    """1.0 mm of scanner noise puts single points beyond a 2.5 mm tolerance; the form
+    deviation of that perfectly formed plate stays well inside it."""
+    _, _, measured = sh.measured(n=8000, with_bump=False, noise_mm=1.0, seed=6)
+    c = compare(sh.design(), measured, tolerance_mm=2.5)
+    assert c.max_abs_mm > 2.5  # raw points: noise extremes
+    assert c.form_max_abs_mm < 2.0  # about 1.6: the local planes cut the noise by about 2.5x
+    assert c.in_tolerance
+    assert rotation_angle_deg(c.transform @ sh.pose()) < 0.1
+
+
+def test_occluded_scan_with_outliers_still_registers():
+    formed, sample, c = sh.formed_and_scan()
+    error = c.transform @ sample.tf_scan_press  # press -> design (= press here): identity
+    assert rotation_angle_deg(error) < 0.05
+    assert np.linalg.norm(error[:3, 3]) < 10.0
+    assert c.rms_mm == pytest.approx(0.3, abs=0.05)
+    assert c.in_tolerance
+    # outliers found: nearly all true ones, almost no false ones
+    true = sample.is_outlier
+    assert (c.is_outlier & true).sum() >= 0.95 * true.sum()
+    assert (c.is_outlier & ~true).sum() <= 0.005 * len(true)
+    assert c.to_dict()["n_outliers"] == int(c.is_outlier.sum())

@@ -1,0 +1,37 @@
+"""The offset and tilt of least travel: the linear programme and the tilt as a rotation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mppf.core.transform import apply_tf
+from mppf.planning.pose import minimax_offset, tilt_tf
+
+
+def test_minimax_offset_closed_form_and_linear_programme_agree():
+    rng = np.random.default_rng(3)
+    x, y = rng.uniform(-1500, 1500, 200), rng.uniform(-1000, 1000, 200)
+    dev = 0.02 * x - 0.01 * y + rng.normal(0, 3, 200)
+    low, high = np.full(200, -400.0), np.full(200, 300.0)
+    a, b, c, s = minimax_offset(dev, x, y, low, high, max_slope=0.0)
+    assert (a, b) == (0.0, 0.0)
+    assert s == pytest.approx(np.ptp(dev) / 2)
+    a, b, c, s_tilt = minimax_offset(dev, x, y, low, high, max_slope=0.05)
+    assert s_tilt < s / 3
+    assert np.abs(dev + a * x + b * y + c).max() == pytest.approx(s_tilt, abs=1e-6)
+    assert minimax_offset(dev, x, y, np.full(200, -1.0), np.full(200, 1.0), max_slope=0.0) is None
+
+
+def test_tilt_adds_the_plane_of_its_slopes_to_a_horizontal_surface():
+    centre = np.array([100.0, -50.0, 10.0])
+    tf = tilt_tf(0.01, -0.02, centre)
+    np.testing.assert_allclose(tf[:3, :3] @ tf[:3, :3].T, np.eye(3), atol=1e-12)  # a rotation
+    np.testing.assert_allclose(apply_tf(tf, centre[None])[0], centre, atol=1e-12)  # about the centre
+    x, y = np.meshgrid(np.linspace(-1000, 1000, 5), np.linspace(-600, 600, 4))
+    flat = np.column_stack([x.ravel(), y.ravel(), np.full(x.size, centre[2])])
+    moved = apply_tf(tf, flat)
+    # to first order: z' = z + 0.01 (x - x0) - 0.02 (y - y0); second-order terms below 0.5 mm over 1 m
+    expected = centre[2] + 0.01 * (flat[:, 0] - centre[0]) - 0.02 * (flat[:, 1] - centre[1])
+    np.testing.assert_allclose(moved[:, 2], expected, atol=0.5)
+    assert np.abs(moved[:, 2] - expected).max() < 0.05 * np.abs(expected - centre[2]).max()

@@ -1,0 +1,48 @@
+"""The registration target built once: the same registrations as from an array, normals computed once
+(mppf.registration.target)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mppf.core.errors import GeometryError, InputError
+from mppf.registration.register import register_icp
+from mppf.registration.target import build_target
+from registration_helpers import PLATE_POSE, motion_error, sampled_scan
+
+
+@pytest.mark.parametrize("method", ["point", "plane"])
+def test_a_prebuilt_target_gives_the_registration_of_the_array(method):
+    design, scan = sampled_scan(4000, 1500, seed=3)
+    target = build_target(design)
+    for _ in range(2):  # built once, used twice: the second run sees the normals of the first
+        from_target = register_icp(scan, target, method=method)
+        from_array = register_icp(scan, design, method=method)
+        np.testing.assert_array_equal(from_target.tf, from_array.tf)
+        assert from_target.rms_history == from_array.rms_history
+        assert from_target.uncertainty == from_array.uncertainty
+    assert motion_error(from_target.tf, PLATE_POSE, scan.mean(axis=0))[0] < 1.0  # registered (point-to-point: a coarse turn)
+
+
+def test_normals_are_computed_once_and_are_unit_pca_normals():
+    design, _ = sampled_scan(5000, 10, seed=4)
+    target = build_target(design)
+    idx = np.arange(0, 5000, 7)
+    first = target.normals(idx)
+    np.testing.assert_allclose(np.linalg.norm(first, axis=1), 1.0, atol=1e-12)
+    assert np.all(np.abs(first @ target.frame.axes[2]) > 0.9)  # a shallow plate: near its plane's normal
+    cached = target._normals.copy()
+    np.testing.assert_array_equal(target.normals(idx[::-1])[::-1], first)
+    np.testing.assert_array_equal(target._normals, cached)  # nothing computed again
+
+
+def test_target_checks_its_points():
+    with pytest.raises(InputError, match="NaN or infinite"):
+        build_target([[0.0, 0.0, 0.0], [1.0, 0.0, np.nan], [0.0, 1.0, 0.0]], "the design skin")
+    with pytest.raises(GeometryError, match="collinear"):
+        build_target(np.outer(np.arange(10.0), [1.0, 2.0, 3.0]))
+    # a point-to-plane registration needs enough target points for the normals
+    target = build_target(np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.1]]))
+    with pytest.raises(GeometryError, match="at least 10"):
+        register_icp(np.random.default_rng(0).normal(size=(20, 3)), target, method="plane")
