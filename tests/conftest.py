@@ -4,9 +4,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy  # noqa: F401 - loaded before the BLAS limit below, so that it applies
 import pytest
+from threadpoolctl import threadpool_limits
 
 import mppf
+
+# The tests solve many small problems: one BLAS thread is faster than a pool that spins
+# (and two test workers share the machine's two cores).
+_BLAS_LIMIT = threadpool_limits(limits=1, user_api="blas")
 
 LOOP_PLATE = "K2_fwd_bilge_convex"
 """The plate of the loop's tests: a weakly doubly curved KCS bilge plate, plans fast."""

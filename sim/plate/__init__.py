@@ -7,6 +7,7 @@ Modules (import what you need; this package imports nothing heavy):
 - :mod:`~mppf.sim.plate.section`: layered return mapping, moments and consistent tangent;
 - :mod:`~mppf.sim.plate.grid`: the bicubic B-spline Kirchhoff plate grid over the outline;
 - :mod:`~mppf.sim.plate.contact`: unilateral ball-tip contacts and press compliance;
+- :mod:`~mppf.sim.plate.predict`: the elastic contact problem on the punch axes (start of each increment);
 - :mod:`~mppf.sim.plate.solve`: loaded (active set) and unloaded (springback) equilibrium;
 - :mod:`~mppf.sim.plate.formed`: the formed plate as the scanner sees it;
 - :mod:`~mppf.sim.plate.plate`: :class:`~mppf.sim.plate.plate.SteelPlate`, the plate pressed step by step.

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.linalg
-from scipy.interpolate import BSpline
+from scipy.interpolate import BSpline, NdBSpline
 
 from mppf.core.polygon import as_polygon, contains, convex_outline
 from mppf.core.validate import check_positive
@@ -125,6 +125,10 @@ class PlateGrid:
         (cell along u, cell along v) of each kept cell.
     cell_dof : (e, 16) int
         The unknowns of each kept cell.
+    gauss_dof : (g, 16) int
+        The unknowns of each Gauss point's cell.
+    coef_dof : (n_coef,) int
+        The unknown of each coefficient (-1: unused).
     curvature : (g, 3, 16) float
         kappa = -(w_uu, w_vv, 2 w_uv) of each Gauss point from its cell's unknowns.
     value : (g, 16) float
@@ -163,9 +167,9 @@ class PlateGrid:
     def evaluate(self, coef, uv_mm, du: int = 0, dv: int = 0) -> np.ndarray:
         """w (or a derivative) of coefficients ``coef`` (n_coef,) at plate points (m, 2)."""
         uv = np.asarray(uv_mm, dtype=float).reshape(-1, 2)
-        grid = np.asarray(coef, dtype=float).reshape(self.n_v, self.n_u)
-        along_v = basis(self.knots_v, uv[:, 1], dv) @ grid
-        return np.sum(along_v * basis(self.knots_u, uv[:, 0], du), axis=1)
+        spline = NdBSpline((self.knots_v, self.knots_u), np.asarray(coef, dtype=float).reshape(self.n_v, self.n_u),
+                           DEGREE, extrapolate=True)
+        return spline(uv[:, ::-1], nu=(dv, du))
 
     def point_blocks(self, uv_mm):
         """Local rows of w, w_u, w_v at plate points, for points in kept cells.
@@ -205,9 +209,17 @@ class PlateGrid:
 
     def band(self, blocks, cells) -> np.ndarray:
         """Sum of local matrices (k, 16, 16) of cells (k,) in symmetric band storage (bw + 1, n_dof)."""
+        return self.band_of(self.band_slots(cells), blocks)
+
+    def band_slots(self, *cells) -> np.ndarray:
+        """Where the entries of local matrices of these cells (one or more (k,) arrays) go in band storage."""
+        return np.concatenate([self._band_slot[c].ravel() for c in cells])
+
+    def band_of(self, slots, *blocks) -> np.ndarray:
+        """Sum of local matrices (arrays (k, 16, 16), in the order of :meth:`band_slots`) in band storage."""
         size = (self.bandwidth + 1) * self.n_dof
-        data = np.bincount(self._band_slot[cells].ravel(), np.asarray(blocks).ravel(), minlength=size + 1)
-        return data[:size].reshape(self.bandwidth + 1, self.n_dof)
+        values = np.concatenate([np.asarray(b).ravel() for b in blocks])
+        return np.bincount(slots, values, minlength=size + 1)[:size].reshape(self.bandwidth + 1, self.n_dof)
 
     def gauss_band(self, gauss_matrices) -> np.ndarray:
         """Sum of per-Gauss-point matrices (g, 16, 16) in band storage (bw + 1, n_dof)."""

@@ -29,9 +29,9 @@ from mppf.sim.plate.contact import Compliance, Punches
 from mppf.sim.plate.formed import FormedSteelPlate
 from mppf.sim.plate.grid import PlateGrid
 from mppf.sim.plate.material import PlateSteel
+from mppf.sim.plate.predict import ContactPredictor
 from mppf.sim.plate.scatter import PhysicalPlate, Scatter, sample_plate
 from mppf.sim.plate.section import LAYERS, LayerLaw, SectionState
-from mppf.sim.plate.predict import ContactPredictor
 from mppf.sim.plate.solve import PlateModel, PlateSolveError, solve_loaded, solve_unloaded
 
 GRID_SPACING_MM = 50.0
@@ -48,7 +48,6 @@ SMALLEST_INCREMENT = 1.0 / 64
 
 STATE_ARRAYS = ("q", "loaded_q", "force_n", "frame_mm", "tips_lower_mm", "tips_upper_mm", "tips_enabled")
 """Attributes of :class:`SteelPlate` saved by :meth:`SteelPlate.state_dict` (besides the plastic state)."""
-
 
 
 class SteelPlate:
@@ -127,6 +126,9 @@ class SteelPlate:
         }
         self.grid = PlateGrid(outline_xy_mm, self.options["grid_spacing_mm"], cylindrical=self.options["cylindrical"])
         self.punches = Punches(press, self.grid, plate.thickness_at)
+        if self.punches.count < 3:
+            raise GeometryError(f"the plate covers {self.punches.count} punch pair(s) of the press, "
+                                "at least 3 are needed", hint="give the plate's outline in press x, y (mm)")
         law = LayerLaw(plate.steel, self.options["layers"])
         self.model = PlateModel(self.grid, law, plate, self.punches, compliance)
         self.predictor = ContactPredictor(self.model)
@@ -224,7 +226,12 @@ class SteelPlate:
     @property
     def formed(self) -> FormedSteelPlate:
         """The plate as it is now (unloaded after its last step), scanner compatible."""
-        return FormedSteelPlate.build(self.grid, self.plate, self.loaded_q, self.q, self.punches, self.force_n)
+        key = (self.steps, id(self.q))
+        if getattr(self, "_formed_key", None) != key:
+            self._formed = FormedSteelPlate.build(self.grid, self.plate, self.loaded_q, self.q, self.punches,
+                                                  self.force_n)
+            self._formed_key = key
+        return self._formed
 
     def _check_step(self, upper_mm, lower_mm, active):
         """Tips (m,) of the pairs over the plate and which of them are active."""
@@ -246,8 +253,9 @@ class SteelPlate:
         half = 0.5 * self.punches.thickness_mm
         if np.any(gap < half):
             i = int(np.argmin(gap - half))
-            raise InputError(f"the gap between upper and lower tips is {gap[i]:.3f} mm at punch "
-                             f"{tuple(self.punches.index[i])}, less than half the plate thickness {2 * half[i]:.3f} mm",
+            row, col = (int(k) for k in self.punches.index[i])
+            raise InputError(f"the gap between upper and lower tips is {gap[i]:.3f} mm at punch (row {row}, "
+                             f"col {col}), less than half the plate thickness {2 * half[i]:.3f} mm",
                              hint="the step would crush the plate; check the strokes")
         return p_lower, p_upper, enabled
 

@@ -38,7 +38,6 @@ SUPPORT_STIFFNESS = 1e3
 """The three supports of the flexibility, relative to the plate's stiffness scale."""
 
 
-
 class ContactPredictor:
     """Elastic flexibility of a plate at its punch axes, and the contact problem on it.
 

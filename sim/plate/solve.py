@@ -102,6 +102,7 @@ class PlateModel:
         self.yield_factor = plate.yield_factor(uv)
         pressure_mpa = plate.steel.density_kg_mm3 * GRAVITY_MM_S2 * 1e-3 * self.thickness_mm
         self.weight_n = -grid.assemble_vector((grid.gauss_weight_mm2 * pressure_mpa)[:, None] * grid.value)
+        self.all_cells = np.arange(len(grid.cell_dof))
         _, tangent0, _ = self.response(np.zeros(grid.n_dof), SectionState.virgin(len(uv), len(law.xi)))
         self.elastic_band = self.stiffness_band(tangent0)
         mass = grid.mass_band()
@@ -113,6 +114,7 @@ class PlateModel:
         self.bowl[:m, 0] = punches.bowl
         self.bowl[m:, 1] = punches.bowl
         self.cells2 = np.concatenate([punches.cell, punches.cell])
+        self.newton_slots = grid.band_slots(self.all_cells, self.cells2, punches.cell)
 
     def response(self, q, state: SectionState, hint: SectionState | None = None):
         """Internal force (n_dof,) N, section tangent (SectionTangent) and trial state at ``q``.
@@ -126,13 +128,17 @@ class PlateModel:
         force = grid.assemble_vector(np.einsum("gai,ga->gi", grid.curvature, moment * grid.gauss_weight_mm2[:, None]))
         return force, tangent, trial
 
-    def stiffness_band(self, section_tangent) -> np.ndarray:
-        """The plate's tangent stiffness in band storage, N/mm, from a SectionTangent."""
+    def stiffness_blocks(self, section_tangent) -> np.ndarray:
+        """The cells' tangent stiffness matrices (e, 16, 16), N/mm, from a SectionTangent."""
         grid = self.grid
         kb = np.matmul(section_tangent.matrix() * grid.gauss_weight_mm2[:, None, None], grid.curvature)
         # per cell: its 4 Gauss points' (3, 16) rows stacked to (12, 16)
         rows = grid.curvature.reshape(-1, 12, 16)
-        return grid.band(np.matmul(rows.transpose(0, 2, 1), kb.reshape(-1, 12, 16)), np.arange(len(grid.cell_dof)))
+        return np.matmul(rows.transpose(0, 2, 1), kb.reshape(-1, 12, 16))
+
+    def stiffness_band(self, section_tangent) -> np.ndarray:
+        """The plate's tangent stiffness in band storage, N/mm, from a SectionTangent."""
+        return self.grid.band(self.stiffness_blocks(section_tangent), self.all_cells)
 
     def contact(self, q, frame_mm, lower_mm, upper_mm, allowed, guess=None):
         """Gaps, Jacobian rows, forces and spring rates of the constraints at ``q``.
@@ -258,8 +264,8 @@ def _newton_direction(model: PlateModel, x: _Iterate):
     comp, grid, punches = model.compliance, model.grid, model.punches
     rate = x.rate
     springs = rate[:, None, None] * x.jac[:, :, None] * x.jac[:, None, :]
-    band = (model.stiffness_band(x.section_tangent) + grid.band(springs, model.cells2)
-            + grid.band(punches.tilt_blocks(x.q, x.force), punches.cell) + model.regularisation)
+    band = grid.band_of(model.newton_slots, model.stiffness_blocks(x.section_tangent), springs,
+                        punches.tilt_blocks(x.q, x.force)) + model.regularisation
     try:
         solve = band_solver(band)
     except np.linalg.LinAlgError:

@@ -31,7 +31,8 @@ def _closed_form_moment(kappa, yield_mpa, modulus_mpa, plastic_modulus_mpa=0.0):
     x = k_e / kappa
     core = 0.5 * T_MM * x
     tangent = modulus_mpa * plastic_modulus_mpa / (modulus_mpa + plastic_modulus_mpa) if plastic_modulus_mpa else 0.0
-    extra = 2.0 * (kappa * ((T_MM / 2) ** 3 - core**3) / 3.0 - yield_mpa / modulus_mpa * ((T_MM / 2) ** 2 - core**2) / 2.0)
+    half = 0.5 * T_MM
+    extra = 2.0 * (kappa * (half**3 - core**3) / 3.0 - yield_mpa / modulus_mpa * (half**2 - core**2) / 2.0)
     return yield_mpa * T_MM**2 / 4.0 * (1.0 - x**2 / 3.0) + tangent * extra
 
 
