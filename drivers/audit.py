@@ -1,12 +1,19 @@
-"""The audit log: every command and every write sent to a PLC, in SQLite.
+"""The audit log: every command and every write sent to a PLC, in SQLite, written ahead.
 
-One row per action (upload, verify, sequence/CRC write, GO, STOP, RESET, ...), with the
-time, the PLC URL, the job hash, the job sequence number and the outcome. The database
-is in WAL mode with a busy timeout, so several ``mppf`` processes (and threads) may
-append at the same time. Default location: ``$MPPF_HOME/audit.sqlite`` when
-``MPPF_HOME`` is set, else ``~/.local/share/mppf/audit.sqlite``.
+One row per action (claim, upload of a setpoint block, validate, GO, the motion that
+follows, STOP, RESET, release, ...), with the time, the PLC URL, the job hash, the job
+sequence number and the outcome. The row is **written ahead**: :meth:`AuditLog.intent`
+commits it (outcome ``intent``) before the request is sent, :meth:`AuditLog.outcome`
+fills in the outcome and its time afterwards. A crash (kill -9, power loss) between the
+two leaves the row with outcome ``intent`` and no outcome time: the request may or may not
+have reached the PLC. A partial upload leaves the intent rows of its blocks.
 
-Master heartbeat writes are not recorded (four a second would drown the log); each
+The database is in WAL mode with a busy timeout, so several ``mppf`` processes (and
+threads) may append at the same time. Default location: ``$MPPF_HOME/audit.sqlite`` when
+``MPPF_HOME`` is set, else ``~/.local/share/mppf/audit.sqlite``. A log of schema version 1
+(no outcome time) is upgraded in place when opened.
+
+Master heartbeat writes are not recorded (several a second would drown the log); each
 connection (or failed attempt to connect) is.
 """
 
@@ -25,7 +32,9 @@ from mppf.core.errors import InputError
 from mppf.core.db import open_sqlite
 from mppf.core.paths import data_dir
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+INTENT = "intent"
+"""The outcome of a row whose request was about to be sent and whose outcome never came."""
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS audit (
     id          INTEGER PRIMARY KEY AUTOINCREMENT,
@@ -37,9 +46,10 @@ CREATE TABLE IF NOT EXISTS audit (
     plc         TEXT    NOT NULL,  -- PLC URL
     job_sha256  TEXT,              -- SHA-256 of the job file, NULL outside a job
     sequence    INTEGER,           -- job sequence number, NULL when not applicable
-    action      TEXT    NOT NULL,  -- connect, upload, verify, arm, go, stop, reset, ...
-    outcome     TEXT    NOT NULL,  -- ok, refused, failed, ...
-    detail      TEXT    NOT NULL DEFAULT ''
+    action      TEXT    NOT NULL,  -- connect, claim, upload, validate, go, complete, stop, reset, release, ...
+    outcome     TEXT    NOT NULL,  -- intent (no outcome yet), ok, refused, failed, ...
+    detail      TEXT    NOT NULL DEFAULT '',
+    outcome_time_s REAL            -- Unix time (s) of the outcome; NULL while only the intent is recorded
 );
 CREATE INDEX IF NOT EXISTS audit_time ON audit (time_s);
 """
@@ -66,6 +76,7 @@ class AuditEntry:
     action: str
     outcome: str
     detail: str
+    outcome_time_s: float | None = None
 
 
 def _user() -> str:
@@ -94,8 +105,37 @@ class AuditLog:
         self._lock = threading.Lock()
         self._host = socket.gethostname()
         self._user = _user()
+        _upgrade_v1(self.path)
         self._db = open_sqlite(self.path, "the audit log", _SCHEMA, SCHEMA_VERSION, threads=True,
                                hint="give a writable path with --audit or set MPPF_HOME")
+
+    def _insert(self, plc: str, action: str, outcome: str, outcome_time_s, job_sha256, sequence, detail) -> int:
+        now = time.time()
+        stamp = datetime.fromtimestamp(now, tz=timezone.utc).isoformat(timespec="microseconds")
+        row = (stamp, now, self._host, self._user, os.getpid(), str(plc), job_sha256, sequence, action, outcome,
+               detail, now if outcome_time_s else None)
+        with self._lock:
+            cur = self._db.execute(
+                "INSERT INTO audit (time_utc, time_s, host, user, pid, plc, job_sha256, sequence, "
+                "action, outcome, detail, outcome_time_s) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                row,
+            )
+            return int(cur.lastrowid)
+
+    def intent(self, plc: str, action: str, *, job_sha256: str | None = None, sequence: int | None = None,
+               detail: str = "") -> int:
+        """Commit a row for a request about to be sent (outcome ``intent``); return its id."""
+        return self._insert(plc, action, INTENT, False, job_sha256, sequence, detail)
+
+    def outcome(self, row: int, outcome: str, detail: str = "") -> None:
+        """Record the outcome of row ``row`` (committed at once); ``detail`` is added to the intent's."""
+        with self._lock:
+            self._db.execute(
+                "UPDATE audit SET outcome = ?, outcome_time_s = ?, "
+                "detail = CASE WHEN ? = '' THEN detail WHEN detail = '' THEN ? ELSE detail || '; ' || ? END "
+                "WHERE id = ?",
+                (outcome, time.time(), detail, detail, detail, int(row)),
+            )
 
     def record(
         self,
@@ -107,17 +147,9 @@ class AuditLog:
         sequence: int | None = None,
         detail: str = "",
     ) -> None:
-        """Append one row (committed at once)."""
-        now = time.time()
-        stamp = datetime.fromtimestamp(now, tz=timezone.utc).isoformat(timespec="microseconds")
-        row = (stamp, now, self._host, self._user, os.getpid(), str(plc), job_sha256, sequence,
-               action, outcome, detail)
-        with self._lock:
-            self._db.execute(
-                "INSERT INTO audit (time_utc, time_s, host, user, pid, plc, job_sha256, sequence, "
-                "action, outcome, detail) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                row,
-            )
+        """Append one row with its outcome, in one commit (for what is not sent to the PLC: a connection,
+        a refusal before writing)."""
+        self._insert(plc, action, outcome, True, job_sha256, sequence, detail)
 
     def entries(self, limit: int | None = None) -> list[AuditEntry]:
         """Rows in insertion order (the last ``limit`` rows when given)."""
@@ -142,10 +174,64 @@ class AuditLog:
         self.close()
 
 
+def _upgrade_v1(path: Path) -> None:
+    """Add the outcome time to a log of schema version 1 (its rows keep their outcomes)."""
+    import sqlite3
+
+    if not path.is_file():
+        return
+    try:
+        db = sqlite3.connect(path, timeout=10.0, isolation_level=None)
+    except sqlite3.Error:
+        return  # open_sqlite reports it
+    try:
+        if db.execute("PRAGMA user_version").fetchone()[0] == 1:
+            db.execute("BEGIN IMMEDIATE")
+            db.execute("ALTER TABLE audit ADD COLUMN outcome_time_s REAL")
+            db.execute(f"PRAGMA user_version={SCHEMA_VERSION}")
+            db.execute("COMMIT")
+    except sqlite3.Error:
+        pass  # not an audit log of ours: open_sqlite reports it
+    finally:
+        db.close()
+
+
+class Audited:
+    """An audit row written ahead: the intent on entry, the outcome on exit (``with`` block).
+
+    ``session`` is what sends the request (its ``audit``, ``url`` and ``job_sha256`` are used).
+    The block sets :attr:`outcome` (default ``ok``) and :attr:`detail` before it ends or raises;
+    an exception without an outcome set records ``failed`` (``interrupted`` for Ctrl-C).
+    """
+
+    def __init__(self, session, action: str, *, sequence: int | None = None, detail: str = ""):
+        self.session, self.action, self.sequence, self.intent_detail = session, action, sequence, detail
+        self.outcome, self.detail = "ok", ""
+
+    def __enter__(self) -> Audited:
+        s = self.session
+        self.row = s.audit.intent(str(s.url), self.action, job_sha256=s.job_sha256, sequence=self.sequence,
+                                  detail=self.intent_detail)
+        return self
+
+    def __exit__(self, kind, exc, tb) -> bool:
+        if kind is not None and self.outcome == "ok":
+            self.outcome = "interrupted" if issubclass(kind, KeyboardInterrupt) else "failed"
+            self.detail = self.detail or str(exc)
+        self.session.audit.outcome(self.row, self.outcome, self.detail)
+        return False
+
+
 class NullAudit:
     """An audit log that records nothing (library use without a log)."""
 
     path = None
+
+    def intent(self, plc, action, *, job_sha256=None, sequence=None, detail="") -> int:
+        return 0
+
+    def outcome(self, row, outcome, detail="") -> None:
+        pass
 
     def record(self, plc, action, outcome, *, job_sha256=None, sequence=None, detail="") -> None:
         pass

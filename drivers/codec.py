@@ -5,13 +5,15 @@ order (``"ABCD"``: high word first, ``"CDAB"``: low word first; the bytes inside
 are always high byte first); the setpoint blocks carry a CRC-32; long writes are cut into
 frames that never split an int32; per-punch bits are packed 16 to a register. The register
 numbers themselves are :mod:`mppf.drivers.regmap`'s.
+
+numpy is imported inside the functions that work on arrays: the scalar helpers
+(:func:`words_to_u32`, :func:`u32_to_words`, :func:`detect_word_order`) are what
+``mppf status`` / ``stop`` / ``reset`` need, and they start without it.
 """
 
 from __future__ import annotations
 
 import zlib
-
-import numpy as np
 
 from mppf.core.errors import InputError, LimitError
 
@@ -60,6 +62,8 @@ def mm_to_counts(values_mm, count_mm: float = 0.01) -> np.ndarray:
     LimitError
         A value is not finite or does not fit a signed int32 after scaling.
     """
+    import numpy as np
+
     values = np.asarray(values_mm, dtype=float)
     if not np.all(np.isfinite(values)):
         bad = values[~np.isfinite(values)].ravel()[0]
@@ -76,6 +80,8 @@ def mm_to_counts(values_mm, count_mm: float = 0.01) -> np.ndarray:
 
 def counts_to_mm(counts, count_mm: float = 0.01) -> np.ndarray:
     """Position counts to millimetres (float array of the same shape)."""
+    import numpy as np
+
     return np.asarray(counts, dtype=np.int64) * count_mm
 
 
@@ -97,6 +103,8 @@ def encode_int32(values, word_order: str = "ABCD") -> list[int]:
     LimitError
         A value outside the int32 range.
     """
+    import numpy as np
+
     check_word_order(word_order)
     vals = np.asarray(values, dtype=np.int64).ravel()
     if vals.size and (vals.min() < INT32_MIN or vals.max() > INT32_MAX):
@@ -107,6 +115,8 @@ def encode_int32(values, word_order: str = "ABCD") -> list[int]:
 
 def encode_uint32(values, word_order: str = "ABCD") -> list[int]:
     """Unsigned 32-bit values (0..2**32-1) to register words (see :func:`encode_int32`)."""
+    import numpy as np
+
     check_word_order(word_order)
     vals = np.asarray(values, dtype=np.int64).ravel()
     if vals.size and (vals.min() < 0 or vals.max() > 0xFFFFFFFF):
@@ -115,6 +125,8 @@ def encode_uint32(values, word_order: str = "ABCD") -> list[int]:
 
 
 def _split_words(unsigned: np.ndarray, word_order: str) -> list[int]:
+    import numpy as np
+
     high = (unsigned >> 16) & 0xFFFF
     low = unsigned & 0xFFFF
     pairs = (high, low) if word_order == "ABCD" else (low, high)
@@ -122,6 +134,8 @@ def _split_words(unsigned: np.ndarray, word_order: str) -> list[int]:
 
 
 def _join_words(words, word_order: str) -> np.ndarray:
+    import numpy as np
+
     check_word_order(word_order)
     arr = np.asarray(words, dtype=np.int64).ravel()
     if arr.size % 2:
@@ -135,6 +149,8 @@ def _join_words(words, word_order: str) -> np.ndarray:
 
 def decode_int32(words, word_order: str = "ABCD") -> np.ndarray:
     """Register words (2n) to signed int32 values, int64 array (n,)."""
+    import numpy as np
+
     unsigned = _join_words(words, word_order)
     return np.where(unsigned >= 2**31, unsigned - 2**32, unsigned)
 
@@ -142,6 +158,30 @@ def decode_int32(words, word_order: str = "ABCD") -> np.ndarray:
 def decode_uint32(words, word_order: str = "ABCD") -> np.ndarray:
     """Register words (2n) to unsigned 32-bit values, int64 array (n,)."""
     return _join_words(words, word_order)
+
+
+def words_to_u32(words, word_order: str = "ABCD") -> int:
+    """Two register words to one unsigned 32-bit value (pure Python, no numpy)."""
+    check_word_order(word_order)
+    first, second = (int(w) for w in words)
+    high, low = (first, second) if word_order == "ABCD" else (second, first)
+    return (high << 16) | low
+
+
+def u32_to_words(value: int, word_order: str = "ABCD") -> list[int]:
+    """One unsigned 32-bit value to two register words (pure Python, no numpy)."""
+    check_word_order(word_order)
+    value = int(value)
+    if not 0 <= value <= 0xFFFFFFFF:
+        raise LimitError(f"value {value} does not fit an unsigned 32-bit register pair")
+    high, low = value >> 16, value & 0xFFFF
+    return [high, low] if word_order == "ABCD" else [low, high]
+
+
+def words_to_i32(words, word_order: str = "ABCD") -> int:
+    """Two register words to one signed 32-bit value (pure Python, no numpy)."""
+    value = words_to_u32(words, word_order)
+    return value - 2**32 if value >= 2**31 else value
 
 
 def detect_word_order(words, magic: int) -> str:
@@ -153,7 +193,7 @@ def detect_word_order(words, magic: int) -> str:
         Neither order gives the magic (not an mppf PLC, or a wrong register map).
     """
     for order in WORD_ORDERS:
-        if len(words) == 2 and int(decode_uint32(words, order)[0]) == magic:
+        if len(words) == 2 and words_to_u32(words, order) == magic:
             return order
     raise InputError(
         f"registers {list(words)} are not the magic 0x{magic:08X} in either word order",
@@ -179,6 +219,8 @@ def setpoint_crc32(upper_words, lower_words) -> int:
     -------
     crc : int, 0..2**32-1
     """
+    import numpy as np
+
     data = np.concatenate(
         [np.asarray(upper_words, dtype=np.int64).ravel(), np.asarray(lower_words, dtype=np.int64).ravel()]
     )
@@ -206,6 +248,8 @@ def chunks(start: int, words, max_regs: int = 122) -> list[tuple[int, list[int]]
 
 def pack_bits(flags) -> list[int]:
     """Booleans (n,) to registers, 16 per register, least significant bit first."""
+    import numpy as np
+
     bits = np.asarray(flags, dtype=bool).ravel()
     padded = np.zeros(-(-bits.size // 16) * 16, dtype=np.int64)
     padded[: bits.size] = bits
@@ -213,8 +257,10 @@ def pack_bits(flags) -> list[int]:
     return (padded.reshape(-1, 16) @ weights).astype(int).tolist()
 
 
-def unpack_bits(words, n: int) -> np.ndarray:
+def unpack_bits(words, n: int):
     """Registers to ``n`` booleans (inverse of :func:`pack_bits`)."""
+    import numpy as np
+
     arr = np.asarray(words, dtype=np.int64).ravel()
     bits = ((arr[:, None] >> np.arange(16)) & 1).astype(bool).ravel()
     if bits.size < n:

@@ -1,11 +1,13 @@
-"""Step 8 of a press step: follow the motion to its end and check where every punch stands.
+"""A press step after GO: follow the motion to COMPLETE and check where every punch stands.
 
-:class:`Follow` is the part of :class:`mppf.drivers.plc_press.PlcPress` that polls the
-PLC after GO: a fault or e-stop, a restarted PLC (sequence lost, heartbeat fallen), a
-halted PLC program (heartbeat stale) or a timeout sends STOP and raises
-:class:`~mppf.core.errors.PressFault`; at the end the actual positions are read and every
-punch is checked against its target. Time is the press's clock (``self._clock``), so the
-same code follows a real press in wall time and the in-process press in simulated time.
+:class:`Follow` is the part of :class:`mppf.drivers.plc_press.PlcPress` that polls the PLC
+after GO. The step is complete only when the PLC reports COMPLETE with this job's token,
+sets ``in_position``, and the driver's own reading of the actual positions puts every punch
+within the tolerance of its target. Anything else ends the step with STOP (the heartbeat
+goes on until the press is at rest) and :class:`~mppf.core.errors.PressFault`: a fault, a
+STOP from someone else or the key switch, a restarted PLC (state or token lost, heartbeat
+fallen), a halted PLC program (heartbeat stale), a timeout. Time is the press's clock, so
+the same code follows a real press in wall time and the in-process press in simulated time.
 """
 
 from __future__ import annotations
@@ -15,8 +17,7 @@ import math
 import numpy as np
 
 from mppf.core.errors import LinkError, PlcError, PressFault
-from mppf.core.presslink import PressStatus, StepResult
-from mppf.core.progress import Reporter
+from mppf.core.presslink import StepResult
 from mppf.drivers import codec
 from mppf.drivers.handshake import SIDES, listed
 
@@ -56,117 +57,119 @@ class Follow:
             out[side] = codec.unpack_bits(words, n).reshape(self.press.shape)
         return out
 
-    def _follow(self, seq, targets_mm, start_mm, reporter: Reporter, timeout_s, t0: float) -> StepResult:
-        """Poll until motion ends; then check the actual positions."""
+    def _motion_timeout_s(self, travel: dict) -> float:
+        longest = max(float(t.max()) for t in travel.values())
+        return 2.0 * motion_time_s(longest, self.press.speed_mm_s, self.press.accel_mm_s2) + 10.0
+
+    def _follow(self, seq: int, crc: int, raw: dict, targets_mm, start_mm, reporter, timeout_s,
+                t0: float) -> StepResult:
+        """Poll until the PLC reports COMPLETE for our job; then check the actual positions."""
         travel = {side: np.abs(targets_mm[side] - start_mm[side]) for side in SIDES}
         total_mm = float(sum(t.sum() for t in travel.values()))
-        if timeout_s is None:
-            longest = max(float(t.max()) for t in travel.values())
-            timeout_s = 2.0 * motion_time_s(longest, self.press.speed_mm_s, self.press.accel_mm_s2) + 10.0
+        timeout_s = self._motion_timeout_s(travel) if timeout_s is None else timeout_s
         reporter.start(f"motion job {seq} (mm of travel)", total=max(total_mm, 1e-9))
-        last_progress = self._clock.now()
-        last_hb = None
-        last_hb_change = self._clock.now()
+        last_progress = last_hb_change = self._clock.now()
+        last_hb = raw["plc_heartbeat"]
         while True:
-            raw = self._status_words()
-            st = self._status_from(raw)
             now = self._clock.now()
-            if st.fault or st.estop:
-                reporter.finish()
-                self._stop_after_trouble(f"fault: {st.fault_text}")
-                raise self._fault_error(seq, st, targets_mm)
-            lost = raw["acknowledged_sequence"] != seq or raw["motion_sequence"] != seq
-            restarted = last_hb is not None and 0 < (last_hb - raw["plc_heartbeat"]) < 0x8000
-            if lost or restarted:
-                reporter.finish()
-                self._stop_after_trouble("PLC restarted")
-                beat = f", PLC heartbeat fell from {last_hb} to {raw['plc_heartbeat']}" if restarted else ""
-                raise PressFault(
-                    f"the PLC restarted (or another master took over) during job {seq}: acknowledged "
-                    f"sequence {raw['acknowledged_sequence']}, motion sequence {raw['motion_sequence']}{beat}; "
-                    "STOP was sent, the step did not complete",
-                    hint="check the press, then run the step again",
-                )
+            ours = (raw["motion_sequence"], raw["motion_crc"]) == (seq, crc)
+            if raw["state_name"] == "COMPLETE" and ours:
+                break
+            self._check_motion(seq, raw, ours, last_hb, targets_mm, reporter)
             if raw["plc_heartbeat"] != last_hb:
                 last_hb, last_hb_change = raw["plc_heartbeat"], now
             elif now - last_hb_change > PLC_STALE_S:
                 reporter.finish()
-                self._stop_after_trouble("PLC heartbeat stale")
+                self._plc_halted = True  # nothing to release on closing: no program takes commands
+                self._stop_after_trouble("PLC heartbeat stale", wait=False)
                 raise PressFault(
                     f"job {seq}: the PLC heartbeat stayed at {last_hb} for {now - last_hb_change:.1f} s during "
                     "motion: the PLC program is not running (PLC in STOP mode, or halted); STOP was sent, but "
                     "the PLC may not act on it",
                     hint="stop the press at the machine and check the PLC before anything else",
                 )
-            if not st.busy:
-                break
             if now - t0 > timeout_s:
                 reporter.finish()
                 self._stop_after_trouble(f"timeout after {timeout_s:.1f} s")
-                raise PressFault(
-                    f"job {seq}: motion did not end within {timeout_s:.1f} s; STOP was sent",
-                    hint="check the hydraulics and punches; give --timeout for slow moves",
-                )
+                raise PressFault(f"job {seq}: motion did not end within {timeout_s:.1f} s; STOP was sent",
+                                 hint="check the hydraulics and punches; give --timeout for slow moves")
             if now - last_progress >= PROGRESS_S:
                 actual = self.read_actuals_mm()
-                remaining = sum(float(np.abs(targets_mm[s] - actual[s]).sum()) for s in SIDES)
-                reporter.update(max(0.0, total_mm - remaining))
+                reporter.update(max(0.0, total_mm - sum(float(np.abs(targets_mm[s] - actual[s]).sum()) for s in SIDES)))
                 last_progress = now
             self._clock.sleep(self.poll_s)
+            raw = self._status_raw()
         duration = self._clock.now() - t0
         actual = self.read_actuals_mm()
         reporter.update(total_mm - sum(float(np.abs(targets_mm[s] - actual[s]).sum()) for s in SIDES))
         reporter.finish()
-        return self._check_arrival(seq, targets_mm, actual, duration)
+        return self._check_arrival(seq, raw, targets_mm, actual, duration)
 
-    def _check_arrival(self, seq: int, targets_mm, actual, duration: float) -> StepResult:
-        """Every punch within the position tolerance of its target, else PressFault naming them."""
+    def _check_motion(self, seq: int, raw: dict, ours: bool, last_hb: int, targets_mm, reporter) -> None:
+        """During motion: anything but EXECUTING our job ends the step (STOP, rest, PressFault)."""
+        state = raw["state_name"]
+        if state == "EXECUTING" and ours and not 0 < (last_hb - raw["plc_heartbeat"]) % 65536 < 0x8000:
+            return
+        reporter.finish()
+        if state == "FAULT":
+            self._stop_after_trouble(f"fault: {self.map.fault_text(raw['fault_code'])}")
+            raise self._fault_error(seq, raw, targets_mm)
+        if state in ("STOPPING", "STOPPED") and ours:
+            self._settle()
+            cause = self.map.stop_causes.name(raw["stop_cause"])
+            who = (f"a STOP request of master 0x{raw['last_stop_master']:08X}" if cause == "STOP_REQUEST"
+                   else "the key switch, turned to local" if cause == "REMOTE_DISABLED" else cause)
+            self.audit.record(str(self.url), "complete", "stopped", job_sha256=self.job_sha256, sequence=seq,
+                              detail=f"stopped by {who}")
+            raise PressFault(f"job {seq} was stopped by {who} during the motion; the step did not complete",
+                             hint="find out why the press was stopped, then run the step again")
+        self._stop_after_trouble("PLC restarted or lost the job")
+        raise PressFault(
+            f"the PLC restarted (or another master took over) during job {seq}: state {state}, motion job "
+            f"{raw['motion_sequence']}, PLC heartbeat {raw['plc_heartbeat']} (was {last_hb}); STOP was sent, the "
+            "step did not complete", hint="check the press, then run the step again")
+
+    def _check_arrival(self, seq: int, raw: dict, targets_mm, actual, duration: float) -> StepResult:
+        """COMPLETE: the PLC's in_position and the driver's own check of every punch."""
         errors = {s: actual[s] - targets_mm[s] for s in SIDES}
         max_error = max(float(np.abs(e).max()) for e in errors.values())
         off = self._out_of_tolerance(targets_mm, actual)
-        if off:
-            self._record("complete", "out of tolerance", sequence=seq, detail=f"{len(off)} punches")
+        if off or not raw["flags"]["in_position"]:
+            self.audit.record(str(self.url), "complete", "out of tolerance", job_sha256=self.job_sha256, sequence=seq,
+                              detail=f"{len(off)} punches; PLC in_position {raw['flags']['in_position']}")
+            named = listed(off) if off else "the PLC does not report the punches in position (in_position clear)"
             raise PressFault(
                 f"job {seq}: {len(off)} punch(es) not in position within {self.press.position_tolerance_mm} mm "
-                f"after the motion ended: " + listed(off),
+                f"after the motion ended: {named}",
                 hint="a punch may be stuck or blocked: inspect it before the next step",
             )
-        self._record("complete", "ok", sequence=seq, detail=f"max error {max_error:.3f} mm, {duration:.2f} s")
-        return StepResult(
-            sequence=seq,
-            target_upper_mm=targets_mm["upper"],
-            target_lower_mm=targets_mm["lower"],
-            actual_upper_mm=actual["upper"],
-            actual_lower_mm=actual["lower"],
-            max_error_mm=max_error,
-            duration_s=duration,
-        )
+        self.audit.record(str(self.url), "complete", "ok", job_sha256=self.job_sha256, sequence=seq,
+                          detail=f"max error {max_error:.3f} mm, {duration:.2f} s")
+        return StepResult(sequence=seq, target_upper_mm=targets_mm["upper"], target_lower_mm=targets_mm["lower"],
+                          actual_upper_mm=actual["upper"], actual_lower_mm=actual["lower"], max_error_mm=max_error,
+                          duration_s=duration)
 
     def _out_of_tolerance(self, targets_mm, actual_mm) -> list[str]:
         tol = self.press.position_tolerance_mm + 0.5 * self.map.count_mm
-        off = []
-        for side in SIDES:
-            for r, c in np.argwhere(np.abs(actual_mm[side] - targets_mm[side]) > tol):
-                off.append(f"{side} (row {r}, col {c}) target {targets_mm[side][r, c]:.2f} mm, "
-                           f"actual {actual_mm[side][r, c]:.2f} mm")
-        return off
+        return [f"{side} punch ({self.press.punch_label(r, c)}) target {targets_mm[side][r, c]:.2f} mm, "
+                f"actual {actual_mm[side][r, c]:.2f} mm"
+                for side in SIDES for r, c in np.argwhere(np.abs(actual_mm[side] - targets_mm[side]) > tol)]
 
-    def _fault_error(self, seq: int, st: PressStatus, targets_mm) -> PressFault:
-        """The PressFault for a fault or e-stop seen during motion (names faulted punches)."""
-        what = "the e-stop was pressed" if st.estop and not st.fault else f"the PLC faulted: {st.fault_text}"
+    def _fault_error(self, seq: int, raw: dict, targets_mm) -> PressFault:
+        """The PressFault for a fault seen during motion (names the faulted punches)."""
+        text = self.map.fault_text(raw["fault_code"])
+        what = "the e-stop was pressed" if raw["flags"]["estop"] else f"the PLC faulted: {text}"
         details = ""
         try:
             bits = self._fault_bits()
             actual = self.read_actuals_mm()
-            named = [f"{side} (row {r}, col {c}) target {targets_mm[side][r, c]:.2f} mm, "
-                     f"actual {actual[side][r, c]:.2f} mm"
-                     for side in SIDES for r, c in np.argwhere(bits[side])]
+            named = [f"{side} punch ({self.press.punch_label(r, c)}) target {targets_mm[side][r, c]:.2f} mm, "
+                     f"actual {actual[side][r, c]:.2f} mm" for side in SIDES for r, c in np.argwhere(bits[side])]
             if named:
                 details = f"; faulted punches: {listed(named)}"
         except (LinkError, PlcError):  # the report loses its details, never the fault
             details = "; the per-punch fault bits could not be read"
-        self._record("complete", "fault", sequence=seq, detail=f"{st.fault_text}{details}")
-        return PressFault(
-            f"job {seq}: {what} during motion; STOP was sent{details}",
-            hint="remove the cause, then 'mppf reset' and run the step again",
-        )
+        self.audit.record(str(self.url), "complete", "fault", job_sha256=self.job_sha256, sequence=seq,
+                          detail=f"{text}{details}")
+        return PressFault(f"job {seq}: {what} during motion ({text}); STOP was sent{details}",
+                          hint="remove the cause, then 'mppf reset' and run the step again")

@@ -1,20 +1,29 @@
-"""Steps 1-7 of a press step: limits, readiness, upload, read-back, CRC and sequence, GO.
+"""A press step up to the motion: validation, ownership, upload, read-back, VALIDATE, GO.
 
 :class:`Handshake` is the part of :class:`mppf.drivers.plc_press.PlcPress` that gets one
-step into the PLC and started: nothing is written when a setpoint is beyond a limit or the
-PLC is not ready; every register written is read back and compared; the PLC validates
-the CRC and the job sequence; GO is sent once, never retried. Every stage is recorded in
-the audit log.
+step into the PLC and started, in the order of the register map's handshake:
+
+1. the setpoints pass the one job validator (:func:`mppf.planning.validate.check_setpoints`)
+   against the press description and the PLC's limits; nothing is written otherwise;
+2. the PLC neither faulted nor moving, and not owned by another master: CLAIM (the heartbeat
+   starts); a finished job (COMPLETE, STOPPED) is RESET to IDLE;
+3. both setpoint blocks written (FC16, at most 122 registers a frame) and read back;
+4. VALIDATE with the job token (a new sequence and the CRC of what was written), acknowledged;
+5. GO with the same token, one attempt, acknowledged, and the PLC in EXECUTING (or COMPLETE
+   with our token for a job without travel) within the start timeout; the heartbeat must
+   have kept a quarter of the watchdog since the step began.
+
+Every write and command is written ahead into the audit log.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from mppf.core.errors import ConfigError, InputError, LimitError, LinkError, PlcError, PressRefused
-from mppf.core.presslink import PressStatus
-from mppf.core.progress import Reporter
+from mppf.core.errors import ConfigError, InputError, LimitError, PressFault, PressRefused
 from mppf.drivers import codec
+from mppf.drivers.session import Audited
+from mppf.planning import validate
 
 SIDES = ("upper", "lower")
 MAX_LISTED = 8  # punches named in one error message
@@ -27,14 +36,16 @@ def listed(items: list[str]) -> str:
 
 
 class Handshake:
-    """Limits, upload, verification, validation and GO (a mixin of ``PlcPress``)."""
+    """Validation, ownership, upload, VALIDATE and GO (a mixin of ``PlcPress``)."""
 
-    def check_setpoints(self, upper_mm, lower_mm) -> dict[str, np.ndarray]:
-        """Check shapes and limits; return the setpoints in counts.
+    def check_setpoints(self, upper_mm, lower_mm, active=None) -> dict[str, np.ndarray]:
+        """One step's setpoints through the one job validator, against the press and the PLC.
 
         Parameters
         ----------
         upper_mm, lower_mm : (rows, cols) float
+        active : (rows, cols) bool, optional
+            Given: parked punches must stand at their parking heights.
 
         Returns
         -------
@@ -44,82 +55,92 @@ class Handshake:
         Raises
         ------
         InputError
-            Wrong shape or NaN.
+            Wrong shape, not numbers, NaN.
         LimitError
             Setpoints beyond the press description's or the PLC's limits (lists the punches).
         """
         if self.press is None:
             raise InputError("a press description is needed to run a step", hint="pass press=PressConfig")
-        grids = {"upper": np.asarray(upper_mm, dtype=float), "lower": np.asarray(lower_mm, dtype=float)}
-        problems = []
-        for side, grid in grids.items():
-            if grid.shape != self.press.shape:
-                raise InputError(f"{side} setpoints have shape {grid.shape}, the press has {self.press.shape}")
-            if np.isnan(grid).any():
-                r, c = np.argwhere(np.isnan(grid))[0]
-                raise InputError(f"{side} setpoint of punch (row {r}, col {c}) is NaN",
-                                 hint="fill inactive punches with parking heights (StepStrokes.setpoints_mm)")
-            axis = getattr(self.press, side)
-            plc_lo, plc_hi = self.identity.limits_mm[side]
-            lo, hi = max(axis.min_mm, plc_lo), min(axis.max_mm, plc_hi)
-            for r, c in np.argwhere((grid < lo) | (grid > hi)):
-                problems.append(f"{side} punch {r * self.press.cols + c} (row {r}, col {c}) = "
-                                f"{grid[r, c]:.2f} mm, limits {lo:.2f}..{hi:.2f} mm")
-        if problems:
-            self._record("limits", "refused", detail=f"{len(problems)} setpoints beyond limits")
-            raise LimitError(
-                f"{len(problems)} setpoint(s) beyond the stroke limits, nothing was written to the PLC: "
-                f"{listed(problems)}",
-                hint="re-plan the job for this press (limits from the press description and the PLC)",
-            )
-        return {side: codec.mm_to_counts(grid, self.map.count_mm) for side, grid in grids.items()}
+        try:
+            grids = validate.check_setpoints(upper_mm, lower_mm, self.press, self.identity.limits_mm, active)
+        except LimitError as exc:
+            self.audit.record(str(self.url), "limits", "refused", job_sha256=self.job_sha256,
+                              detail=exc.message[:500])
+            raise
+        return {side: codec.mm_to_counts(grids[side], self.map.count_mm) for side in SIDES}
+
+    def check_job(self, job, press_file=None, press_source: str = "the press file") -> dict:
+        """The whole job through the one job validator, against this PLC (and the press file).
+
+        Raises
+        ------
+        ConfigError, LimitError
+            Nothing was written (the refusal is in the audit log).
+        """
+        try:
+            return validate.validate_job(job, press_file=press_file, plc_shape=(self.identity.rows, self.identity.cols),
+                                         plc_limits=self.identity.limits_mm, press_source=press_source)
+        except (LimitError, ConfigError) as exc:
+            self.audit.record(str(self.url), "limits", "refused", job_sha256=self.job_sha256,
+                              detail=exc.message[:500])
+            raise
 
     def _block(self, kind: str, side: str) -> tuple[int, int]:
         """(address, registers in use) of a setpoint/actual block."""
         return self._field(f"{side}_{kind}").address, self.map.words_in_use(self.press.rows, self.press.cols)
 
-    def _next_sequence(self) -> int:
-        raw = self._status_words()
-        base = max(raw["acknowledged_sequence"], raw["motion_sequence"], self._last_sequence)
-        return base % 0xFFFF + 1  # 1..65535, never 0
+    def _field(self, name: str):
+        return self.map[name]
 
-    def _require_ready(self, st: PressStatus, what: str) -> None:
-        if st.estop:
+    # ------------------------------------------------------- before the upload ---
+    def _require_ready(self, raw: dict, what: str) -> None:
+        """Refuse (nothing written) a PLC that faulted, moves, or is owned by another master."""
+        flags = raw["flags"]
+        if flags["estop"]:
             raise PressRefused(f"{what} refused: the e-stop of the press is pressed",
                                hint="release the e-stop, then 'mppf reset'")
-        if st.fault:
-            raise PressRefused(f"{what} refused: the PLC has a latched fault ({st.fault_text})",
+        if raw["state_name"] == "FAULT":
+            fault = self.map.fault_text(raw["fault_code"])
+            raise PressRefused(f"{what} refused: the PLC has a latched fault ({fault})",
                                hint="remove the cause, then 'mppf reset'")
-        if st.busy:
-            raise PressRefused(f"{what} refused: the press is moving", hint="wait for the motion to end or STOP it")
-        if not st.ready:
-            raise PressRefused(f"{what} refused: the PLC is not ready", hint="check the PLC (mode, hydraulics)")
+        if flags["busy"]:
+            raise PressRefused(f"{what} refused: the press is moving (state {raw['state_name']})",
+                               hint="wait for the motion to end or STOP it")
 
-    def _prepare(self, upper_mm, lower_mm, reporter: Reporter) -> tuple[int, dict[str, np.ndarray]]:
-        """Limits, readiness, upload, read-back, CRC and sequence; return (sequence, targets mm)."""
+    def _take_plc(self) -> None:
+        """Own the PLC and bring it to a state that takes setpoints (a finished job is RESET)."""
+        self._require_ready(self._status_raw(), "upload")
+        self.claim()
+        raw = self._status_raw()
+        self._require_ready(raw, "upload")
+        if raw["state_name"] in ("COMPLETE", "STOPPED"):
+            self.reset()
+
+    def _prepare(self, upper_mm, lower_mm, reporter) -> tuple[int, int, dict[str, np.ndarray]]:
+        """Validation, ownership, upload, read-back, VALIDATE; return (sequence, crc, targets mm)."""
         counts = self.check_setpoints(upper_mm, lower_mm)
         targets_mm = {side: codec.counts_to_mm(counts[side], self.map.count_mm) for side in SIDES}
         blocks = {side: codec.encode_int32(counts[side].ravel(), self.identity.word_order) for side in SIDES}
-        self._require_ready(self.status(), "upload")
-        seq = self._next_sequence()
+        self._mark_heartbeat()
+        self._take_plc()
+        seq = self._status_raw()["last_sequence"] % 0xFFFF + 1  # newer than any the PLC validated: 1..65535
         self._last_sequence = seq
         self._upload(blocks, seq, reporter)
-        self._validate(blocks, seq, reporter)
-        return seq, targets_mm
+        crc = codec.setpoint_crc32(blocks["upper"], blocks["lower"])
+        self._validate(seq, crc, reporter)
+        return seq, crc, targets_mm
 
-    def _upload(self, blocks: dict[str, list[int]], seq: int, reporter: Reporter) -> None:
-        """Write both setpoint blocks, then read them back and compare every register."""
+    def _upload(self, blocks: dict[str, list[int]], seq: int, reporter) -> None:
+        """Write both setpoint blocks (an audit row each, written ahead), read them back, compare."""
         n = sum(len(b) for b in blocks.values())
         reporter.start(f"upload job {seq} ({n} registers)", total=2 * n)
         for side in SIDES:
-            addr, _ = self._block("setpoints", side)
-            try:
+            addr, count = self._block("setpoints", side)
+            with Audited(self, "upload", sequence=seq,
+                         detail=f"{side} setpoints, registers {addr}..{addr + count - 1}, word order "
+                                f"{self.identity.word_order}"):
                 self._io.write_registers(addr, blocks[side], max_chunk=self.map.max_write_registers,
                                          on_chunk=reporter.advance)
-            except (LinkError, PlcError) as exc:  # either way the upload failed: recorded, raised
-                self._record("upload", "failed", sequence=seq, detail=f"{side}: {exc}")
-                raise
-        self._record("upload", "ok", sequence=seq, detail=f"{n} registers, word order {self.identity.word_order}")
         mismatches = []
         for side in SIDES:
             addr, count = self._block("setpoints", side)
@@ -128,7 +149,8 @@ class Handshake:
         reporter.finish()
         if mismatches:
             side, a, w, r = mismatches[0]
-            self._record("verify", "failed", sequence=seq, detail=f"{len(mismatches)} registers differ")
+            self.audit.record(str(self.url), "verify", "failed", job_sha256=self.job_sha256, sequence=seq,
+                              detail=f"{len(mismatches)} registers differ")
             raise PressRefused(
                 f"verification of job {seq} failed: {len(mismatches)} setpoint register(s) read back differ "
                 f"from what was written (first: {side} block, register {a}: wrote {w}, read {r}); GO was not sent",
@@ -136,49 +158,91 @@ class Handshake:
             )
         reporter.info(f"job {seq}: {n} setpoint registers written and verified")
 
-    def _validate(self, blocks: dict[str, list[int]], seq: int, reporter: Reporter) -> None:
-        """Write CRC and sequence (one request); check the PLC acknowledged and is ready for GO."""
-        crc_f, seq_f = self._field("setpoint_crc"), self._field("job_sequence")
-        if seq_f.address != crc_f.end:
-            raise ConfigError("register map: job_sequence must follow setpoint_crc (one request)")
-        crc = codec.setpoint_crc32(blocks["upper"], blocks["lower"])
-        words = codec.encode_uint32([crc], self.identity.word_order) + [seq]
-        try:
-            self._io.write_command(crc_f.address, words)
-        except PlcError as exc:
-            text = self._refusal_text()
-            self._record("validate", "refused", sequence=seq, detail=f"crc 0x{crc:08X}: {text}")
-            raise PressRefused(f"the PLC refused job {seq} (CRC 0x{crc:08X}): {text}; GO was not sent",
-                               hint="run the step again; if it repeats, check the PLC limits and other masters") from exc
-        except LinkError as exc:
-            self._record("validate", "failed", sequence=seq, detail=str(exc))
-            raise
-        self._record("validate", "ok", sequence=seq, detail=f"crc 0x{crc:08X}")
-        st = self.status()
-        if st.acknowledged_sequence != seq or not st.data_valid:
-            self._record("go", "not sent", sequence=seq, detail="sequence not acknowledged")
-            raise PressRefused(
-                f"the PLC did not acknowledge job {seq} (acknowledged sequence {st.acknowledged_sequence}, "
-                f"data valid {st.data_valid}); GO was not sent",
-                hint="another master may be writing to the PLC; run the step again",
-            )
-        try:
-            self._require_ready(st, "GO")
-        except PressRefused as exc:
-            self._record("go", "not sent", sequence=seq, detail=exc.message)
-            raise
+    def _validate(self, seq: int, crc: int, reporter) -> None:
+        """VALIDATE with the job token; the PLC must accept it and show it as validated."""
+        with Audited(self, "validate", sequence=seq, detail=f"crc 0x{crc:08X}") as row:
+            raw = self._command("VALIDATE", sequence=seq, crc=crc)
+            if raw["result_code"]:
+                row.outcome, row.detail = "refused", self.map.result_text(raw["result_code"])
+                raise PressRefused(f"the PLC refused job {seq} (CRC 0x{crc:08X}): {row.detail}; GO was not sent",
+                                   hint="run the step again; if it repeats, check the PLC limits and other masters")
         reporter.info(f"job {seq} validated by the PLC (CRC 0x{crc:08X})")
 
-    def _go(self, seq: int) -> None:
-        """GO with the job sequence: one attempt, never retried."""
-        try:
-            self._command("GO", seq)
-        except PlcError as exc:
-            text = self._refusal_text()
-            self._record("go", "refused", sequence=seq, detail=text)
-            raise PressRefused(f"the PLC refused GO for job {seq}: {text}; nothing moved",
-                               hint="run the step again (it uploads and verifies afresh)") from exc
-        except LinkError as exc:
-            self._record("go", "failed", sequence=seq, detail=str(exc))
-            raise
-        self._record("go", "ok", sequence=seq)
+    # ------------------------------------------------------------------- GO ---
+    def _check_heartbeat(self, seq: int) -> None:
+        """Refuse GO when the heartbeat could not keep a quarter of the PLC's watchdog."""
+        watchdog = self.identity.watchdog_s
+        if watchdog is None:
+            return
+        gap = self.heartbeat_gap_s()
+        if gap > watchdog / 4 and gap != float("inf"):
+            gap = self._watch_heartbeat()
+        if gap > watchdog / 4:
+            hint = ("use a faster link, a PLC watchdog that suits it (watchdog_ms), or a lighter load on this computer"
+                    if gap != float("inf") else "this driver has no heartbeat (heartbeat_s=None): give it one")
+            self.audit.record(str(self.url), "go", "not sent", job_sha256=self.job_sha256, sequence=seq,
+                              detail=f"heartbeat gap {gap:.3f} s > watchdog/4 {watchdog / 4:.3f} s")
+            raise PressRefused(
+                f"GO for job {seq} not sent: the heartbeat gap reached {gap:.2f} s, more than a quarter of the "
+                f"PLC's watchdog ({watchdog:.2f} s); the PLC could stop the motion at any time",
+                hint=hint)
+
+    def _watch_heartbeat(self) -> float:
+        """A late beat: watch the heartbeat afresh while the link carries the largest frames of a motion.
+
+        A passing hiccup (a busy computer) is forgiven; a link that cannot carry the heartbeat
+        beside the motion's reads (a slow serial line, a watchdog too short for it) is not.
+        """
+        self._mark_heartbeat()
+        self.read_actuals_mm()
+        self._clock.sleep(2 * self.heartbeat_period_s)
+        return self.heartbeat_gap_s()
+
+    def _go(self, seq: int, crc: int) -> dict:
+        """GO with the job token, one attempt; return the status once the PLC executes it.
+
+        Raises
+        ------
+        PressRefused
+            The PLC refused GO (nothing moved).
+        PressFault
+            No acknowledgement, or the PLC did not start our job within the start timeout
+            (STOP was sent).
+        """
+        self._check_heartbeat(seq)
+        with Audited(self, "go", sequence=seq, detail=f"crc 0x{crc:08X}") as row:
+            raw = self._await_ack(self._send("GO", sequence=seq, crc=crc))
+            if raw is None:
+                row.outcome = "no acknowledgement"
+                self._stop_after_trouble(f"GO of job {seq} not acknowledged")
+                raise PressFault(f"the PLC did not acknowledge GO for job {seq} within {self.ack_timeout_s:.1f} s; "
+                                 "STOP was sent", hint="check the PLC ('mppf status'), then run the step again")
+            if raw["result_code"]:
+                row.outcome, row.detail = "refused", self._go_refusal(raw)
+                raise PressRefused(f"the PLC refused GO for job {seq}: {row.detail}; nothing moved",
+                                   hint="run the step again (it uploads and verifies afresh)")
+        return self._await_start(seq, crc, raw)
+
+    def _go_refusal(self, raw: dict) -> str:
+        text = self.map.result_text(raw["result_code"])
+        if self._result(raw) == "WRONG_STATE":
+            text += f" (state {raw['state_name']}"
+            text += ": the setpoints changed after validation)" if raw["state_name"] == "LOADED" else ")"
+        return text
+
+    def _await_start(self, seq: int, crc: int, raw: dict) -> dict:
+        """Wait for EXECUTING (or COMPLETE with our token) after an accepted GO; anything else: STOP."""
+        deadline = self._clock.now() + self.ack_timeout_s
+        while True:
+            ours = (raw["motion_sequence"], raw["motion_crc"]) == (seq, crc)
+            if ours and raw["state_name"] in ("EXECUTING", "COMPLETE"):
+                return raw
+            if raw["state_name"] != "VALIDATED" or self._clock.now() >= deadline:
+                break
+            self._clock.sleep(self._poll_s)
+            raw = self._status_raw()
+        self._stop_after_trouble(f"job {seq} did not start")
+        raise PressFault(f"after GO for job {seq} the PLC reports state {raw['state_name']} and motion job "
+                         f"{raw['motion_sequence']} (CRC 0x{raw['motion_crc']:08X}), not our job executing; "
+                         "STOP was sent", hint="check the PLC ('mppf status'), then run the step again")
+

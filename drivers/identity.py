@@ -13,7 +13,6 @@ from dataclasses import dataclass
 from mppf.core.errors import ConfigError, InputError, LinkError, PlcError
 from mppf.drivers import codec
 from mppf.drivers.regmap import RegisterMap
-from mppf.planning.press import PressConfig
 
 SIDES = ("upper", "lower")
 
@@ -29,6 +28,11 @@ class PlcIdentity:
     map_version, rows, cols : int
     limits_mm : dict of str to (float, float)
         The PLC's own stroke limits, ``{"upper": (min, max), "lower": (min, max)}``.
+    scan_time_s : float
+        The PLC's longest scan time.
+    watchdog_s : float or None
+        Its watchdog and lease time (None: no watchdog).
+    position_tolerance_mm : float
     """
 
     word_order: str
@@ -36,9 +40,12 @@ class PlcIdentity:
     rows: int
     cols: int
     limits_mm: dict
+    scan_time_s: float = 0.01
+    watchdog_s: float | None = 1.0
+    position_tolerance_mm: float = 0.2
 
 
-def identify(io, rmap: RegisterMap, url, unit: int, word_order: str, press: PressConfig | None) -> PlcIdentity:
+def identify(io, rmap: RegisterMap, url, unit: int, word_order: str, press=None) -> PlcIdentity:
     """Read and check magic, map version, size and limits.
 
     Parameters
@@ -62,7 +69,7 @@ def identify(io, rmap: RegisterMap, url, unit: int, word_order: str, press: Pres
         The press description has another matrix size.
     """
     first = rmap["magic"].address
-    last = max(rmap[n].end for n in ("map_version", "rows", "cols", "lower_max"))
+    last = max(f.end for f in rmap.group("identity"))
     try:
         words = io.read_holding(first, last - first, max_chunk=rmap.max_read_registers)
     except PlcError as exc:
@@ -100,14 +107,11 @@ def identify(io, rmap: RegisterMap, url, unit: int, word_order: str, press: Pres
             hint="update the PLC program or mppf so that both use the same register map",
         )
     (rows,), (cols,) = get("rows"), get("cols")
-    limits = {}
-    for side in SIDES:
-        lo, hi = (
-            float(codec.counts_to_mm(codec.decode_int32(get(f"{side}_{end}"), detected)[0], rmap.count_mm))
-            for end in ("min", "max")
-        )
-        limits[side] = (lo, hi)
-    ident = PlcIdentity(detected, version, rows, cols, limits)
+    limits = {side: tuple(round(codec.words_to_i32(get(f"{side}_{end}"), detected) * rmap.count_mm, 6)
+                          for end in ("min", "max")) for side in SIDES}
+    (scan_ms,), (watchdog_ms,), (tolerance,) = get("scan_time_max_ms"), get("watchdog_ms"), get("position_tolerance")
+    ident = PlcIdentity(detected, version, rows, cols, limits, scan_time_s=max(scan_ms, 1) / 1000.0,
+                        watchdog_s=watchdog_ms / 1000.0 or None, position_tolerance_mm=tolerance * rmap.count_mm)
     if press is not None and (rows, cols) != press.shape:
         raise ConfigError(
             f"the PLC at {url} drives {rows} x {cols} punches, the press description "

@@ -1,72 +1,51 @@
 """The press driver on the register map, whatever carries the registers: sends one step safely, follows it.
 
-:class:`PlcPress` implements :class:`mppf.core.presslink.PressLink` on a register
-transport (``connect``, ``close``, ``read_holding``, ``write_registers``,
-``write_command``, as :class:`mppf.drivers.modbus_adapter.ModbusAdapter` offers them) and
-a clock (``now()``, ``sleep(s)``). :class:`mppf.drivers.modbus.ModbusPress` gives it
-Modbus TCP / RTU and the wall clock; :class:`mppf.sim.plc.link.InProcessPress` the
-simulated PLC's program itself and the program's simulated time. No register number
-appears here (the register map of ``drivers/register_map.toml``). One press step
-(:meth:`PlcPress.run_step`) is:
+:class:`PlcPress` implements :class:`mppf.core.presslink.PressLink` on a register transport
+and a clock (:class:`mppf.drivers.session.PlcSession`): :class:`mppf.drivers.modbus.ModbusPress`
+gives it Modbus TCP / RTU, the wall clock and a heartbeat thread;
+:class:`mppf.sim.plc.link.InProcessPress` the simulated PLC's program itself and the
+program's simulated time. No register number appears here (the register map of
+``drivers/register_map.toml``). One press step (:meth:`PlcPress.run_step`) is:
 
-1. check the setpoints against the press limits and the PLC's own limits (nothing is
-   written if one is beyond them);
-2. check the PLC is ready (no fault, no e-stop, no motion);
-3. upload both setpoint blocks (FC16, at most 122 registers a frame);
-4. read every register back and compare;
-5. write ``setpoint_crc`` and a new ``job_sequence`` in one request (the PLC checks the
-   CRC and its limits, then acknowledges the sequence);
-6. read the status: GO only if the sequence is acknowledged, the data valid, the PLC
-   ready and neither faulted nor in e-stop;
-7. GO (one attempt, never retried), then poll until motion ends, with a timeout;
-8. read the actual positions and check every punch against its target.
+1. the setpoints through the one job validator (nothing is written if one fails);
+2. CLAIM (nothing is written while another master owns the PLC), RESET of a finished job;
+3. upload of both setpoint blocks and read-back of every register;
+4. VALIDATE with the job token (a new sequence, the CRC of the setpoints), acknowledged;
+5. GO with the same token (one attempt), acknowledged, EXECUTING within the start timeout;
+6. follow until COMPLETE with the token, the PLC's in-position and the driver's own check
+   of every punch.
 
-Steps 1-7 are :mod:`mppf.drivers.handshake`, step 8 :mod:`mppf.drivers.follow`; STOP and
-RESET and what is sent after trouble are :mod:`mppf.drivers.safety`. STOP is sent on
-Ctrl-C, on a fault, on a timeout, on a refusal after GO and when the link is lost (once,
-after reconnecting). Latched faults are reset only by :meth:`PlcPress.reset`. Every
-command and write is recorded in the audit log (:mod:`mppf.drivers.audit`).
+Steps 1-5 are :mod:`mppf.drivers.handshake`, step 6 :mod:`mppf.drivers.follow`; what is
+sent after trouble is :mod:`mppf.drivers.safety`. STOP is sent on Ctrl-C, on a fault, on a
+timeout, on a refusal after GO and when the link is lost (once, after reconnecting), and
+the heartbeat goes on until the press is at rest. Latched faults are reset only by
+:meth:`PlcPress.reset`. Every command and write is written ahead into the audit log.
 """
 
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 
-from mppf.core.errors import Cancelled, ConfigError, InputError, LinkError, MppfError, PlcError
-from mppf.core.presslink import PressStatus, StepResult
+from mppf.core.errors import Cancelled, InputError, LinkError, MppfError, PlcError
+from mppf.core.presslink import StepResult
 from mppf.core.progress import NULL_REPORTER, Reporter
-from mppf.drivers import codec, regmap as rm
-from mppf.drivers.audit import NULL_AUDIT
+from mppf.drivers import regmap as rm
 from mppf.drivers.follow import Follow
 from mppf.drivers.handshake import Handshake
-from mppf.drivers.identity import identify
 from mppf.drivers.safety import Safety
+from mppf.drivers.session import PlcSession, WallClock
 from mppf.planning.press import PressConfig
 
-_STATUS_REGISTERS = ("status_word", "fault_code", "refusal_code", "acknowledged_sequence", "motion_sequence",
-                     "plc_heartbeat")
+__all__ = ["PlcPress", "WallClock"]
 
 
-class WallClock:
-    """Real time: ``time.monotonic`` and ``time.sleep``."""
-
-    @staticmethod
-    def now() -> float:
-        return time.monotonic()
-
-    @staticmethod
-    def sleep(seconds: float) -> None:
-        time.sleep(seconds)
-
-
-class PlcPress(Handshake, Follow, Safety):
+class PlcPress(Handshake, Follow, Safety, PlcSession):
     """A press PLC behind a register transport (a :class:`mppf.core.presslink.PressLink`).
 
-    Connects on construction: reads the magic (word order), map version, matrix size and
-    the PLC's stroke limits (:func:`mppf.drivers.identity.identify`).
+    Connects on construction (:class:`~mppf.drivers.session.PlcSession`): reads the magic
+    (word order), map version, matrix size, scan time, stroke limits and watchdog.
 
     Parameters
     ----------
@@ -77,20 +56,11 @@ class PlcPress(Handshake, Follow, Safety):
     press : PressConfig or None
         The press description (limits, speed, tolerance). None is enough for
         :meth:`status`, :meth:`stop` and :meth:`reset` but not for :meth:`run_step`.
-    word_order : {"auto", "ABCD", "CDAB"}
-        Expected word order of 32-bit values; "auto" takes the PLC's.
-    unit : int
-        The PLC's unit id (messages).
-    audit : AuditLog, optional
-        Where commands and writes are recorded (default: nowhere).
-    job_sha256 : str, optional
-        Hash of the job being pressed, recorded in the audit log.
-    register_map : RegisterMap, optional
-        Default: the packaged map.
     poll_s : float
-        Status polling period during motion (s of ``clock``).
-    clock : object with ``now()`` and ``sleep(s)``
-        Default :class:`WallClock`.
+        Status polling period during motion (s of the clock).
+    **options
+        ``word_order``, ``unit``, ``audit``, ``job_sha256``, ``register_map``, ``clock``,
+        ``reply_timeout_s``, ``master_id`` of :class:`~mppf.drivers.session.PlcSession`.
 
     Raises
     ------
@@ -102,117 +72,11 @@ class PlcPress(Handshake, Follow, Safety):
         The press description does not match the PLC's matrix size.
     """
 
-    def __init__(self, io, url, press: PressConfig | None = None, *, word_order: str = "auto", unit: int = 1,
-                 audit=None, job_sha256: str | None = None, register_map: rm.RegisterMap | None = None,
-                 poll_s: float = 0.05, clock=None):
-        if word_order != "auto":
-            codec.check_word_order(word_order)
-        self.url = url
-        self.press = press
-        self.map = register_map if register_map is not None else rm.load_register_map()
-        self.audit = audit if audit is not None else NULL_AUDIT
-        self.job_sha256 = job_sha256
+    def __init__(self, io, url, press: PressConfig | None = None, *, poll_s: float = 0.05,
+                 register_map: rm.RegisterMap | None = None, **options):
         self.poll_s = float(poll_s)
-        self._clock = clock if clock is not None else WallClock()
-        self._last_sequence = 0
-        self._io = io
-        try:
-            self._io.connect()
-            self.identity = identify(self._io, self.map, self.url, unit, word_order, press)
-            self._connected()
-        except Exception as exc:
-            self.close()
-            self._record("connect", "failed", detail=str(exc))
-            raise
-        self._record("connect", "ok", detail=f"word order {self.identity.word_order}, "
-                     f"{self.identity.rows} x {self.identity.cols} punches")
+        super().__init__(io, url, press, register_map=register_map, **options)
 
-    def _connected(self) -> None:
-        """Called once the identity is checked (the Modbus driver starts its heartbeat)."""
-
-    def close(self) -> None:
-        """Disconnect (the press is not stopped)."""
-        self._io.close()
-
-    def __enter__(self) -> PlcPress:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
-    # ------------------------------------------------------------------------------
-    # registers, status, commands
-    # ------------------------------------------------------------------------------
-    def _field(self, name: str) -> rm.Field:
-        return self.map[name]
-
-    def _read_field(self, name: str, **kw) -> list[int]:
-        f = self._field(name)
-        return self._io.read_holding(f.address, f.count, max_chunk=self.map.max_read_registers, **kw)
-
-    def _record(self, action: str, outcome: str, *, sequence: int | None = None, detail: str = "") -> None:
-        self.audit.record(str(self.url), action, outcome, job_sha256=self.job_sha256, sequence=sequence,
-                          detail=detail)
-
-    def _status_words(self) -> dict[str, int]:
-        first = min(self._field(n).address for n in _STATUS_REGISTERS)
-        end = max(self._field(n).end for n in _STATUS_REGISTERS)
-        words = self._io.read_holding(first, end - first, max_chunk=self.map.max_read_registers)
-        return {n: words[self._field(n).address - first] for n in _STATUS_REGISTERS}
-
-    def _status_from(self, raw: dict[str, int]) -> PressStatus:
-        flags = self.map.status_flags(raw["status_word"])
-        return PressStatus(
-            **{k: flags[k] for k in ("ready", "busy", "in_position", "fault", "estop", "remote", "data_valid")},
-            fault_code=raw["fault_code"],
-            acknowledged_sequence=raw["acknowledged_sequence"],
-            plc_heartbeat=raw["plc_heartbeat"],
-            fault_text=self.map.fault_text(raw["fault_code"]),
-            simulated=flags.get("simulated", False),
-        )
-
-    def status(self) -> PressStatus:
-        """Read the PLC status (retried reads).
-
-        Raises
-        ------
-        LinkError, PlcError
-        """
-        return self._status_from(self._status_words())
-
-    def status_report(self) -> dict:
-        """Everything ``mppf status`` shows: identity, status bits, codes, sequences, heartbeats."""
-        raw = self._status_words()
-        st = self._status_from(raw)
-        return {
-            "plc": str(self.url),
-            "word_order": self.identity.word_order,
-            "map_version": self.identity.map_version,
-            "rows": self.identity.rows,
-            "cols": self.identity.cols,
-            "limits_mm": {k: list(v) for k, v in self.identity.limits_mm.items()},
-            "status": {k: getattr(st, k) for k in ("ready", "busy", "in_position", "fault", "estop", "remote",
-                                                    "data_valid", "simulated")},
-            "fault_code": st.fault_code,
-            "fault_text": st.fault_text,
-            "refusal_code": raw["refusal_code"],
-            "refusal_text": self.map.fault_text(raw["refusal_code"]),
-            "acknowledged_sequence": st.acknowledged_sequence,
-            "motion_sequence": raw["motion_sequence"],
-            "plc_heartbeat": st.plc_heartbeat,
-            "master_heartbeat": self._read_field("master_heartbeat")[0],
-        }
-
-    def _command(self, name: str, arg: int = 0) -> None:
-        """Write ``command`` and ``command_arg`` in one request (one attempt)."""
-        cmd, carg = self._field("command"), self._field("command_arg")
-        if carg.address != cmd.address + 1:
-            raise ConfigError("register map: command_arg must follow command")
-        self._io.write_command(cmd.address, [self.map.command(name), int(arg)])
-
-    # ------------------------------------------------------------------------------
-    # one press step
-    # ------------------------------------------------------------------------------
     def run_step(
         self,
         upper_mm: np.ndarray,
@@ -226,7 +90,7 @@ class PlcPress(Handshake, Follow, Safety):
         Parameters
         ----------
         upper_mm, lower_mm : (rows, cols) float
-            Tip-height setpoints, no NaN.
+            Tip-height setpoints, finite numbers (parking heights for inactive punches).
         reporter : Reporter
             Receives "upload" progress (registers written and read back), then "motion"
             progress (mm of travel done, summed over all punches).
@@ -246,9 +110,11 @@ class PlcPress(Handshake, Follow, Safety):
         PlcError
             The PLC refused a request (before GO: nothing moved; after GO: STOP was sent).
         PressRefused
-            Verification failed or the PLC refused the job or GO; nothing moved.
+            Another master owns the PLC, the verification failed, or the PLC refused the job
+            or GO; nothing moved.
         PressFault
-            A fault, e-stop, watchdog, timeout, or punches out of tolerance; STOP was sent.
+            A fault, a STOP, a restart, a halted PLC, a timeout, or punches out of tolerance;
+            STOP was sent.
         Cancelled
             Ctrl-C; STOP was sent.
         """
@@ -258,14 +124,15 @@ class PlcPress(Handshake, Follow, Safety):
         go_sent = False
         seq = None
         try:
-            # steps 1-6: limits, readiness, upload, read-back, validation by the PLC
-            seq, targets_mm = self._prepare(upper_mm, lower_mm, reporter)
+            # 1-4: the validator, ownership, upload, read-back, VALIDATE
+            seq, crc, targets_mm = self._prepare(upper_mm, lower_mm, reporter)
             start_mm = self.read_actuals_mm()
-            # step 7: GO, once
+            # 5: GO, once; the PLC executing our job
             go_sent = True
-            self._go(seq)
-            # step 8: follow the motion to its end, check the positions
-            return self._follow(seq, targets_mm, start_mm, reporter, timeout_s, self._clock.now())
+            t0 = self._clock.now()
+            raw = self._go(seq, crc)
+            # 6: follow the motion to COMPLETE, check the positions
+            return self._follow(seq, crc, raw, targets_mm, start_mm, reporter, timeout_s, t0)
         except KeyboardInterrupt:
             reporter.finish()
             self._stop_after_trouble("cancelled by the operator", fresh=True)
@@ -289,13 +156,13 @@ class PlcPress(Handshake, Follow, Safety):
     def upload(self, upper_mm: np.ndarray, lower_mm: np.ndarray, *, reporter: Reporter = NULL_REPORTER) -> int:
         """Check, upload, verify and have the PLC validate one step, without starting it.
 
-        Steps 1-6 of :meth:`run_step` (no GO): the setpoints are in the PLC, read back,
-        and acknowledged under a new job sequence.
+        Steps 1-4 of :meth:`run_step` (no GO): the setpoints are in the PLC, read back, and
+        validated under a new job sequence (state VALIDATED).
 
         Returns
         -------
         int
-            The job sequence the PLC acknowledged.
+            The job sequence the PLC validated.
 
         Raises
         ------

@@ -1,207 +1,25 @@
 """The register map of the press PLC, loaded from ``drivers/register_map.toml``.
 
-The driver and the simulated PLC both use this module; no register number appears
-anywhere else. The encodings both sides share (int32 counts, word order, CRC, chunking)
-are :mod:`mppf.drivers.codec`; ``docs/register-map.md`` is
+The driver and the simulated PLC both use this module; no register number, command,
+state or result code appears anywhere else. The classes are :mod:`mppf.drivers.regmap_model`'s
+(re-exported here); this module loads and checks them. The encodings both sides share (int32 counts,
+word order, CRC, chunking) are :mod:`mppf.drivers.codec`; ``docs/register-map.md`` is
 :meth:`RegisterMap.render_markdown` of the packaged map (:mod:`mppf.drivers.regmap_doc`;
 ``python -m mppf.drivers.regmap > docs/register-map.md``).
 
-This module does not import pymodbus.
+This module imports neither pymodbus nor numpy (``mppf stop`` loads it).
 """
 
 from __future__ import annotations
 
 import tomllib
-from dataclasses import dataclass
 from pathlib import Path
 
-from mppf.core.errors import ConfigError, LimitError
+from mppf.core.errors import ConfigError
+from mppf.drivers.regmap_model import ACCESS, TYPES, Code, CodeTable, Field, RegisterMap
 
-TYPES = ("uint16", "int32", "uint32", "int32_array", "bit_array")
-ACCESS = ("ro", "rw")
-
-
-@dataclass(frozen=True)
-class Field:
-    """One named register or block of registers.
-
-    Attributes
-    ----------
-    name : str
-    address : int
-        First register (0-based protocol address, holding registers).
-    count : int
-        Number of 16-bit registers.
-    type : str
-        ``uint16``, ``int32``, ``uint32``, ``int32_array`` or ``bit_array``.
-    access : str
-        ``ro`` (the master may only read) or ``rw``.
-    group : str
-    description : str
-    """
-
-    name: str
-    address: int
-    count: int
-    type: str
-    access: str
-    group: str
-    description: str
-
-    @property
-    def end(self) -> int:
-        """One past the last register."""
-        return self.address + self.count
-
-    @property
-    def writable(self) -> bool:
-        """True if the master may write it."""
-        return self.access == "rw"
-
-
-@dataclass(frozen=True)
-class FaultCode:
-    """A fault or refusal code of ``fault_code`` / ``refusal_code``."""
-
-    code: int
-    name: str
-    kind: str
-    text: str
-
-
-@dataclass(frozen=True)
-class RegisterMap:
-    """The register map.
-
-    Attributes
-    ----------
-    name : str
-    version : int
-        Map version, also in register ``map_version``.
-    magic : int
-        Value of the int32 at ``magic`` (0x4D505046, "MPPF").
-    max_rows, max_cols : int
-        Largest matrix the setpoint blocks hold.
-    count_mm : float
-        Millimetres per count of a position register (0.01).
-    max_write_registers, max_read_registers : int
-        Chunk sizes for FC16 writes and FC3 reads (even: no int32 is split).
-    fields : dict of str to Field
-        Registers by name, in address order.
-    commands : dict of str to int
-        Command codes (``GO``, ``STOP``, ``RESET``...).
-    status_bits : dict of str to int
-        Bit numbers in ``status_word``.
-    fault_codes : dict of int to FaultCode
-    exceptions : dict of str to int
-        Modbus exception codes the PLC replies with (``read_only``, ``refused``).
-    source : str
-        Path of the TOML file.
-    """
-
-    name: str
-    version: int
-    magic: int
-    max_rows: int
-    max_cols: int
-    count_mm: float
-    max_write_registers: int
-    max_read_registers: int
-    fields: dict
-    commands: dict
-    status_bits: dict
-    fault_codes: dict
-    exceptions: dict
-    source: str = ""
-
-    # -- look-ups ------------------------------------------------------------------
-    def __getitem__(self, name: str) -> Field:
-        try:
-            return self.fields[name]
-        except KeyError:
-            raise ConfigError(
-                f"register map {self.source}: no register named {name!r}",
-                hint=f"known registers: {', '.join(self.fields)}",
-            ) from None
-
-    def command(self, name: str) -> int:
-        """Code of command ``name`` (``"GO"``, ``"STOP"``, ``"RESET"``)."""
-        try:
-            return self.commands[name]
-        except KeyError:
-            raise ConfigError(f"register map {self.source}: no command named {name!r}") from None
-
-    def fault(self, name: str) -> int:
-        """Code of fault/refusal ``name`` (e.g. ``"CRC_MISMATCH"``)."""
-        for code, entry in self.fault_codes.items():
-            if entry.name == name:
-                return code
-        raise ConfigError(f"register map {self.source}: no fault code named {name!r}")
-
-    def fault_text(self, code: int) -> str:
-        """Readable text of a fault or refusal code (unknown codes are named as such)."""
-        entry = self.fault_codes.get(int(code))
-        if entry is None:
-            return f"unknown fault code {int(code)}"
-        return entry.text if entry.code == 0 else f"{entry.name}: {entry.text}"
-
-    def status_flags(self, word: int) -> dict[str, bool]:
-        """Decode ``status_word`` into ``{bit name: bool}``."""
-        return {name: bool((int(word) >> bit) & 1) for name, bit in self.status_bits.items()}
-
-    def status_word(self, **flags: bool) -> int:
-        """Encode status flags (names of :attr:`status_bits`) into ``status_word``."""
-        word = 0
-        for name, value in flags.items():
-            if name not in self.status_bits:
-                raise ConfigError(f"register map {self.source}: no status bit named {name!r}")
-            if value:
-                word |= 1 << self.status_bits[name]
-        return word
-
-    # -- layout --------------------------------------------------------------------
-    def check_shape(self, rows: int, cols: int) -> None:
-        """Raise :class:`LimitError` unless ``rows x cols`` fits the setpoint blocks."""
-        if not (1 <= rows <= self.max_rows and 1 <= cols <= self.max_cols):
-            raise LimitError(
-                f"matrix of {rows} x {cols} punches does not fit the register map "
-                f"(at most {self.max_rows} x {self.max_cols})",
-                hint="check rows and cols of the press description",
-            )
-
-    def punch_index(self, row: int, col: int, cols: int) -> int:
-        """Index of a punch in the blocks: ``row * cols + col`` (row-major, packed)."""
-        return row * cols + col
-
-    def words_in_use(self, rows: int, cols: int) -> int:
-        """Registers of one setpoint/actual block used by a ``rows x cols`` matrix."""
-        self.check_shape(rows, cols)
-        return 2 * rows * cols
-
-    def bit_words_in_use(self, rows: int, cols: int) -> int:
-        """Registers of one fault-bit block used by a ``rows x cols`` matrix."""
-        self.check_shape(rows, cols)
-        return -(-rows * cols // 16)
-
-    def field_at(self, address: int) -> Field | None:
-        """The field holding register ``address``, or None."""
-        for field in self.fields.values():
-            if field.address <= address < field.end:
-                return field
-        return None
-
-    @property
-    def total_registers(self) -> int:
-        """One past the highest register of the map."""
-        return max(field.end for field in self.fields.values())
-
-    # -- documentation -------------------------------------------------------------
-    def render_markdown(self) -> str:
-        """The PLC programmer's description of this map (``docs/register-map.md``)."""
-        from mppf.drivers.regmap_doc import render_markdown
-
-        return render_markdown(self)
-
+__all__ = ["ACCESS", "TYPES", "Code", "CodeTable", "Field", "RegisterMap", "default_map_path", "load_register_map",
+           "register_map_from_dict"]
 
 # ---------------------------------------------------------------------------------
 # Loading
@@ -221,6 +39,8 @@ def _need(table: dict, key: str, kind, where: str):
         raise ConfigError(f"{where}: {key} must be a number, got {value!r}")
     if kind is str and not isinstance(value, str):
         raise ConfigError(f"{where}: {key} must be a string, got {value!r}")
+    if kind is list and not isinstance(value, list):
+        raise ConfigError(f"{where}: {key} must be a list, got {value!r}")
     return value
 
 
@@ -228,15 +48,9 @@ def _load_fields(data: dict, src: str) -> dict:
     fields: dict[str, Field] = {}
     for i, entry in enumerate(data.get("register", [])):
         where = f"{src}: [[register]] #{i + 1}"
-        field = Field(
-            name=_need(entry, "name", str, where),
-            address=_need(entry, "address", int, where),
-            count=_need(entry, "count", int, where),
-            type=_need(entry, "type", str, where),
-            access=_need(entry, "access", str, where),
-            group=_need(entry, "group", str, where),
-            description=_need(entry, "description", str, where),
-        )
+        field = Field(*(_need(entry, key, kind, where) for key, kind in (
+            ("name", str), ("address", int), ("count", int), ("type", str), ("access", str), ("group", str),
+            ("description", str))))
         where = f"{src}: register {field.name!r}"
         if field.name in fields:
             raise ConfigError(f"{where} is defined twice")
@@ -262,6 +76,66 @@ def _load_fields(data: dict, src: str) -> dict:
     return {f.name: f for f in ordered}
 
 
+def _table(data: dict, key: str, what: str, src: str, extra: tuple = ()) -> CodeTable:
+    entries = []
+    for i, entry in enumerate(data.get(key, [])):
+        where = f"{src}: [[{key}]] #{i + 1}"
+        text_key = "text" if "text" in entry else "does" if "does" in entry else "entered"
+        entries.append(Code(_need(entry, "code", int, where), _need(entry, "name", str, where),
+                            _need(entry, text_key, str, where),
+                            {k: _need(entry, k, list if k in ("commands", "checks") else str, where) for k in extra}))
+    if not entries:
+        raise ConfigError(f"{src}: no [[{key}]] entries")
+    return CodeTable(what, entries, src)
+
+
+REQUIRED_REGISTERS = (
+    "magic", "map_version", "rows", "cols", "scan_time_max_ms", "watchdog_ms", "position_tolerance", "command",
+    "command_counter", "command_master", "command_crc", "command_sequence", "heartbeat_master", "heartbeat_counter",
+    "stop_request", "stop_master", "status_word", "state", "fault_code", "ack_counter", "ack_master", "ack_command",
+    "result_code", "owner_master", "validated_crc", "validated_sequence", "motion_sequence", "motion_crc",
+    "plc_heartbeat", "refused_writes", "last_sequence", "stop_count", "last_stop_master", "stop_cause",
+)
+REQUIRED_BITS = ("ready", "busy", "in_position", "fault", "estop", "remote_enabled", "owned", "lease_ok",
+                 "setpoints_locked")
+
+
+def _check_consistency(rmap: RegisterMap, src: str) -> None:
+    """Every register, bit and code the driver and the PLC program use is there and coherent."""
+    for name in REQUIRED_REGISTERS:
+        rmap[name]  # raises ConfigError naming the missing register
+    n = rmap.max_rows * rmap.max_cols
+    for side in ("upper", "lower"):
+        for block, need in ((f"{side}_setpoints", 2 * n), (f"{side}_actuals", 2 * n),
+                            (f"{side}_fault_bits", -(-n // 16))):
+            if rmap[block].count < need:
+                raise ConfigError(f"{src}: block {block!r} has {rmap[block].count} registers, "
+                                  f"{rmap.max_rows} x {rmap.max_cols} punches need {need}")
+    for name in REQUIRED_BITS:
+        if name not in rmap.status_bits:
+            raise ConfigError(f"{src}: [[status_bit]] lacks {name!r}")
+    for first, last in (("command", "command_sequence"), ("heartbeat_master", "heartbeat_counter"),
+                        ("stop_request", "stop_master")):
+        fields = [f for f in rmap.fields.values() if rmap[first].address <= f.address < rmap[last].end]
+        if sum(f.count for f in fields) != rmap[last].end - rmap[first].address:
+            raise ConfigError(f"{src}: {first}..{last} must be contiguous (one request)")
+    precedence = [r.name for r in rmap.results]
+    for command in rmap.commands:
+        checks = command["checks"]
+        unknown = [c for c in checks if c not in rmap.results]
+        if unknown:
+            raise ConfigError(f"{src}: command {command.name} checks unknown results {unknown}")
+        if checks != sorted(checks, key=precedence.index):
+            raise ConfigError(f"{src}: the checks of {command.name} are not in the order of [[result]]")
+    for state in rmap.states:
+        unknown = [c for c in state["commands"] if c not in rmap.commands]
+        if unknown or state["setpoints"] not in ("accept", "refuse"):
+            raise ConfigError(f"{src}: state {state.name}: unknown commands {unknown} or setpoints "
+                              f"{state['setpoints']!r} (accept or refuse)")
+    if rmap.max_write_registers % 2 or rmap.max_read_registers % 2:
+        raise ConfigError(f"{src}: [map] max_write_registers and max_read_registers must be even")
+
+
 def register_map_from_dict(data: dict, source: str = "register map") -> RegisterMap:
     """Build and validate a :class:`RegisterMap` from the TOML layout.
 
@@ -269,22 +143,19 @@ def register_map_from_dict(data: dict, source: str = "register map") -> Register
     ------
     ConfigError
         Missing or mistyped keys, overlapping registers, blocks too small for the
-        declared matrix size, or a required register/command/bit missing.
+        declared matrix size, or a required register/command/state/bit missing.
     """
     head = data.get("map")
     if not isinstance(head, dict):
         raise ConfigError(f"{source}: missing table [map]")
     where = f"{source}: [map]"
-    fields = _load_fields(data, source)
-    fault_codes: dict[int, FaultCode] = {}
-    for i, entry in enumerate(data.get("fault_codes", [])):
-        w = f"{source}: [[fault_codes]] #{i + 1}"
-        fc = FaultCode(
-            _need(entry, "code", int, w), _need(entry, "name", str, w), _need(entry, "kind", str, w), _need(entry, "text", str, w)
-        )
-        if fc.code in fault_codes:
-            raise ConfigError(f"{w}: code {fc.code} is defined twice")
-        fault_codes[fc.code] = fc
+    bits = {}
+    texts = {}
+    for i, entry in enumerate(data.get("status_bit", [])):
+        w = f"{source}: [[status_bit]] #{i + 1}"
+        name = _need(entry, "name", str, w)
+        bits[name], texts[name] = _need(entry, "bit", int, w), _need(entry, "text", str, w)
+    timing = data.get("timing", {})
     rmap = RegisterMap(
         name=_need(head, "name", str, where),
         version=_need(head, "version", int, where),
@@ -294,43 +165,27 @@ def register_map_from_dict(data: dict, source: str = "register map") -> Register
         count_mm=float(_need(head, "count_mm", float, where)),
         max_write_registers=_need(head, "max_write_registers", int, where),
         max_read_registers=_need(head, "max_read_registers", int, where),
-        fields=fields,
-        commands={str(k): int(v) for k, v in data.get("commands", {}).items()},
-        status_bits={str(k): int(v) for k, v in data.get("status_bits", {}).items()},
-        fault_codes=fault_codes,
-        exceptions={str(k): int(v) for k, v in data.get("exceptions", {}).items()},
+        illegal_address=_need(head, "illegal_address", int, where),
+        fields=_load_fields(data, source),
+        commands=_table(data, "command", "command", source, ("from", "arguments", "checks")),
+        states=_table(data, "state", "state", source, ("setpoints", "commands")),
+        results=_table(data, "result", "result", source),
+        faults=_table(data, "fault", "fault", source, ("punches",)),
+        stop_causes=_table(data, "stop_cause", "stop cause", source),
+        status_bits=bits,
+        status_texts=texts,
+        timing={k: _need(timing, k, int, f"{source}: [timing]") for k in timing},
         source=source,
     )
-    required = [
-        "magic", "map_version", "rows", "cols", "command", "command_arg", "setpoint_crc",
-        "job_sequence", "master_heartbeat", "status_word", "fault_code", "refusal_code",
-        "acknowledged_sequence", "plc_heartbeat",
-    ]  # fmt: skip
-    for name in required:
-        rmap[name]  # raises ConfigError naming the missing register
-    n = rmap.max_rows * rmap.max_cols
-    for side in ("upper", "lower"):
-        for block, need in ((f"{side}_setpoints", 2 * n), (f"{side}_actuals", 2 * n), (f"{side}_fault_bits", -(-n // 16))):
-            if rmap[block].count < need:
-                raise ConfigError(
-                    f"{source}: block {block!r} has {rmap[block].count} registers, "
-                    f"{rmap.max_rows} x {rmap.max_cols} punches need {need}"
-                )
-    for name in ("GO", "STOP", "RESET"):
-        rmap.command(name)
-    for name in ("ready", "busy", "in_position", "fault", "estop", "remote", "data_valid"):
-        if name not in rmap.status_bits:
-            raise ConfigError(f"{source}: [status_bits] lacks {name!r}")
-    for key in ("read_only", "refused"):
-        if key not in rmap.exceptions:
-            raise ConfigError(f"{source}: [exceptions] lacks {key!r}")
-    if rmap.max_write_registers % 2 or rmap.max_read_registers % 2:
-        raise ConfigError(f"{where}: max_write_registers and max_read_registers must be even")
+    _check_consistency(rmap, source)
     return rmap
 
 
+_CACHE: dict[str, RegisterMap] = {}
+
+
 def load_register_map(path=None) -> RegisterMap:
-    """Load a register map (default: the packaged ``register_map.toml``).
+    """Load a register map (default: the packaged ``register_map.toml``, read once per process).
 
     Raises
     ------
@@ -338,6 +193,9 @@ def load_register_map(path=None) -> RegisterMap:
         The file is missing, not TOML, or not a valid map.
     """
     path = default_map_path() if path is None else Path(path)
+    key = str(path.resolve())
+    if key in _CACHE:
+        return _CACHE[key]
     try:
         with path.open("rb") as fh:
             data = tomllib.load(fh)
@@ -345,7 +203,8 @@ def load_register_map(path=None) -> RegisterMap:
         raise ConfigError(f"register map {path} does not exist") from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"register map {path}: not valid TOML: {exc}") from None
-    return register_map_from_dict(data, source=str(path))
+    _CACHE[key] = register_map_from_dict(data, source=str(path))
+    return _CACHE[key]
 
 
 if __name__ == "__main__":  # pragma: no cover - documentation generator

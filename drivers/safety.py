@@ -1,67 +1,25 @@
-"""STOP, RESET, and leaving the press safe when a step goes wrong.
+"""Leaving the press safe when a step goes wrong: STOP, the wait for rest, lost links, refusals.
 
-:class:`Safety` is the part of :class:`mppf.drivers.plc_press.PlcPress` that commands
-STOP (one attempt, never retried) and RESET (on request only), and decides what is sent
-after trouble: STOP once on a fault, timeout, Ctrl-C (again on a fresh connection when
-Ctrl-C interrupts the STOP itself), a lost link (after reconnecting) or a refusal by the
-PLC after GO. A failed STOP is recorded, never hidden, and the original trouble raised.
+:class:`Safety` is the part of :class:`mppf.drivers.plc_press.PlcPress` that decides what is
+sent after trouble: STOP once on a fault, a timeout, a refusal after GO, Ctrl-C (again on a
+fresh connection when Ctrl-C interrupts the STOP itself) or a lost link (after
+reconnecting); then it waits for the press to come to rest (STOPPED, COMPLETE or a fault at
+standstill) while the heartbeat goes on, so that the PLC's watchdog does not turn a
+controlled stop into a fault. A failed STOP is recorded, never hidden, and the original
+trouble raised.
 """
 
 from __future__ import annotations
 
-from mppf.core.errors import LinkError, PlcError, PressRefused
+from mppf.core.errors import LinkError, PlcError, PressFault
 
 RECONNECT_S = 2.0  # how long to try reconnecting after a lost link before sending STOP
 STOP_ATTEMPTS_AFTER_CTRL_C = 3  # a STOP interrupted by another Ctrl-C is sent again, this often at most
+SETTLE_MARGIN_S = 2.0  # the wait for rest after STOP: the braking time plus this
 
 
 class Safety:
-    """STOP, RESET and the reactions to trouble during a step (a mixin of ``PlcPress``)."""
-
-    def _refusal_text(self) -> str:
-        try:
-            code = self._read_field("refusal_code")[0]
-        except (LinkError, PlcError):  # the refusal is reported either way, its reason if it can be read
-            return "reason unknown (refusal_code could not be read)"
-        return self.map.fault_text(code)
-
-    def stop(self, reason: str = "operator request") -> None:
-        """Command STOP (one attempt, never retried; the PLC always accepts it).
-
-        Raises
-        ------
-        LinkError
-            STOP could not be delivered.
-        PlcError
-            The PLC refused it (a PLC that is not an mppf press PLC).
-        """
-        try:
-            self._command("STOP")
-        except (LinkError, PlcError) as exc:
-            self._record("stop", "failed", sequence=self._last_sequence or None, detail=f"{reason}: {exc}")
-            raise
-        self._record("stop", "ok", sequence=self._last_sequence or None, detail=reason)
-
-    def reset(self) -> None:
-        """Reset latched faults (on request only).
-
-        Raises
-        ------
-        PressRefused
-            The PLC refused (e.g. the e-stop is still pressed).
-        LinkError
-        """
-        try:
-            self._command("RESET")
-        except PlcError as exc:
-            text = self._refusal_text()
-            self._record("reset", "refused", detail=text)
-            raise PressRefused(f"the PLC at {self.url} refused RESET: {text}",
-                               hint="remove the cause (release the e-stop), then reset again") from exc
-        except LinkError as exc:
-            self._record("reset", "failed", detail=str(exc))
-            raise
-        self._record("reset", "ok")
+    """The reactions to trouble during a step (a mixin of ``PlcPress``)."""
 
     def _reconnect(self, within_s: float = RECONNECT_S) -> None:
         """Open a fresh connection, trying for up to ``within_s`` seconds."""
@@ -76,27 +34,43 @@ class Safety:
                     raise
                 self._clock.sleep(0.1)
 
-    def _stop_after_trouble(self, reason: str, *, fresh: bool = False) -> None:
-        """Send STOP once (on a fresh connection if ``fresh``); a failure is recorded, not raised.
+    def _settle(self) -> None:
+        """Wait (heartbeat going on) until no punch moves, at most the braking time plus a margin."""
+        brake_s = self.press.speed_mm_s / self.press.accel_mm_s2 if self.press is not None else 1.0
+        deadline = self._clock.now() + brake_s + SETTLE_MARGIN_S + 4 * self.identity.scan_time_s
+        while self._clock.now() < deadline:
+            try:
+                if not self._status_raw()["flags"]["busy"]:
+                    return
+            except (LinkError, PlcError):
+                return
+            self._clock.sleep(self.poll_s)
+
+    def _stop_after_trouble(self, reason: str, *, fresh: bool = False, wait: bool = True) -> None:
+        """Send STOP (on a fresh connection if ``fresh``) and wait for rest; a failure is recorded, not raised.
 
         ``fresh`` is for an interrupted request (Ctrl-C): its reply may still be on the way
-        and must not be taken for the reply to STOP.
+        and must not be taken for the reply to STOP. ``wait=False`` for a halted PLC program,
+        which takes no STOP and never comes to rest.
         """
         for _ in range(STOP_ATTEMPTS_AFTER_CTRL_C):
             try:
                 if fresh:
                     self._reconnect()
-                self.stop(reason)
+                self.stop(reason, wait=wait)
+                if wait:
+                    self._settle()
                 return
-            except (LinkError, PlcError):
+            except (LinkError, PlcError, PressFault):
                 return  # recorded by stop(); the caller raises the original trouble
             except KeyboardInterrupt:
                 # Ctrl-C again while STOP was on its way: the operator wants the press stopped,
                 # so STOP again (harmless to repeat) on a fresh connection
                 fresh = True
                 reason = f"{reason} (Ctrl-C again: STOP repeated)"
-        self._record("stop", "failed", sequence=self._last_sequence or None,
-                     detail=f"{reason}: interrupted by Ctrl-C {STOP_ATTEMPTS_AFTER_CTRL_C} times")
+        self.audit.record(str(self.url), "stop", "failed", job_sha256=self.job_sha256,
+                          sequence=self._last_sequence or None,
+                          detail=f"{reason}: interrupted by Ctrl-C {STOP_ATTEMPTS_AFTER_CTRL_C} times")
 
     def _refused_after_go(self, exc: PlcError, seq: int) -> PlcError:
         """The PLC refused a request while the press moved: STOP once (the link works), a PlcError."""
@@ -118,14 +92,16 @@ class Safety:
             self.stop(f"link lost: {exc.message}")
             state = "STOP was sent after reconnecting"
             try:
-                st = self.status()
-                if seq is not None and st.acknowledged_sequence != seq:
-                    state += (f"; the PLC restarted (it no longer knows job {seq}: acknowledged sequence "
-                              f"{st.acknowledged_sequence}, PLC heartbeat {st.plc_heartbeat})")
+                raw = self._status_raw()
+                if seq is not None and raw["motion_sequence"] != seq:
+                    state += (f"; the PLC restarted (it no longer knows job {seq}: state {raw['state_name']}, "
+                              f"motion job {raw['motion_sequence']}, PLC heartbeat {raw['plc_heartbeat']})")
+                self._settle()
             except (LinkError, PlcError):  # only the extra detail is lost
                 pass
-        except (LinkError, PlcError):  # STOP could not be delivered (no link) or was refused
-            self._record("stop", "failed", sequence=seq, detail=f"no link: {exc.message}")
+        except (LinkError, PlcError, PressFault):  # STOP could not be delivered (no link), refused or not taken
+            self.audit.record(str(self.url), "stop", "failed", job_sha256=self.job_sha256, sequence=seq,
+                              detail=f"no link: {exc.message}")
             state = "STOP could not be sent: stop the press at the machine"
         return LinkError(f"link to the PLC lost during job {seq} after GO: {exc.message}; {state}",
                          hint="check the press and the link, then run the step again")

@@ -9,14 +9,18 @@ spec                       fault
 ``overpressure[@T]``       overpressure fault now, or after T s of motion of the next GO
 ``freeze[@T]``             PLC program halts (no scan: heartbeat and status frozen, punches
                            stop, writes land in memory unacted), now or after T s of motion
-``slow:MS``                every reply is delayed by MS milliseconds
+``local[@T]``              the remote-enable key switch turned to local (a motion stops),
+                           now or after T s of motion
+``slow:MS[@T]``            every reply is delayed by MS milliseconds, now or from T s of motion
 ``drop[:D][@T]``           connections closed and nothing answered for D s (default 2),
-                           now or T s (wall clock) after the simulator starts
+                           now or after T s of motion
 ``restart[@T]``            PLC restart (registers back to power-on state), now or after T s
+                           of motion
 =========================  ===============================================================
 
-Motion times (``estop@T``, ``overpressure@T``, ``freeze@T``) are simulated seconds, so they scale with
-the time scale like the motion itself; ``drop`` and ``restart`` times are wall-clock.
+Every ``@T`` is a time from the start of motion: T simulated seconds into the motion of the
+current or next GO (they scale with the time scale like the motion itself). The durations
+(``drop:D``, ``slow:MS``) are wall-clock.
 """
 
 from __future__ import annotations
@@ -25,10 +29,10 @@ from dataclasses import dataclass, field
 
 from mppf.core.errors import InputError
 
-KINDS = ("stuck", "estop", "overpressure", "freeze", "slow", "drop", "restart")
+KINDS = ("stuck", "estop", "overpressure", "freeze", "slow", "drop", "restart", "local")
 GRAMMAR = (
-    "stuck:upper|lower:ROW:COL@PERCENT, estop@T, overpressure@T, freeze@T, slow:MS, drop:DURATION@T, "
-    "restart@T (the @... parts and :DURATION may be left out)"
+    "stuck:upper|lower:ROW:COL@PERCENT, estop@T, overpressure@T, freeze@T, local@T, slow:MS@T, drop:DURATION@T, "
+    "restart@T (the @... parts and :DURATION may be left out; T = seconds into the motion)"
 )
 
 
@@ -84,14 +88,17 @@ def parse_fault_spec(spec: str) -> FaultSpec:
                 raise InputError(f"fault spec {spec!r}: PERCENT must be 0..100, got {at!r}", hint=f"grammar: {GRAMMAR}")
             params["percent"] = percent
         return FaultSpec("stuck", params)
-    if kind in ("estop", "overpressure", "freeze", "restart"):
+    if kind in ("estop", "overpressure", "freeze", "local", "restart"):
         if args:
             raise bad_arity
         return FaultSpec(kind, {} if at is None else {"after_s": _number(at, "T", spec)})
     if kind == "slow":
-        if len(args) != 1 or at is not None:
+        if len(args) != 1:
             raise bad_arity
-        return FaultSpec("slow", {"delay_ms": _number(args[0], "MS", spec)})
+        params = {"delay_ms": _number(args[0], "MS", spec)}
+        if at is not None:
+            params["after_s"] = _number(at, "T", spec)
+        return FaultSpec("slow", params)
     if kind == "drop":
         if len(args) > 1:
             raise bad_arity

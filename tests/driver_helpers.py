@@ -1,11 +1,14 @@
-"""Helpers shared by the driver and press-CLI tests: a small press, jobs, a hook reporter."""
+"""Helpers shared by the driver, PLC and press-CLI tests: a small press, jobs, a hook reporter, raw masters."""
 
 from __future__ import annotations
 
 import numpy as np
 
+from mppf.drivers import codec
 from mppf.planning.job import Job, StepStrokes
 from mppf.planning.press import example_press_path, load_press, press_from_dict
+
+THICKNESS_MM = 20.0
 
 
 def small_press(rows: int = 4, cols: int = 6, **forming):
@@ -25,16 +28,24 @@ def step_setpoints(press, upper_mm: float = 30.0, lower_mm: float = 10.0, seed: 
 
 
 def small_job(press, n_steps: int = 2, *, beyond_limit: bool = False) -> Job:
-    """A job with ``n_steps`` steps; punch (0, 0) inactive (parked)."""
+    """A valid job of ``n_steps`` steps for a 20 mm plate; punch (0, 0) inactive (parked).
+
+    The tips close on the plate (gap = thickness) and travel up to 20 mm with up to 10 mm
+    between neighbours, step k at k/n of the way: within the dimpling limit and monotonic.
+    ``beyond_limit``: one upper stroke of the last step beyond the press's limit.
+    """
     active = np.ones(press.shape, dtype=bool)
     active[0, 0] = False
+    travel = 10.0 + np.round(np.random.default_rng(7).uniform(0, 10, press.shape), 2)
     steps = []
-    for k in range(n_steps):
-        upper, lower = step_setpoints(press, 30.0 + 5 * k, 10.0 + 5 * k, seed=k)
-        if beyond_limit and k == n_steps - 1:
+    for k in range(1, n_steps + 1):
+        lower = travel * k / n_steps
+        upper = THICKNESS_MM + lower
+        if beyond_limit and k == n_steps:
+            upper = upper.copy()
             upper[1, 2] = press.upper.max_mm + 50.0
         steps.append(StepStrokes(np.where(active, upper, np.nan), np.where(active, lower, np.nan), active))
-    return Job(press=press, thickness_mm=20.0, steps=steps)
+    return Job(press=press, thickness_mm=THICKNESS_MM, steps=steps)
 
 
 class HookReporter:
@@ -71,3 +82,70 @@ class HookReporter:
         self.messages.append(message)
         if self._on_info:
             self._on_info(message)
+
+
+class RawMaster:
+    """A bare master speaking register map v2 on any register store (the test's own, not the driver).
+
+    ``write(address, words)`` and ``read(address, count)`` are the transport (the program's
+    ``store``/``read`` in-process, a pymodbus client over a socket); ``scan()`` lets the PLC
+    act (one program scan in-process, a wait on a socket).
+    """
+
+    def __init__(self, rmap, write, read, scan, master_id: int, word_order: str = "ABCD"):
+        self.map, self._write, self._read, self.scan = rmap, write, read, scan
+        self.master_id, self.word_order = master_id, word_order
+        self.counter = 0
+        self.beats = 0
+
+    def u32(self, value: int) -> list[int]:
+        return codec.u32_to_words(value, self.word_order)
+
+    def field(self, name: str) -> int:
+        f = self.map[name]
+        words = self._read(f.address, f.count)
+        return words[0] if f.count == 1 else codec.words_to_u32(words, self.word_order)
+
+    def state(self) -> str:
+        return self.map.states.name(self.field("state"))
+
+    def flags(self) -> dict:
+        return self.map.status_flags(self.field("status_word"))
+
+    def result(self) -> str:
+        return self.map.results.name(self.field("result_code"))
+
+    def send(self, name: str, sequence: int = 0, crc: int = 0, *, master: int | None = None) -> None:
+        """Write the mailbox in one request (no wait)."""
+        self.counter = self.counter % 0xFFFF + 1
+        master = self.master_id if master is None else master
+        self._write(self.map["command"].address,
+                    [self.map.command(name), self.counter] + self.u32(master) + self.u32(crc) + [sequence])
+
+    def command(self, name: str, sequence: int = 0, crc: int = 0, *, master: int | None = None) -> str:
+        """Send a command, let the PLC scan, return the result's name (checks the acknowledgement)."""
+        self.send(name, sequence, crc, master=master)
+        self.scan()
+        assert self.field("ack_counter") == self.counter, "the PLC did not acknowledge the command"
+        return self.result()
+
+    def beat(self) -> None:
+        self.beats = self.beats % 0xFFFF + 1
+        self._write(self.map["heartbeat_master"].address, self.u32(self.master_id) + [self.beats])
+
+    def stop(self) -> None:
+        self._write(self.map["stop_request"].address, [1] + self.u32(self.master_id))
+
+    def upload(self, upper_mm, lower_mm) -> int:
+        """Write both setpoint blocks; return their CRC."""
+        words = {side: codec.encode_int32(codec.mm_to_counts(np.ravel(v)), self.word_order)
+                 for side, v in (("upper", upper_mm), ("lower", lower_mm))}
+        for side in ("upper", "lower"):
+            for address, part in codec.chunks(self.map[f"{side}_setpoints"].address, words[side]):
+                self._write(address, part)
+        return codec.setpoint_crc32(words["upper"], words["lower"])
+
+    def actuals_mm(self, side: str, shape) -> np.ndarray:
+        n = shape[0] * shape[1]
+        words = self._read(self.map[f"{side}_actuals"].address, 2 * n)
+        return codec.counts_to_mm(codec.decode_int32(words, self.word_order)).reshape(shape)

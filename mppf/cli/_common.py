@@ -40,6 +40,14 @@ units_option = click.option(
     help="Length unit of the input point files (results are always in mm).",
 )
 
+scale_option = click.option(
+    "--scale",
+    type=click.FloatRange(min=0.0, min_open=True),
+    default=1.0,
+    show_default=True,
+    help="Model scale of the input files: coordinates are multiplied by it (31.6 for a 1:31.6 model).",
+)
+
 
 def _jsonable(value):
     if isinstance(value, dict):

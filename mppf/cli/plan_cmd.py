@@ -9,7 +9,7 @@ import click
 from rich.table import Table
 
 from mppf.cli._common import (PICTURE_SUFFIXES, RichReporter, check_output_path, console, print_json,
-                              units_option)
+                              scale_option, units_option)
 from mppf.core.errors import InputError
 from mppf.geometry.read import read_points
 from mppf.forming.material import MATERIALS, Material
@@ -103,17 +103,19 @@ def _print_summary(summary: dict, output) -> None:
 @click.option("--poisson", type=float, default=None, help="Poisson's ratio (overrides the preset).")
 @click.option("--yield", "yield_mpa", type=float, default=None, help="Yield stress in MPa (overrides the preset).")
 @units_option
+@scale_option
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=str), default=None,
               help="Write the job file (JSON) here.")
 @click.option("--plot", type=click.Path(dir_okay=False, path_type=str), default=None,
               help="Draw the stroke map of the last step (.png .pdf .svg).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 def plan_command(design, flat, press_path, thickness_mm, steps, springback, margin_mm, material, youngs, poisson,
-                 yield_mpa, units, output, plot, as_json):
+                 yield_mpa, units, scale, output, plot, as_json):
     """Plan the strokes of both punch matrices to press FLAT into DESIGN.
 
     DESIGN is the curved plate (mid-surface points or mesh), FLAT its unfolded plate
-    (e.g. from 'mppf unfold'; same point order = paired registration). Nothing is
+    (e.g. from 'mppf unfold'; same point order = paired registration). --scale applies to
+    DESIGN (a model-scale CAD file); FLAT, written by mppf, is at full scale. Nothing is
     written when the plan fails validation.
     """
     from mppf.planning.plan import plan_job, plan_summary  # numpy/scipy work: imported when planning
@@ -128,7 +130,7 @@ def plan_command(design, flat, press_path, thickness_mm, steps, springback, marg
     if springback and mat is None:
         raise InputError("--springback needs the plate material",
                          hint="add --material steel|ah36 or --youngs/--poisson/--yield")
-    design_cloud = read_points(design, units=units)
+    design_cloud = read_points(design, units=units, scale=scale)
     flat_cloud = read_points(flat, units=units)
     inputs = {
         "design": {"path": str(design_cloud.path), "sha256": design_cloud.sha256},

@@ -1,22 +1,22 @@
 """``mppf press``, ``mppf status``, ``mppf stop``, ``mppf reset``: drive the press PLC.
 
-Thin wrappers over :class:`mppf.drivers.modbus.ModbusPress`; which press, the
-confirmation and SIGTERM follow :mod:`mppf.cli.press_policy` (as ``mppf loop``). See
-``docs/driver.md``.
+Thin wrappers over :class:`mppf.drivers.modbus.ModbusPress` (``press``) and the light
+:class:`mppf.drivers.modbus_session.ModbusSession` (``status``, ``stop``, ``reset``: they
+import neither numpy nor rich nor the planning code, so that STOP leaves at once). Which
+press, the confirmation and SIGTERM follow :mod:`mppf.cli.press_policy` (as ``mppf loop``).
+See ``docs/driver.md``.
 """
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
 import click
-import numpy as np
-from rich.table import Table
 
-from mppf.cli._common import RichReporter, console, print_json
-from mppf.cli.press_policy import (confirm_motion, connect, press_description, press_link, sigterm_as_ctrl_c,
-                                   time_scale_option)
+from mppf.cli.plc_ops import connect_session, open_audit, stop_plc
+from mppf.cli.press_policy import confirm_motion, press_description, press_link, sigterm_as_ctrl_c, time_scale_option
 from mppf.core.errors import InputError
 
 plc_option = click.option(
@@ -40,13 +40,6 @@ def _need_plc(plc_url: str | None) -> str:
     return plc_url
 
 
-def _audit(audit_path):
-    """The audit log at ``audit_path`` (None: the default one)."""
-    from mppf.drivers.audit import AuditLog
-
-    return AuditLog(audit_path)
-
-
 def _select_steps(job, step: int | None) -> list[int]:
     n = len(job.steps)
     if step is None:
@@ -56,7 +49,10 @@ def _select_steps(job, step: int | None) -> list[int]:
     return [step]
 
 
-def _result_table(step: int, result, tolerance_mm: float) -> Table:
+def _result_table(step: int, result, tolerance_mm: float):
+    import numpy as np
+    from rich.table import Table
+
     table = Table(title=f"step {step}: job sequence {result.sequence}, motion {result.duration_s:.2f} s")
     table.add_column("matrix")
     for col in ("punches", "targets (mm)", "largest error (mm)", f"beyond {tolerance_mm:g} mm"):
@@ -73,41 +69,49 @@ def _result_table(step: int, result, tolerance_mm: float) -> Table:
 @click.argument("job_path", metavar="JOB.json", type=click.Path(dir_okay=False, path_type=Path))
 @plc_option
 @click.option("--step", type=int, default=None, help="Press only step K (1-based). Default: every step in order.")
-@click.option("--yes", is_flag=True, help="Do not ask for confirmation before moving a real press.")
+@click.option("--yes", is_flag=True, help="Do not ask for confirmation before moving the press at --plc.")
+@click.option("--press", "press_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Press description the job must have been planned for (every key is compared).")
 @audit_option
 @click.option("--timeout", "timeout_s", type=click.FloatRange(min=0.1), default=None,
               help="Motion timeout per step in s (default: from the longest move, speed and acceleration).")
 @click.option("--word-order", type=click.Choice(["auto", "ABCD", "CDAB"]), default="auto", show_default=True,
               help="Expected word order of 32-bit registers.")
 @time_scale_option
-def press_command(job_path, plc_url, step, yes, audit_path, timeout_s, word_order, time_scale):
+def press_command(job_path, plc_url, step, yes, press_path, audit_path, timeout_s, word_order, time_scale):
     """Send a planned job to the press and follow it, step by step.
 
-    Without --plc this is a DRY RUN against an in-process simulated PLC (nothing moves).
-    With --plc every step is uploaded, read back and verified, validated by the PLC
-    (CRC and sequence) and only then started; the actual positions are checked against
-    the targets. A real press asks for confirmation first (or takes --yes).
+    Without --plc this is a DRY RUN against the simulated PLC in this process (nothing
+    moves, nothing is asked). With --plc the operator confirms first (or gives --yes).
+    The job passes the job validator (numbers, limits, tip gaps, dimpling, parking,
+    monotonic steps, the PLC's matrix and limits, the press file) before anything is
+    written; every step is then uploaded, read back, validated by the PLC with its job
+    token and started; the actual positions are checked against the targets.
 
-    Exit codes: 0 done, 2 bad input (job, URL, strokes beyond limits), 3 link failure,
-    4 press fault or refusal (also: no confirmation), 130 cancelled by Ctrl-C or SIGTERM
-    (STOP was sent).
+    Exit codes: 0 done, 2 bad input (job, URL, strokes beyond limits, tampered job), 3 link
+    failure, 4 press fault or refusal (also: no confirmation), 130 cancelled by Ctrl-C or
+    SIGTERM (STOP was sent).
     """
-    from mppf.planning.job import load_job
+    from mppf.cli._common import RichReporter, console
+    from mppf.planning.press import load_press
+    from mppf.planning.validate import load_checked_job
 
     if timeout_s is not None and not math.isfinite(timeout_s):
         raise InputError(f"--timeout must be a finite number of seconds, got {timeout_s}",
                          hint="leave it out for the default (from the longest move)")
-    job = load_job(job_path)
+    job = load_checked_job(job_path)  # numbers where numbers belong, before anything else
     steps = _select_steps(job, step)
+    press_file = load_press(press_path) if press_path else None
     dry_run = plc_url is None
-    with sigterm_as_ctrl_c(), press_link(job.press, plc_url, audit=_audit(audit_path), time_scale=time_scale,
-                                         reporter=RichReporter(), heartbeat_s=0.25, word_order=word_order,
+    with sigterm_as_ctrl_c(), press_link(job.press, plc_url, audit=open_audit(audit_path), time_scale=time_scale,
+                                         reporter=RichReporter(), word_order=word_order,
                                          job_sha256=job.sha256()) as plc:
-        # every step checked against the limits before the first moves
+        # the one job validator, against this PLC and the press file, before any write
+        plc.check_job(job, press_file, str(press_path))
         setpoints = {k: job.steps[k - 1].setpoints_mm(job.press) for k in steps}
         for k in steps:
-            plc.check_setpoints(*setpoints[k])
-        # a real press: the operator confirms
+            plc.check_setpoints(*setpoints[k], active=job.steps[k - 1].active)
+        # the press at --plc: the operator confirms
         if not dry_run:
             confirm_motion(plc, f"job {job_path.name}, step(s) {', '.join(map(str, steps))}, on "
                                 f"{press_description(plc)}", yes)
@@ -121,51 +125,63 @@ def press_command(job_path, plc_url, step, yes, audit_path, timeout_s, word_orde
                       f"within {job.press.position_tolerance_mm} mm")
 
 
+def _status_rows(report: dict) -> list[tuple[str, str]]:
+    flags = report["status"]
+    last, stops = report["last_command"], report["stops"]
+    rows = [
+        ("matrix", f"{report['rows']} x {report['cols']} punches, map version {report['map_version']}, "
+                   f"word order {report['word_order']}"),
+        ("timing", f"scan time {report['scan_time_ms']} ms, watchdog {report['watchdog_ms']} ms"),
+        ("state", report["state"]),
+        ("status", ", ".join(name for name, on in flags.items() if on) or "(no bit set)"),
+        ("fault", f"{report['fault_code']}: {report['fault_text']}"),
+        ("owner", f"master 0x{report['owner_master']:08X}" if report["owner_master"] else "none"),
+        ("last command", f"{last['command']} (counter {last['counter']}) of master 0x{last['master']:08X}: "
+                         f"{last['result_text']}"),
+        ("jobs", f"validated {report['validated']['sequence']}, motion {report['motion']['sequence']}, "
+                 f"last sequence {report['last_sequence']}"),
+        ("stops", f"{stops['count']} (last: {stops['cause']}, master 0x{stops['last_master']:08X})"),
+        ("refused writes", str(report["refused_writes"])),
+        ("heartbeats", f"PLC {report['plc_heartbeat']}, master 0x{report['heartbeat']['master']:08X} "
+                       f"counter {report['heartbeat']['counter']}"),
+    ]
+    rows += [(f"{side} limits", f"{lo:.2f}..{hi:.2f} mm") for side, (lo, hi) in report["limits_mm"].items()]
+    return rows
+
+
 @click.command("status")
 @plc_option
 @click.option("--json", "as_json", is_flag=True, help="Print the status as JSON.")
 def status_command(plc_url, as_json):
     """Read the PLC's identity and status (reads only; nothing is written)."""
-    with connect(_need_plc(plc_url), heartbeat_s=None) as plc:
+    with connect_session(_need_plc(plc_url), heartbeat_s=None) as plc:
         report = plc.status_report()
     if as_json:
-        print_json(report)
+        click.echo(json.dumps(report, indent=2))
         return
-    table = Table(title=f"PLC at {report['plc']}", show_header=False)
-    table.add_column("item")
-    table.add_column("value")
-    flags = report["status"]
-    table.add_row("matrix", f"{report['rows']} x {report['cols']} punches, map version {report['map_version']}, "
-                            f"word order {report['word_order']}")
-    table.add_row("status", ", ".join(name for name, on in flags.items() if on) or "(no bit set)")
-    table.add_row("fault", f"{report['fault_code']}: {report['fault_text']}")
-    table.add_row("last refusal", f"{report['refusal_code']}: {report['refusal_text']}")
-    table.add_row("sequence", f"acknowledged {report['acknowledged_sequence']}, motion {report['motion_sequence']}")
-    table.add_row("heartbeats", f"PLC {report['plc_heartbeat']}, master {report['master_heartbeat']}")
-    for side, (lo, hi) in report["limits_mm"].items():
-        table.add_row(f"{side} limits", f"{lo:.2f}..{hi:.2f} mm")
-    console.print(table)
+    width = max(len(name) for name, _ in _status_rows(report))
+    click.echo(f"PLC at {report['plc']}")
+    for name, value in _status_rows(report):
+        click.echo(f"  {name:<{width}}  {value}")
 
 
 @click.command("stop")
 @plc_option
 @audit_option
 def stop_command(plc_url, audit_path):
-    """Command STOP: every punch decelerates to a standstill (always accepted)."""
-    with connect(_need_plc(plc_url), audit=_audit(audit_path), heartbeat_s=None) as plc:
-        plc.stop("mppf stop")
-    console.print(f"STOP sent to {plc.url}")
+    """Command STOP: every punch brakes to a standstill (obeyed from anyone, in every state)."""
+    stop_plc(_need_plc(plc_url), audit_path)
 
 
 @click.command("reset")
 @plc_option
 @audit_option
 def reset_command(plc_url, audit_path):
-    """Reset latched faults (refused while the cause, e.g. the e-stop, is present)."""
-    with connect(_need_plc(plc_url), audit=_audit(audit_path), heartbeat_s=None) as plc:
+    """Reset latched faults (refused while the cause, e.g. the e-stop, is present, or another master owns the PLC)."""
+    with connect_session(_need_plc(plc_url), audit=open_audit(audit_path)) as plc:
         plc.reset()
         st = plc.status()
-    console.print(f"faults reset on {plc.url}: {st.fault_text}; ready: {st.ready}")
+    click.echo(f"faults reset on {plc.url}: {st.fault_text}; state {st.state}; ready: {st.ready}")
 
 
 COMMANDS: list = [press_command, status_command, stop_command, reset_command]

@@ -6,12 +6,16 @@
   checks), its motion :data:`mppf.core.defaults.DRY_RUN_TIME_SCALE` times faster than the
   real press (``--time-scale``), with the patient reply timeout
   :data:`mppf.core.defaults.DRY_RUN_REPLY_TIMEOUT_S` (the simulator shares this process's CPU).
-- **Confirmation.** Before a real press moves, the operator confirms at the terminal;
-  ``--yes`` skips the question; without a terminal (no stdin) and without ``--yes`` nothing
-  moves: :class:`~mppf.core.errors.PressRefused`, exit code 4. A PLC that sets the status
-  bit ``simulated`` needs no confirmation.
+- **Confirmation.** Every run with ``--plc`` asks the operator at the terminal before the
+  press moves, whatever answers at that address (a simulator reached with ``--plc`` too:
+  nothing the PLC says about itself skips the question); ``--yes`` skips it; without a
+  terminal and without ``--yes`` nothing moves: :class:`~mppf.core.errors.PressRefused`,
+  exit code 4. Only the in-process dry run (no ``--plc``) moves without asking.
 - **SIGTERM** (kill, a service manager, a CI cancel) is handled like Ctrl-C while the press
   may move: the driver sends STOP first, the command exits 130.
+
+The light commands (``mppf status``, ``stop``, ``reset``) connect with
+:func:`mppf.cli.plc_ops.connect_session`, which imports neither numpy nor the planning code.
 """
 
 from __future__ import annotations
@@ -24,10 +28,15 @@ from collections.abc import Iterator
 
 import click
 
-from mppf.cli._common import err_console
+from mppf.cli.plc_ops import connect_session  # noqa: F401 - the light session, here with the other connectors
 from mppf.core.defaults import DRY_RUN_REPLY_TIMEOUT_S, DRY_RUN_TIME_SCALE
 from mppf.core.errors import PressRefused
 from mppf.core.progress import NULL_REPORTER, Reporter
+
+DRY_RUN_WATCHDOG_S = 2.0
+"""The watchdog of the dry run's simulated PLC: the simulator shares this process's CPU with the driver,
+so it is given twice the recommended 1 s (the driver beats every tenth of it and starts no motion
+when a beat came later than a quarter)."""
 
 time_scale_option = click.option(
     "--time-scale", type=click.FloatRange(min=0.1), default=DRY_RUN_TIME_SCALE, show_default=True,
@@ -70,7 +79,7 @@ def press_link(press, plc_url: str | None, *, audit=None, time_scale: float = DR
         if plc_url is None:
             from mppf.sim.plc.host import run_simulated_plc
 
-            sim = stack.enter_context(run_simulated_plc(press, time_scale=time_scale))
+            sim = stack.enter_context(run_simulated_plc(press, time_scale=time_scale, watchdog_s=DRY_RUN_WATCHDOG_S))
             reporter.info(f"[bold yellow]DRY RUN[/] against the simulated PLC at {sim.url} in this process "
                           f"(motion {time_scale:g}x faster than the real press); no press moves")
             plc_url, options = sim.url, {"timeout_s": DRY_RUN_REPLY_TIMEOUT_S, **options}
@@ -78,12 +87,12 @@ def press_link(press, plc_url: str | None, *, audit=None, time_scale: float = DR
 
 
 def confirm_motion(link, what: str, yes: bool) -> None:
-    """Ask before moving a real press (see the module docstring).
+    """Ask before moving the press at ``--plc`` (see the module docstring).
 
     Parameters
     ----------
     link : ModbusPress
-        The connected press (its status bit ``simulated`` is read).
+        The connected press.
     what : str
         What is about to move, for the question (job or plate, steps, where).
     yes : bool
@@ -94,9 +103,6 @@ def confirm_motion(link, what: str, yes: bool) -> None:
     PressRefused
         No terminal to ask at, or the operator declined: nothing was sent.
     """
-    if link.status().simulated:
-        err_console.print("simulated PLC (status bit 'simulated'): no confirmation needed")
-        return
     if yes:
         return
     if not sys.stdin.isatty():

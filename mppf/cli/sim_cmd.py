@@ -1,29 +1,86 @@
-"""``mppf sim``: run the simulated press PLC in the foreground (see docs/simulator.md)."""
+"""``mppf sim``: run the simulated press PLC in the foreground (see docs/simulator.md).
+
+Besides its options, the running simulator takes commands on its standard input, one per
+line, as an operator at the machine would act: ``estop``, ``release`` (the e-stop),
+``key local`` / ``key remote`` (the remote-enable key switch), ``fault SPEC`` (inject a
+fault, e.g. ``fault overpressure@2``), ``clear`` (remove injected faults), ``restart``,
+``status``, ``help`` and ``quit``.
+"""
 
 from __future__ import annotations
 
 import math
+import queue
+import sys
+import threading
 import time
 
 import click
 
-from mppf.cli._common import console
 from mppf.core.errors import InputError
-from mppf.planning.press import example_press_path, load_press
+
+STDIN_HELP = ("commands: estop | release | key local | key remote | fault SPEC | clear | restart | status | "
+              "help | quit")
 
 
 def _status_line(sim) -> str:
+    plc = sim.plc
     flags = sim.status_bits()
     on = [name for name, value in flags.items() if value] or ["-"]
-    text = " ".join(on)
+    text = f"{sim.state()} | {' '.join(on)}"
     code = sim.fault_code()
     if code:
-        text += f" | fault {sim.plc.map.fault_text(code)}"
+        text += f" | fault {plc.map.fault_text(code)}"
+    if plc.owner:
+        text += f" | owner 0x{plc.owner:08X}"
     upper, lower = sim.actual_positions_mm()
-    return (
-        f"{time.strftime('%H:%M:%S')} {text} | seq {sim.plc.ack_sequence}/{sim.plc.motion_sequence} | "
-        f"upper {upper.min():.1f}..{upper.max():.1f} mm, lower {lower.min():.1f}..{lower.max():.1f} mm"
-    )
+    return (f"{time.strftime('%H:%M:%S')} {text} | job validated {plc.validated[0]}, motion {plc.motion[0]} | "
+            f"upper {upper.min():.1f}..{upper.max():.1f} mm, lower {lower.min():.1f}..{lower.max():.1f} mm")
+
+
+def _read_stdin(lines: queue.Queue) -> None:
+    """Hand the lines of standard input to the main loop (until end of input)."""
+    try:
+        for line in sys.stdin:
+            lines.put(line.strip())
+    except (OSError, ValueError):  # stdin closed or not readable: no commands
+        pass
+
+
+def _command(sim, line: str, echo) -> bool:
+    """Carry out one operator command; False for ``quit``."""
+    from mppf.sim.faults import parse_fault_spec
+
+    words = line.split()
+    if not words:
+        return True
+    name, args = words[0].lower(), words[1:]
+    try:
+        if name == "quit":
+            return False
+        if name == "estop" and not args:
+            sim.inject("estop")
+        elif name == "release" and not args:
+            sim.release_estop()
+        elif name == "key" and args in (["local"], ["remote"]):
+            sim.set_remote(args[0] == "remote")
+        elif name == "fault" and len(args) == 1:
+            sim.inject_spec(parse_fault_spec(args[0]))
+        elif name == "clear" and not args:
+            sim.clear_faults()
+        elif name == "restart" and not args:
+            sim.restart()
+        elif name == "help" and not args:
+            echo(STDIN_HELP)
+            return True
+        elif name != "status":
+            echo(f"unknown command {line!r}; {STDIN_HELP}")
+            return True
+    except InputError as exc:
+        echo(f"refused: {exc.message}")
+        return True
+    echo(_status_line(sim))
+    return True
 
 
 @click.command("sim")
@@ -54,28 +111,37 @@ def _status_line(sim) -> str:
     type=float,
     default=1.0,
     show_default=True,
-    help="Seconds without a master-heartbeat change that stop motion (0 = off).",
+    help="Watchdog and lease time in s: the owner's heartbeat must change within it (0 = off).",
 )
+@click.option("--scan-ms", type=float, default=10.0, show_default=True,
+              help="Scan time of the PLC program in ms (above 0, at most 200): writes are acted on at the next scan.")
+@click.option("--key", type=click.Choice(["remote", "local"]), default="remote", show_default=True,
+              help="Position of the remote-enable key switch at start (local: GO is refused).")
 @click.option(
     "--fault",
     "fault_specs",
     multiple=True,
     metavar="SPEC",
-    help="Inject a fault (repeatable): stuck:upper:3:5@40, estop[@T], overpressure[@T], freeze[@T], slow:MS, "
-    "drop[:D][@T], restart[@T]. See docs/simulator.md.",
+    help="Inject a fault (repeatable): stuck:upper:3:5@40, estop[@T], overpressure[@T], freeze[@T], local[@T], "
+    "slow:MS[@T], drop[:D][@T], restart[@T]; T = seconds into the motion. See docs/simulator.md.",
 )
 @click.option("--status-every", type=float, default=5.0, show_default=True, help="Seconds between status lines.")
 @click.option("--duration", type=float, default=None, help="Stop after this many seconds (default: until Ctrl-C).")
 def sim_command(
-    host, port, rtu_port, baud, parity, paced, press_path, time_scale, word_order, unit, watchdog,
+    host, port, rtu_port, baud, parity, paced, press_path, time_scale, word_order, unit, watchdog, scan_ms, key,
     fault_specs, status_every, duration,
 ):  # fmt: skip
-    """Run the simulated press PLC until Ctrl-C.
+    """Run the simulated press PLC until Ctrl-C (or 'quit' on its standard input).
 
     It serves the register map of docs/register-map.md over Modbus TCP (127.0.0.1:5020
-    unless told otherwise) or RTU, moves the punches like the hydraulics would, and
-    prints its URL and a status line now and then.
+    unless told otherwise) or RTU, runs the PLC program every scan like a real PLC (a
+    master's writes are acted on at the next scan), moves the punches like the hydraulics
+    would, and prints its URL and a status line now and then. Standard input takes
+    operator commands: estop, release, key local, key remote, fault SPEC, clear, restart,
+    status, help, quit.
     """
+    from mppf.cli._common import console
+    from mppf.planning.press import example_press_path, load_press
     from mppf.sim.faults import parse_fault_spec
     from mppf.sim.plc.host import start_simulated_plc
 
@@ -85,42 +151,43 @@ def sim_command(
                              ("--status-every", status_every, None), ("--duration", duration, 0.0)):
         if value is not None and not (math.isfinite(value) and (value > 0 if low is None else value >= low)):
             raise InputError(f"{name} must be a {'positive number' if low is None else 'number >= 0'}, got {value}")
+    if not (math.isfinite(scan_ms) and 0 < scan_ms <= 200):
+        raise InputError(f"--scan-ms must be above 0 and at most 200 ms, got {scan_ms}",
+                         hint="a PLC scans every 1-200 ms; 10 ms is typical")
     faults = [parse_fault_spec(spec) for spec in fault_specs]
     press = load_press(press_path or example_press_path())
     sim = start_simulated_plc(
-        press,
-        host=host or "127.0.0.1",
-        port=5020 if port is None else port,
-        rtu=rtu_port == "pty",
-        rtu_port=rtu_port if rtu_port not in (None, "pty") else None,
-        baud=baud,
-        parity=parity,
-        paced=paced,
-        faults=faults,
-        word_order=word_order,
-        unit=unit,
-        time_scale=time_scale,
-        watchdog_s=watchdog or None,
+        press, host=host or "127.0.0.1", port=5020 if port is None else port, rtu=rtu_port == "pty",
+        rtu_port=rtu_port if rtu_port not in (None, "pty") else None, baud=baud, parity=parity, paced=paced,
+        faults=faults, word_order=word_order, unit=unit, time_scale=time_scale, watchdog_s=watchdog or None,
+        scan_s=scan_ms / 1000.0, remote=key == "remote",
     )
+
+    def echo(text: str) -> None:
+        console.print(text, soft_wrap=True)
+
     try:
-        console.print(f"simulated PLC listening on {sim.url}", soft_wrap=True)
-        console.print(
-            f"{press.name}: {press.rows} x {press.cols} punches, word order {word_order}, "
-            f"time scale {time_scale:g}, watchdog {watchdog:g} s; Ctrl-C to stop",
-            soft_wrap=True,
-        )
+        echo(f"simulated PLC listening on {sim.url}")
+        echo(f"{press.name}: {press.rows} x {press.cols} punches, word order {word_order}, scan {scan_ms:g} ms, "
+             f"time scale {time_scale:g}, watchdog {watchdog:g} s, key switch {key}; Ctrl-C to stop; {STDIN_HELP}")
+        lines: queue.Queue = queue.Queue()
+        threading.Thread(target=_read_stdin, args=(lines,), daemon=True, name="sim-stdin").start()
         started = time.monotonic()
         next_status = started
-        while duration is None or time.monotonic() - started < duration:
+        running = True
+        while running and (duration is None or time.monotonic() - started < duration):
             if time.monotonic() >= next_status:
-                console.print(_status_line(sim), soft_wrap=True)
+                echo(_status_line(sim))
                 next_status += status_every
-            time.sleep(0.05)
+            try:
+                running = _command(sim, lines.get(timeout=0.05), echo)
+            except queue.Empty:
+                pass
     except KeyboardInterrupt:
         pass
     finally:
         sim.stop()
-    console.print("simulated PLC stopped")
+    echo("simulated PLC stopped")
 
 
 COMMANDS = [sim_command]

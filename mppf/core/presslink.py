@@ -10,45 +10,53 @@ demo) take a :class:`PressLink` as an argument and never import a driver themsel
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
-
-import numpy as np
+from typing import TYPE_CHECKING, Protocol
 
 from mppf.core.progress import NULL_REPORTER, Reporter
+
+if TYPE_CHECKING:  # numpy only for the annotations: ``mppf stop`` imports this module without it
+    import numpy as np
 
 
 @dataclass(frozen=True)
 class PressStatus:
-    """A snapshot of the PLC's status.
+    """A snapshot of the PLC's status (docs/register-map.md).
 
     Attributes
     ----------
-    ready, busy, in_position, fault, estop, remote, data_valid : bool
+    state : str
+        The PLC's state: ``IDLE``, ``LOADED``, ``VALIDATED``, ``EXECUTING``, ``COMPLETE``,
+        ``STOPPING``, ``STOPPED`` or ``FAULT``.
+    ready, busy, in_position, fault, estop, remote_enabled, owned, lease_ok, setpoints_locked : bool
         Status-word bits.
     fault_code : int
-        PLC fault code (0 = none; meanings in docs/register-map.md).
-    acknowledged_sequence : int
-        Job sequence number the PLC last accepted.
-    plc_heartbeat : int
-        PLC heartbeat counter.
+        PLC fault code (0 = none).
     fault_text : str
         Human-readable fault code.
-    simulated : bool
-        The PLC is mppf's simulated PLC (status bit ``simulated``; a real PLC leaves it 0).
+    owner_master : int
+        Id of the master holding the PLC's lease (0: none).
+    validated_sequence, motion_sequence : int
+        Sequence of the validated job and of the last job started.
+    plc_heartbeat : int
+        PLC heartbeat counter.
     """
 
+    state: str
     ready: bool
     busy: bool
     in_position: bool
     fault: bool
     estop: bool
-    remote: bool
-    data_valid: bool
+    remote_enabled: bool
+    owned: bool
+    lease_ok: bool
+    setpoints_locked: bool
     fault_code: int = 0
-    acknowledged_sequence: int = 0
-    plc_heartbeat: int = 0
     fault_text: str = ""
-    simulated: bool = False
+    owner_master: int = 0
+    validated_sequence: int = 0
+    motion_sequence: int = 0
+    plc_heartbeat: int = 0
 
 
 @dataclass(frozen=True)
@@ -66,7 +74,8 @@ class StepResult:
     max_error_mm : float
         Largest |actual - target| over both matrices.
     duration_s : float
-        Wall time from GO to in-position.
+        Time from GO to the PLC's COMPLETE (s of the press's clock: wall time, or simulated
+        time for the in-process press).
     """
 
     sequence: int
@@ -102,20 +111,23 @@ class PressLink(Protocol):
 
         Raises
         ------
-        LimitError
-            A setpoint beyond the press limits (nothing is written).
+        LimitError, InputError
+            A setpoint beyond the press limits, or not a finite number (nothing is written).
         LinkError
             The link failed (the press is sent STOP where the link allows).
         PlcError
             The PLC refused a request (after GO the press is sent STOP).
+        PressRefused
+            The PLC (or the driver's own checks) refused before any motion.
         PressFault
-            The PLC faulted, refused GO, or positions are out of tolerance.
+            The PLC faulted or was stopped during the motion, or positions are out of
+            tolerance.
         Cancelled
             The operator pressed Ctrl-C (the press is sent STOP).
         """
 
     def stop(self) -> None:
-        """Command STOP (never retried, always allowed)."""
+        """Command STOP (its own register: obeyed from anyone, in every state)."""
 
     def reset(self) -> None:
         """Reset latched faults (on request only)."""

@@ -10,6 +10,8 @@ suffix             content
 ``.ply``           PLY, ASCII or binary (``plyfile``); faces kept if present
 ``.stl``           STL, ASCII or binary (``trimesh``); duplicate vertices merged
 ``.obj``           Wavefront OBJ (``trimesh``); faces kept if present
+``.igs`` ``.stp``  IGES / STEP surfaces, tessellated (:mod:`mppf.geometry.exchange`)
+``.e57`` ``.las``  laser scans: E57 (poses applied), LAS / LAZ (``.laz``)
 =================  ===========================================================
 
 Text files: blank lines and ``#`` comments (whole line or trailing) are skipped;
@@ -18,7 +20,8 @@ data line has the same number of columns, at least three; the first three are x,
 and further columns (intensity, colour, ...) are ignored.
 
 Every problem is a :class:`~mppf.core.errors.FileFormatError` naming the file, and the line
-where it applies. Lengths come back in millimetres (``units="m"`` scales by 1000).
+where it applies. Lengths come back in millimetres (``units="m"`` scales by 1000; CAD and
+E57 files declare their unit), times ``scale`` for model-scale files.
 """
 
 from __future__ import annotations
@@ -31,11 +34,17 @@ from pathlib import Path
 import numpy as np
 
 from mppf.core.errors import FileFormatError, InputError
+from mppf.core.validate import check_positive
+from mppf.geometry.exchange import CHORD_TOLERANCE_MM, EXCHANGE_SUFFIXES
+from mppf.geometry.files import check_fits
 
 TEXT_SUFFIXES = (".csv", ".txt", ".xyz")
 PLY_SUFFIXES = (".ply",)
 MESH_SUFFIXES = (".stl", ".obj")
-READ_SUFFIXES = TEXT_SUFFIXES + PLY_SUFFIXES + MESH_SUFFIXES
+READ_SUFFIXES = TEXT_SUFFIXES + PLY_SUFFIXES + MESH_SUFFIXES + EXCHANGE_SUFFIXES
+
+TEXT_BYTES_PER_FILE_BYTE = 40
+"""Memory a text, PLY or mesh file takes while parsed, per byte of the file (roughly)."""
 
 UNIT_SCALE_MM = {"mm": 1.0, "m": 1000.0}
 
@@ -77,15 +86,22 @@ def _unit_scale(units: str) -> float:
     return UNIT_SCALE_MM[units]
 
 
-def read_points(path, units: str = "mm") -> PointCloud:
-    """Read a point or mesh file into a :class:`PointCloud` in mm.
+def read_points(path, units: str = "mm", scale: float = 1.0, *,
+                chord_tolerance_mm: float = CHORD_TOLERANCE_MM) -> PointCloud:
+    """Read a point, mesh, CAD or scan file into a :class:`PointCloud` in mm.
 
     Parameters
     ----------
     path : str or Path
-        A ``.csv``, ``.txt``, ``.xyz``, ``.ply``, ``.stl`` or ``.obj`` file.
+        A ``.csv``, ``.txt``, ``.xyz``, ``.ply``, ``.stl``, ``.obj``, ``.igs``, ``.iges``,
+        ``.stp``, ``.step``, ``.e57``, ``.las`` or ``.laz`` file.
     units : {"mm", "m"}
-        Length unit of the file; the result is always in mm.
+        Length unit of the file (IGES, STEP and E57 declare their own and ignore it); the
+        result is always in mm.
+    scale : float
+        Model scale factor: coordinates are multiplied by it (31.6 for a 1:31.6 model).
+    chord_tolerance_mm : float
+        Chordal tolerance of a CAD file's tessellation, mm at full scale.
 
     Returns
     -------
@@ -97,7 +113,9 @@ def read_points(path, units: str = "mm") -> PointCloud:
         Missing or empty file, unknown suffix, content that is not what the suffix
         says, non-numeric fields, wrong column count, NaN or inf, no points.
     """
-    scale = _unit_scale(units)
+    unit_scale = _unit_scale(units)
+    model_scale = check_positive("the model scale", scale, hint="give e.g. --scale 31.6 for a 1:31.6 model")
+    scale = unit_scale * model_scale
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in READ_SUFFIXES:
@@ -105,10 +123,17 @@ def read_points(path, units: str = "mm") -> PointCloud:
             path, f"unknown file type {path.suffix or '(no suffix)'!r}",
             hint=f"give a point or mesh file with one of the suffixes {_SUPPORTED}",
         )
+    if suffix in EXCHANGE_SUFFIXES:  # CAD and scanner files: mppf.geometry.exchange
+        from mppf.geometry.exchange import read_exchange
+
+        points, faces, sha256 = read_exchange(path, unit_scale=unit_scale, scale=model_scale,
+                                              chord_tolerance_mm=chord_tolerance_mm)
+        return PointCloud(points=points, faces=faces, path=path, sha256=sha256)
     if not path.exists():
         raise FileFormatError(path, "file not found", hint="check the path and the file name")
     if not path.is_file():
         raise FileFormatError(path, "is not a file (a directory?)", hint="give a point file")
+    check_fits(path, TEXT_BYTES_PER_FILE_BYTE * path.stat().st_size, f"its {path.stat().st_size:,} bytes")
     try:
         data = path.read_bytes()
     except OSError as exc:

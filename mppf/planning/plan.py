@@ -6,7 +6,7 @@ small module: :mod:`mppf.planning.placement` (flat on the bed, registration),
 tilt of least travel), :mod:`mppf.planning.contact` (exact ball-tip contact),
 :mod:`mppf.planning.overbend` (springback pre-compensation),
 :mod:`mppf.forming.precompensate` (its refinement on the plate model),
-:mod:`mppf.planning.steps` (multi-step forming and validation). The math is in
+:mod:`mppf.planning.steps` (multi-step forming), :mod:`mppf.planning.validate` (the one job validator). The math is in
 ``docs/planning.md``; the job file in ``docs/file-formats.md``.
 """
 
@@ -29,7 +29,8 @@ from mppf.planning.overbend import overbend
 from mppf.planning.placement import place_flat, register_design
 from mppf.planning.pose import optimise_pose
 from mppf.planning.press import PressConfig
-from mppf.planning.steps import MAX_STEPS, split_steps, steps_needed, validate_steps
+from mppf.planning.steps import MAX_STEPS, split_steps, steps_needed
+from mppf.planning.validate import validate_steps
 
 SURFACE_KIND = "poly"
 SURFACE_DEGREE = 4

@@ -86,6 +86,12 @@ class PressConfig:
         Default trim margin: the excess band the flat plate is cut with around its net
         outline, so that punches also act beyond the net edge; trimmed after forming
         (0 = cut to the net outline).
+    max_thickness_mm : float
+        The thickest plate the press takes. The parked tips must leave at least this much
+        between them (``upper.park_mm - lower.park_mm``), and no job may be thicker.
+    label_base : int
+        How the press labels its punches in messages: 1 (row 1, column 1 is the first
+        punch, the default) or 0.
     name : str
     """
 
@@ -102,6 +108,8 @@ class PressConfig:
     accel_mm_s2: float = 100.0
     position_tolerance_mm: float = 0.2
     margin_mm: float = 0.0  # cut to the net outline
+    max_thickness_mm: float = 50.0  # the thickest plate; the parks leave at least this between them
+    label_base: int = 1  # punches are named from row 1, column 1
     name: str = "press"
 
     def __post_init__(self):
@@ -109,7 +117,8 @@ class PressConfig:
             for key in _TABLES[table]:
                 name = f"[{table}] {key}"
                 if key in _COUNTS:
-                    value = check_number(name, getattr(self, key), low=1, high=_COUNTS[key], integer=True,
+                    low, high = _COUNTS[key]
+                    value = check_number(name, getattr(self, key), low=low, high=high, integer=True,
                                          error=ConfigError)
                 else:
                     value = _length(name, getattr(self, key), low=0.0, low_open=key not in _AT_LEAST_ZERO)
@@ -125,6 +134,25 @@ class PressConfig:
             )
         if not isinstance(self.name, str):
             raise ConfigError(f"name must be a string, got {self.name!r}")
+        self._check_parks()
+
+    def _check_parks(self) -> None:
+        """The parked tips must not cross and must leave room for the thickest plate."""
+        gap = self.upper.park_mm - self.lower.park_mm
+        if gap < 0:
+            raise ConfigError(f"[upper] park_mm {self.upper.park_mm:g} mm is below [lower] park_mm "
+                              f"{self.lower.park_mm:g} mm: the parked tips would cross",
+                              hint="park the upper punches above the lower ones (docs/press.md, parking heights)")
+        if gap < self.max_thickness_mm:
+            raise ConfigError(f"[upper] park_mm {self.upper.park_mm:g} mm and [lower] park_mm "
+                              f"{self.lower.park_mm:g} mm "
+                              f"leave {gap:g} mm between the parked tips, less than the largest plate thickness "
+                              f"[forming] max_thickness_mm {self.max_thickness_mm:g} mm",
+                              hint="move the parks apart or lower max_thickness_mm (docs/press.md, parking heights)")
+
+    def punch_label(self, row: int, col: int) -> str:
+        """How the press names punch ``[row, col]`` (0-based indices): ``"row 3, col 4"`` from row 1."""
+        return f"row {int(row) + self.label_base}, col {int(col) + self.label_base}"
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -158,16 +186,16 @@ class PressConfig:
 
 
 _TABLES = {
-    "matrix": ("rows", "cols", "pitch_x_mm", "pitch_y_mm", "tip_radius_mm"),
+    "matrix": ("rows", "cols", "pitch_x_mm", "pitch_y_mm", "tip_radius_mm", "label_base"),
     "upper": tuple(f.name for f in dataclasses.fields(AxisLimits)),
     "lower": tuple(f.name for f in dataclasses.fields(AxisLimits)),
     "forming": ("max_neighbour_diff_mm", "trim_allowance_mm", "speed_mm_s", "accel_mm_s2", "position_tolerance_mm",
-                "margin_mm"),
+                "margin_mm", "max_thickness_mm"),
 }
 """The tables of the TOML layout and their keys, in file order (the PressConfig and AxisLimits fields)."""
 
-_COUNTS = {"rows": MAX_ROWS, "cols": MAX_COLS}
-"""The whole-number keys and their largest values."""
+_COUNTS = {"rows": (1, MAX_ROWS), "cols": (1, MAX_COLS), "label_base": (0, 1)}
+"""The whole-number keys and their smallest and largest values."""
 
 _AT_LEAST_ZERO = ("trim_allowance_mm", "margin_mm")
 """Lengths that may be 0; every other press length must be positive."""

@@ -18,7 +18,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from mppf.core.errors import InputError, LinkError, PlcError
+from mppf.core.errors import InputError, LinkError
 from mppf.planning.press import PressConfig, example_press_path, load_press
 from mppf.sim.faults import FaultSpec
 from mppf.sim.plc.program import PlcProgram
@@ -83,6 +83,10 @@ class SimHandle:
         """Release a pressed e-stop (the ESTOP fault stays latched until RESET)."""
         self._call(self.plc.release_estop)
 
+    def set_remote(self, remote: bool) -> None:
+        """Turn the remote-enable key switch: True = remote (GO allowed), False = local."""
+        self._call(self.plc.set_remote, remote)
+
     def actual_positions_mm(self) -> tuple[np.ndarray, np.ndarray]:
         """Actual tip heights (upper, lower), each (rows, cols) mm."""
         return self._call(self.plc.actual_positions_mm)
@@ -99,9 +103,13 @@ class SimHandle:
         """The latched fault code (0 = none)."""
         return self._call(lambda: self.plc.fault_code)
 
-    def refusal_code(self) -> int:
-        """The reason of the last refused write (0 = none)."""
-        return self._call(lambda: self.plc.refusal_code)
+    def state(self) -> str:
+        """The PLC's state by name (``"IDLE"``, ``"EXECUTING"``...)."""
+        return self._call(lambda: self.plc.state)
+
+    def result(self) -> str:
+        """The name of the result of the last acknowledged command (``"ACCEPTED"``, ``"NOT_OWNER"``...)."""
+        return self._call(lambda: self.plc.map.results.name(self.plc.ack[3]))
 
     def restart(self, downtime_s: float = 0.3) -> None:
         """Restart the PLC now: registers to power-on state, connections dropped for ``downtime_s``."""
@@ -112,16 +120,17 @@ class SimHandle:
         self._call(self.server.drop, duration_s)
 
     def write_foreign_setpoint(self, matrix: str, row: int, col: int, value_mm: float) -> None:
-        """Change one setpoint register as a foreign master would (no CRC update).
+        """Change one setpoint register as a foreign master would (stored at once, seen by the next scan)."""
+        self._call(self.plc.write_foreign_setpoint, matrix, row, col, value_mm)
 
-        Raises
-        ------
-        PlcError
-            The PLC refused the write.
-        """
-        code = self._call(self.plc.write_foreign_setpoint, matrix, row, col, value_mm)
-        if code is not None:
-            raise PlcError(f"the simulated PLC refused the foreign write (exception {int(code)})")
+    def scans(self, n: int = 2) -> None:
+        """Wait until the program has run ``n`` more scans (n >= 1)."""
+        start = self._call(lambda: self.plc.heartbeat)
+        deadline = time.monotonic() + 10.0
+        while (self._call(lambda: self.plc.heartbeat) - start) % 65536 < n:
+            if time.monotonic() > deadline:
+                raise LinkError("the simulated PLC did not scan within 10 s (program halted?)")
+            time.sleep(self.plc.scan_s / 2)
 
     def wait_idle(self, timeout_s: float = 10.0) -> dict[str, bool]:
         """Wait until the PLC is not busy; return the status flags."""
@@ -132,12 +141,20 @@ class SimHandle:
                 return flags
             time.sleep(0.01)
 
+    async def _stop_all(self) -> None:
+        """Stop the server; cancel and await what its closed connections left running on this loop."""
+        await self.server.stop()
+        others = [t for t in asyncio.all_tasks() if t is not asyncio.current_task()]
+        for task in others:
+            task.cancel()
+        await asyncio.gather(*others, return_exceptions=True)
+
     def stop(self) -> None:
         """Stop the server and the thread (idempotent)."""
         if self._stopped:
             return
         try:
-            asyncio.run_coroutine_threadsafe(self.server.stop(), self._loop).result(timeout=10)
+            asyncio.run_coroutine_threadsafe(self._stop_all(), self._loop).result(timeout=10)
         finally:
             self._stopped = True
             self._loop.call_soon_threadsafe(self._loop.stop)
@@ -192,8 +209,8 @@ def start_simulated_plc(
         Modbus unit id (1..247).
     **options
         Keyword arguments of :class:`~mppf.sim.plc.program.PlcProgram` (``word_order``,
-        ``time_scale``, ``watchdog_s``, ``seed``, ``noise_mm``, ``tick_s``,
-        ``announce_simulated``); the watchdog runs on the wall clock.
+        ``time_scale``, ``watchdog_s``, ``seed``, ``noise_mm``, ``scan_s``, ``remote``); the
+        watchdog runs on the wall clock.
     """
     press = press or load_press(example_press_path())
     if parity not in ("N", "E", "O"):

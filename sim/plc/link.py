@@ -1,26 +1,26 @@
 """The in-process press: the press driver on the simulated PLC's program itself, instant and seeded.
 
-:class:`InProcessPress` is the driver of :mod:`mppf.drivers.plc_press` (the same limits,
-upload, read-back, validation, GO, motion following, fault reports, STOP and audit records
-as :class:`mppf.drivers.modbus.ModbusPress`) with two things swapped:
+:class:`InProcessPress` is the driver of :mod:`mppf.drivers.plc_press` (the same validator,
+claim, upload, read-back, VALIDATE, GO, motion following, fault reports, STOP and audit
+records as :class:`mppf.drivers.modbus.ModbusPress`) with two things swapped:
 
 - the register transport is :class:`ProgramIO`: reads and writes go straight into the
-  :class:`~mppf.sim.plc.program.PlcProgram`'s register image (a refused write raises
-  :class:`~mppf.core.errors.PlcError` with the program's exception code, as a Modbus
-  exception reply does); no Modbus, no sockets;
+  :class:`~mppf.sim.plc.program.PlcProgram`'s register image, stored at once as a PLC's
+  Modbus server stores them (a request outside the map raises
+  :class:`~mppf.core.errors.PlcError` with exception 2, as a Modbus exception reply does);
+  no Modbus, no sockets. The program acts on the writes in its next scan, like the real one;
 - the clock is :class:`ProgramClock`: the program's simulated time, which moves only when
-  the driver waits between two polls; the wait advances the program by that time at
-  once, writing the master heartbeat first. No threads, no sleeping: a step of 20 s of
-  motion takes a few hundredths of a second, and a run is repeatable (the noise on the
-  positions is seeded).
+  the driver waits; each wait writes the owner's heartbeat and then runs one scan of the
+  program over the time waited. No threads, no sleeping: a step of 20 s of motion takes a
+  few hundredths of a second, and a run is repeatable (the noise on the positions is seeded).
 
 So what the loop can observe is what the Modbus driver gives it: ``LimitError`` for
 setpoints beyond the limits, ``PressRefused`` for a refusal, ``PressFault`` for a fault,
 ``Cancelled`` (after STOP) for Ctrl-C, and the same :class:`~mppf.core.presslink.StepResult`
 with the actual positions read from the program (its ``duration_s`` in simulated seconds).
-The faults of the program (stuck punch, e-stop, overpressure, freeze) are injected with
-``press.program.inject(...)``; the link's own faults (slow replies, dropped connections)
-do not exist here.
+The faults of the program (stuck punch, e-stop, overpressure, freeze, key switch) are
+injected with ``press.program.inject(...)``; the link's own faults (slow replies, dropped
+connections, restarts) do not exist here.
 """
 
 from __future__ import annotations
@@ -35,31 +35,24 @@ from mppf.sim.plc.program import PlcProgram
 URL = "inprocess://simulated-plc"
 """How the in-process press names its PLC (messages, audit log)."""
 
-SETTLE_S = 10.0
-"""After a step, a press still moving (braking after STOP) runs on at most this long (simulated s)."""
-
 
 class ProgramIO:
     """The register transport of the in-process press: the program's image, read and written directly.
 
     Same calls as :class:`mppf.drivers.modbus_adapter.ModbusAdapter` (chunked like its
-    frames, so that a refused frame is refused alone), none of which can lose the link.
+    frames), none of which can lose the link.
     """
 
     def __init__(self, program: PlcProgram):
         self.program = program
         self.requests = 0
-        self._size = program.map.total_registers
+        self.writes = 0
 
     def connect(self) -> None:
         """Nothing to open."""
 
     def close(self) -> None:
         """Nothing to close."""
-
-    def _check_range(self, address: int, count: int, what: str) -> None:
-        if address < 0 or address + count > self._size:
-            self._refuse(what, 2)
 
     def _refuse(self, what: str, code: int) -> None:
         error = PlcError(f"the PLC at {URL} refused {what}: exception {code} "
@@ -74,7 +67,8 @@ class ProgramIO:
         for start in range(address, address + count, max_chunk):
             n = min(max_chunk, address + count - start)
             self.requests += 1
-            self._check_range(start, n, f"reading {n} registers at {start}")
+            if start < 0 or start + n > self.program.map.total_registers:
+                self._refuse(f"reading {n} registers at {start}", self.program.map.illegal_address)
             words.extend(self.program.read(start, n))
             if on_chunk is not None:
                 on_chunk(n)
@@ -87,42 +81,33 @@ class ProgramIO:
             if on_chunk is not None:
                 on_chunk(len(chunk))
 
-    def write_command(self, address: int, words) -> None:
+    def write_command(self, address: int, words, *, urgent: bool = False) -> None:
         """Write a command (one request)."""
         self._write(address, [int(w) for w in words], f"command write at {address}")
 
     def _write(self, address: int, words: list[int], what: str) -> None:
         self.requests += 1
-        self._check_range(address, len(words), what)
-        code = self.program.write(address, words)
+        self.writes += 1
+        code = self.program.store(address, words)
         if code is not None:
             self._refuse(what, int(code))
 
 
 class ProgramClock:
-    """The program's simulated time: ``sleep`` advances the program at once.
-
-    Each wait first changes the master heartbeat (the master is alive while it polls), so
-    the program's watchdog sees the master as a real one's heartbeat thread would show it.
-    """
+    """The program's simulated time: ``sleep`` beats (once the press owns the PLC) and runs one scan."""
 
     def __init__(self, program: PlcProgram):
         self.program = program
-        self._address = program.map["master_heartbeat"].address
-        self._beat = 0
+        self.on_sleep = None
 
     def now(self) -> float:
         """Seconds of the program's time."""
         return self.program.now_s
 
-    def beat(self) -> None:
-        """Change the master heartbeat."""
-        self._beat = (self._beat + 1) & 0xFFFF
-        self.program.write(self._address, [self._beat])
-
     def sleep(self, seconds: float) -> None:
-        """Let ``seconds`` pass in the program (one scan), after a heartbeat."""
-        self.beat()
+        """Let ``seconds`` pass in the program: the owner's heartbeat first, then one scan."""
+        if self.on_sleep is not None:
+            self.on_sleep()
         self.program.advance(seconds)
 
 
@@ -141,8 +126,11 @@ class InProcessPress(PlcPress):
         The program's word order (the driver detects it).
     watchdog_s : float or None
         The program's watchdog, in simulated seconds (None: off).
+    scan_s : float
+        The program's scan time (simulated s) as it states it to the driver.
     faults : sequence of FaultSpec
-        Faults of the program to inject at once (``stuck``, ``estop``, ``overpressure``, ``freeze``).
+        Faults of the program to inject at once (``stuck``, ``estop``, ``overpressure``,
+        ``freeze``, ``local``).
     audit : AuditLog, optional
         Where commands and writes are recorded.
     job_sha256 : str, optional
@@ -158,36 +146,32 @@ class InProcessPress(PlcPress):
     """
 
     def __init__(self, press: PressConfig, *, seed: int = 0, noise_mm: float = 0.0, word_order: str = "ABCD",
-                 watchdog_s: float | None = 1.0, faults: tuple[FaultSpec, ...] = (), audit=None,
-                 job_sha256: str | None = None, poll_s: float = 0.05, program: PlcProgram | None = None):
+                 watchdog_s: float | None = 1.0, scan_s: float = 0.01, faults: tuple[FaultSpec, ...] = (),
+                 audit=None, job_sha256: str | None = None, poll_s: float = 0.05, program: PlcProgram | None = None):
         self.program = program if program is not None else PlcProgram(
-            press, word_order=word_order, watchdog_s=watchdog_s, seed=seed, noise_mm=noise_mm)
+            press, word_order=word_order, watchdog_s=watchdog_s, seed=seed, noise_mm=noise_mm, scan_s=scan_s)
         for spec in faults:
             self.program.inject(spec.kind, **spec.params)
+        clock = ProgramClock(self.program)
+        self._beat_at = self._beat_gap = 0.0
         super().__init__(ProgramIO(self.program), URL, press, audit=audit, job_sha256=job_sha256, poll_s=poll_s,
-                         clock=ProgramClock(self.program))
+                         clock=clock, reply_timeout_s=0.0)
+        clock.on_sleep = self._beat_if_owner
 
-    def _connected(self) -> None:
-        self._clock.beat()  # the master is there: the program shows `remote`
+    def _beat_if_owner(self) -> None:
+        if self._owner:
+            self._beat()
+            now = self.program.now_s
+            self._beat_gap, self._beat_at = max(self._beat_gap, now - self._beat_at), now
 
-    def run_step(self, upper_mm, lower_mm, **kwargs):
-        """:meth:`PlcPress.run_step`; afterwards a stopped press is let come to rest.
+    def _start_heartbeat(self) -> None:
+        self._beat_at = self.program.now_s
 
-        A real press brakes while the operator reads what went wrong; here time passes
-        only while the driver waits, so after a step that ended early (STOP was sent on a
-        fault, Ctrl-C, a refusal after GO) the program runs on until no punch moves, for
-        at most :data:`SETTLE_S` simulated seconds (a halted program never comes to rest).
-        """
-        try:
-            return super().run_step(upper_mm, lower_mm, **kwargs)
-        finally:
-            self._settle()
+    def _mark_heartbeat(self) -> None:
+        self._beat_gap = 0.0
 
-    def _settle(self) -> None:
-        waited = 0.0
-        while self.program.busy and not self.program.frozen and waited < SETTLE_S:
-            self._clock.sleep(self.poll_s)
-            waited += self.poll_s
+    def heartbeat_gap_s(self) -> float:
+        return max(self._beat_gap, self.program.now_s - self._beat_at)
 
     def __enter__(self) -> InProcessPress:
         return self

@@ -1,43 +1,53 @@
-"""The program of the simulated press PLC: register image, commands, checks, watchdog, motion.
+"""The program of the simulated press PLC: a register image and a scan cycle, no communication.
 
-:class:`PlcProgram` is what runs inside the press PLC, without any communication: the
-register image laid out by ``drivers/register_map.toml``, the handling of a master's
-writes (:meth:`~mppf.sim.plc.commands.Commands.write`: protected registers, validation,
-GO / STOP / RESET; :mod:`mppf.sim.plc.commands`) and the PLC scan
-(:meth:`PlcProgram.advance`: hydraulic motion by :mod:`mppf.sim.hydraulics`, fault timers,
-watchdog, status). It has no threads and no pymodbus, and its time moves only when the
-host calls :meth:`~PlcProgram.advance` with a time step: :mod:`mppf.sim.plc.server` does
-so from the wall clock behind a Modbus server, :class:`mppf.sim.plc.link.InProcessPress`
-as fast as the CPU allows. The noise on the reported positions is seeded. The injectable
-faults of the program itself (stuck punch, e-stop, overpressure, halted program) are in
-:mod:`mppf.sim.plc.program_faults`; those of the link (slow replies, dropped connections,
-restarts) belong to the server.
+:class:`PlcProgram` is what runs inside the press PLC. Its register image is laid out by
+``drivers/register_map.toml``; a master's writes land in the image at once (as a PLC's
+Modbus server stores them: :meth:`PlcProgram.store`), and the program looks at them only
+in its next scan (:meth:`PlcProgram.advance`), in this order:
+
+1. inputs: the e-stop circuit and the remote-enable key switch;
+2. guard: setpoint registers changed since the last scan are taken (IDLE, LOADED,
+   VALIDATED) or undone and counted (every other state); written read-only or reserved
+   registers are restored and counted;
+3. the STOP request, from anyone (:mod:`mppf.sim.plc.commands`);
+4. the owner's heartbeat: lease, watchdog, key switch during motion;
+5. the command mailbox: at most one new command, acknowledged with its result;
+6. motion: hydraulics (:mod:`mppf.sim.hydraulics`), fault timers, end of motion;
+7. outputs: status, codes, tokens, actual positions, fault bits.
+
+The states, commands and refusals are those of the register map's tables. There are no
+threads and no pymodbus; time moves only when the host calls :meth:`advance`:
+:mod:`mppf.sim.plc.server` every scan period of wall time behind a Modbus server,
+:class:`mppf.sim.plc.link.InProcessPress` as fast as the CPU allows. The noise on the
+reported positions is seeded. The injectable faults of the program (stuck punch, e-stop,
+overpressure, halted program, key switch) are :mod:`mppf.sim.plc.program_faults`.
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Callable
 
 import numpy as np
 
 from mppf.core.errors import InputError
-from mppf.drivers.codec import (
-    check_word_order,
-    counts_to_mm,
-    decode_int32,
-    encode_int32,
-    encode_uint32,
-    mm_to_counts,
-    pack_bits,
-)
+from mppf.drivers.codec import (check_word_order, counts_to_mm, decode_int32, encode_int32, mm_to_counts, pack_bits,
+                                u32_to_words, words_to_u32)
 from mppf.drivers.regmap import RegisterMap, load_register_map
 from mppf.planning.press import PressConfig
 from mppf.sim.hydraulics import Hydraulics
 from mppf.sim.plc.commands import MATRICES, Commands
 from mppf.sim.plc.program_faults import ProgramFaults
 
-MAX_STEPS_PER_SCAN = 50  # coarser steps rather than a scan that falls further and further behind
+MAX_STEP_S = 0.02
+"""Longest integration step of the motion (simulated s)."""
+MAX_STEPS_PER_SCAN = 50
+"""Coarser steps rather than a scan that falls further and further behind."""
+MAX_SCAN_S = 0.2
+"""Longest scan period the simulated PLC accepts (the register map's scan_time_max_ms)."""
+BEATS_KEPT = 20000
+"""Owner heartbeats whose arrival times are kept (:attr:`PlcProgram.beats`)."""
 
 
 class PlcProgram(Commands, ProgramFaults):
@@ -53,23 +63,21 @@ class PlcProgram(Commands, ProgramFaults):
     time_scale : float
         Simulated seconds of motion per second of :meth:`advance` (50 = 50x faster).
     watchdog_s : float or None
-        Seconds (of ``clock``) without a master-heartbeat change after which motion is
-        stopped with fault WATCHDOG (None or 0: no watchdog).
+        Watchdog and lease time (s of ``clock``): the owner's heartbeat must change within
+        it (None or 0: no watchdog, the lease never lapses).
     seed : int
         Seed of the measurement noise.
     noise_mm : float
         Standard deviation of the noise on reported actual positions (0: exact).
-    tick_s : float
-        The scan period the host keeps; the motion is integrated in steps of at most
-        ``tick_s`` simulated seconds.
+    scan_s : float
+        The scan period the host keeps (0 < scan_s <= 0.2 s); written to ``scan_time_max_ms``.
+    remote : bool
+        Position of the remote-enable key switch at power-on (True: remote, GO allowed).
     regmap : RegisterMap, optional
         Register map (default: the packaged one).
-    announce_simulated : bool
-        Set status bit ``simulated`` (the driver then skips the operator's confirmation);
-        False makes it pose as a real press (to test the confirmation path).
     clock : callable, optional
-        Time source (s) of the watchdog and of the ``remote`` bit; default :attr:`now_s`,
-        the sum of the :meth:`advance` steps. The Modbus host passes ``time.monotonic``.
+        Time source (s) of the lease and watchdog; default :attr:`now_s`, the sum of the
+        :meth:`advance` steps. The Modbus host passes ``time.monotonic``.
 
     Attributes
     ----------
@@ -77,71 +85,61 @@ class PlcProgram(Commands, ProgramFaults):
         The register image (the Modbus server shares this list with pymodbus).
     now_s : float
         Time advanced so far (s).
+    state : str
+        The state's name (``"IDLE"``, ``"EXECUTING"``...).
+    beats : deque of float
+        ``clock`` times at which a scan saw a new heartbeat of the owner.
     """
 
-    def __init__(
-        self,
-        press: PressConfig,
-        *,
-        word_order: str = "ABCD",
-        time_scale: float = 1.0,
-        watchdog_s: float | None = 1.0,
-        seed: int = 0,
-        noise_mm: float = 0.0,
-        tick_s: float = 0.02,
-        regmap: RegisterMap | None = None,
-        announce_simulated: bool = True,
-        clock: Callable[[], float] | None = None,
-    ):
+    def __init__(self, press: PressConfig, *, word_order: str = "ABCD", time_scale: float = 1.0,
+                 watchdog_s: float | None = 1.0, seed: int = 0, noise_mm: float = 0.0, scan_s: float = 0.01,
+                 remote: bool = True, regmap: RegisterMap | None = None, clock: Callable[[], float] | None = None):
         self.press = press
-        self.announce_simulated = bool(announce_simulated)
         self.map = regmap or load_register_map()
         self.map.check_shape(press.rows, press.cols)
         self.word_order = check_word_order(word_order)
-        if not (time_scale > 0 and math.isfinite(time_scale)):
+        if not (math.isfinite(time_scale) and time_scale > 0):
             raise InputError(f"time_scale must be a positive number, got {time_scale}",
                              hint="e.g. 1 (real time) or 50 (fast tests)")
-        if watchdog_s is not None and not (watchdog_s >= 0 and math.isfinite(watchdog_s)):
-            raise InputError(f"watchdog_s must be a number of seconds >= 0 (0 or None: off), got {watchdog_s}")
-        if not tick_s > 0:
-            raise InputError(f"tick_s must be positive, got {tick_s}")
+        if watchdog_s is not None and not (math.isfinite(watchdog_s) and 0 <= watchdog_s <= 65.0):
+            raise InputError(f"watchdog_s must be a number of seconds >= 0 and at most 65 (0 or None: off), "
+                             f"got {watchdog_s}")
+        if not (math.isfinite(scan_s) and 0 < scan_s <= MAX_SCAN_S):
+            raise InputError(f"the scan period must be above 0 and at most {MAX_SCAN_S * 1000:g} ms, "
+                             f"got {scan_s * 1000:g} ms", hint="e.g. 10 ms (the default) or 100 ms")
         self.time_scale = float(time_scale)
         self.watchdog_s = watchdog_s or None
-        self.tick_s = float(tick_s)
+        self.scan_s = float(scan_s)
         self.noise_mm = float(noise_mm)
+        self.remote_key = bool(remote)
         self.now_s = 0.0
         self._clock = clock if clock is not None else (lambda: self.now_s)
         self._rng = np.random.default_rng(seed)
         self._words = self.map.words_in_use(press.rows, press.cols)
-        park = np.stack(
-            [np.full(press.shape, press.upper.park_mm), np.full(press.shape, press.lower.park_mm)]
-        )
+        park = np.stack([np.full(press.shape, press.upper.park_mm), np.full(press.shape, press.lower.park_mm)])
         self.hydraulics = Hydraulics(park, press.speed_mm_s, press.accel_mm_s2)
         self.regs: list[int] = [0] * self.map.total_registers
+        self._ro_spans = self._read_only_spans()
+        self.beats: deque[float] = deque(maxlen=BEATS_KEPT)
         self._init_faults()
         self._power_on()
 
     # ------------------------------------------------------------------ state ---
     def _power_on(self) -> None:
-        """Reset the program state (power-on or restart); punches stay where they are."""
+        """The program's power-on state (also a restart); the punches stay where they are."""
         self.hydraulics.halt()
         self.goal_mm = self.hydraulics.position.copy()
-        self.busy = False
+        self.state = "IDLE"
         self.fault_code = 0
-        self.refusal_code = 0
-        self.ack_sequence = 0
-        self.motion_sequence = 0
-        self.data_valid = False
         self.punch_faults = np.zeros((2, self.press.rows, self.press.cols), dtype=bool)
         self.motion_time_s = 0.0
         self._arrived_at_s: float | None = None
         self.heartbeat = 0
-        self._last_master_hb: float | None = None
-        self._motion_started_at = 0.0
+        self._reset_commands()
         if self.estop_pressed:
-            self.fault_code = self.map.fault("ESTOP")
-        image = self._image()
-        self.regs[: len(image)] = image  # pymodbus keeps one guard register past the end
+            self._latch("ESTOP")
+        self.regs[: self.map.total_registers] = self._image()  # pymodbus keeps one guard register past the end
+        self._copy = {side: self._setpoint_words(side) for side in MATRICES}
         self.publish()
 
     def restart(self) -> None:
@@ -155,17 +153,20 @@ class PlcProgram(Commands, ProgramFaults):
         self.regs = registers
 
     def _image(self) -> list[int]:
-        """The complete power-on register image."""
+        """The complete power-on register image: identity, setpoints = positions, the rest 0."""
         m, p = self.map, self.press
         regs = [0] * m.total_registers
 
         def put(name, words):
             regs[m[name].address : m[name].address + len(words)] = words
 
-        put("magic", encode_uint32([m.magic], self.word_order))
+        put("magic", u32_to_words(m.magic, self.word_order))
         put("map_version", [m.version])
         put("rows", [p.rows])
         put("cols", [p.cols])
+        put("scan_time_max_ms", [max(1, math.ceil(self.scan_s * 1000 - 1e-9))])
+        put("watchdog_ms", [round((self.watchdog_s or 0.0) * 1000)])
+        put("position_tolerance", [round(p.position_tolerance_mm / m.count_mm)])
         for side in MATRICES:
             limits = getattr(p, side)
             put(f"{side}_min", encode_int32(mm_to_counts([limits.min_mm], m.count_mm), self.word_order))
@@ -174,115 +175,177 @@ class PlcProgram(Commands, ProgramFaults):
             put(f"{side}_setpoints", encode_int32(mm_to_counts(self.goal_mm[k].ravel(), m.count_mm), self.word_order))
         return regs
 
-    def _get(self, name: str) -> list[int]:
-        f = self.map[name]
-        return self.regs[f.address : f.end]
+    def _read_only_spans(self) -> list[tuple[int, int]]:
+        """(start, end) of every register the master may not write: read-only fields and the gaps."""
+        spans, at = [], 0
+        for field in self.map.fields.values():
+            if field.writable:
+                if field.address > at:
+                    spans.append((at, field.address))
+                at = field.end
+        if at < self.map.total_registers:
+            spans.append((at, self.map.total_registers))
+        return spans
+
+    # ------------------------------------------------------------- the image ---
+    def _word(self, name: str) -> int:
+        return self.regs[self.map[name].address]
+
+    def _u32(self, name: str) -> int:
+        a = self.map[name].address
+        return words_to_u32(self.regs[a : a + 2], self.word_order)
 
     def _set(self, name: str, words: list[int]) -> None:
         a = self.map[name].address
         self.regs[a : a + len(words)] = words
 
+    def _set_u32(self, name: str, value: int) -> None:
+        self._set(name, u32_to_words(value, self.word_order))
+
     def _setpoint_words(self, side: str) -> list[int]:
         a = self.map[f"{side}_setpoints"].address
         return self.regs[a : a + self._words]
 
-    def _setpoints_mm(self) -> np.ndarray:
-        """(2, rows, cols) setpoints currently in the registers."""
-        return np.stack([
-            counts_to_mm(decode_int32(self._setpoint_words(side), self.word_order), self.map.count_mm).reshape(
-                self.press.shape)
-            for side in MATRICES
-        ])
-
-    def _status_flags(self) -> dict[str, bool]:
-        fault = self.fault_code != 0
-        in_position = (
-            not self.busy
-            and bool(np.all(np.abs(self.hydraulics.position - self.goal_mm) <= self.press.position_tolerance_mm))
-        )
-        remote = self._last_master_hb is not None and (
-            self.watchdog_s is None or self._clock() - self._last_master_hb <= self.watchdog_s
-        )
-        return {
-            "ready": not (self.busy or fault or self.estop_pressed),
-            "busy": self.busy,
-            "in_position": in_position,
-            "fault": fault,
-            "estop": self.estop_pressed,
-            "remote": remote,
-            "data_valid": self.data_valid,
-            "simulated": self.announce_simulated,
-        }
-
-    def publish(self) -> None:
-        """Write actual positions, fault bits and status into the register image."""
-        actual = self.hydraulics.position
-        if self.noise_mm > 0:
-            actual = actual + self._rng.normal(0.0, self.noise_mm, actual.shape)
-        for k, side in enumerate(MATRICES):
-            self._set(f"{side}_actuals", encode_int32(mm_to_counts(actual[k].ravel(), self.map.count_mm), self.word_order))
-        self._publish_status()
-
-    def _publish_status(self) -> None:
-        """Write fault bits, status word, codes, sequences and heartbeat (cheap: after each write)."""
-        for k, side in enumerate(MATRICES):
-            self._set(f"{side}_fault_bits", pack_bits(self.punch_faults[k].ravel()))
-        self._set("status_word", [self.map.status_word(**self._status_flags())])
-        self._set("fault_code", [self.fault_code])
-        self._set("refusal_code", [self.refusal_code])
-        self._set("acknowledged_sequence", [self.ack_sequence])
-        self._set("motion_sequence", [self.motion_sequence])
-        self._set("plc_heartbeat", [self.heartbeat])
-
-    def _latch(self, name: str, *, halt: bool = True) -> None:
-        """Latch fault ``name`` and stop the punches (at once, or decelerating)."""
-        if self.fault_code == 0:
-            self.fault_code = self.map.fault(name)
-        if halt:
-            self.hydraulics.halt()
-        else:
-            self.hydraulics.stop()
+    def _copy_mm(self) -> np.ndarray:
+        """(2, rows, cols) the PLC's copy of the setpoints, in mm."""
+        return np.stack([counts_to_mm(decode_int32(self._copy[side], self.word_order), self.map.count_mm).reshape(
+            self.press.shape) for side in MATRICES])
 
     # ---------------------------------------------------------- master access ---
     def read(self, address: int, count: int) -> list[int]:
         """Registers ``address`` .. ``address + count - 1`` as a master reads them."""
         return self.regs[address : address + count]
 
+    def store(self, address: int, values: list[int]) -> int | None:
+        """Store a master's write as the PLC's Modbus server does: at once, unchecked.
+
+        Returns
+        -------
+        int or None
+            The exception code (ILLEGAL DATA ADDRESS) of a write outside the map, else None.
+            The program acts on the write in its next scan.
+        """
+        if address < 0 or address + len(values) > self.map.total_registers:
+            return self.map.illegal_address
+        self.regs[address : address + len(values)] = [int(v) & 0xFFFF for v in values]
+        return None
+
+    def write_foreign_setpoint(self, matrix: str, row: int, col: int, value_mm: float) -> None:
+        """Change one setpoint register (row, col 0-based) as a foreign master would: stored at once."""
+        if matrix not in MATRICES:
+            raise InputError(f"matrix must be 'upper' or 'lower', got {matrix!r}")
+        index = self.map.punch_index(row, col, self.press.cols)
+        self.store(self.map[f"{matrix}_setpoints"].address + 2 * index,
+                   encode_int32(mm_to_counts([value_mm], self.map.count_mm), self.word_order))
+
     # --------------------------------------------------------------- the scan ---
     def advance(self, dt_s: float) -> None:
-        """Let ``dt_s`` seconds pass: one PLC scan over them (none while the program is halted)."""
+        """Let ``dt_s`` seconds pass, ending with one PLC scan (none while the program is halted)."""
         self.now_s += dt_s
         if self.frozen:
             return
-        sim_dt = dt_s * self.time_scale
-        steps = min(max(1, int(np.ceil(sim_dt / self.tick_s))), MAX_STEPS_PER_SCAN)
-        for _ in range(steps):
-            self._step(sim_dt / steps)
-            if self.frozen:  # the program halted in this step: this scan publishes its last image
-                break
-        self._check_watchdog()
+        self._read_inputs()          # 1. e-stop circuit, key switch
+        self._guard_registers()      # 2. setpoint changes, writes to read-only registers
+        self._handle_stop_request()  # 3. STOP, from anyone
+        self._check_lease()          # 4. the owner's heartbeat, lease, watchdog, key switch in motion
+        self._handle_mailbox()       # 5. one new command, acknowledged
+        self._run_motion(dt_s)       # 6. hydraulics, fault timers, end of motion
         self.heartbeat = (self.heartbeat + 1) & 0xFFFF
-        self.publish()
+        self.publish()               # 7. status, tokens, actual positions
 
-    def _step(self, dt_s: float) -> None:
-        """Advance the motion and its timers by ``dt_s`` simulated seconds."""
-        self.hydraulics.step(dt_s)
-        if not self.busy:
-            return
-        self.motion_time_s += dt_s
-        self._run_motion_faults()
-        if self.frozen:
-            return
-        self._check_stuck()
-        if not self.hydraulics.moving and not self._stuck_pending():
-            self.busy = False
+    def _guard_registers(self) -> None:
+        """Take setpoint changes while they are allowed, undo them (and foreign writes) otherwise."""
+        refused = changed = False
+        accept = self.map.states.by_name[self.state]["setpoints"] == "accept"
+        for side in MATRICES:
+            now = self._setpoint_words(side)
+            if now != self._copy[side]:
+                if accept:
+                    self._copy[side], changed = now, True
+                else:
+                    self._set(f"{side}_setpoints", self._copy[side])
+                    refused = True
+        if changed:
+            self._drop_job("LOADED")
+        for start, end in self._ro_spans:
+            if self.regs[start:end] != self._shadow[start:end]:
+                self.regs[start:end] = self._shadow[start:end]
+                refused = True
+        if refused:
+            self.refused_writes = (self.refused_writes + 1) & 0xFFFF
 
-    def _check_watchdog(self) -> None:
-        if self.watchdog_s is None or not self.busy or self.fault_code:
+    def _run_motion(self, dt_s: float) -> None:
+        """Advance the hydraulics by the scan's simulated time; end motion when every punch is at rest."""
+        sim_dt = dt_s * self.time_scale
+        steps = min(max(1, math.ceil(sim_dt / MAX_STEP_S - 1e-9)), MAX_STEPS_PER_SCAN)
+        for _ in range(steps):
+            self.hydraulics.step(sim_dt / steps)
+            if self.state != "EXECUTING":
+                continue
+            self.motion_time_s += sim_dt / steps
+            self._run_motion_faults()
+            if self.frozen:  # the program halted in this step: this scan publishes its last image
+                return
+            self._check_stuck()
+        if self.hydraulics.moving:
             return
-        last = max(self._last_master_hb or 0.0, self._motion_started_at)
-        if self._clock() - last > self.watchdog_s:
-            self._latch("WATCHDOG", halt=False)
+        if self.state == "EXECUTING" and not self._stuck_pending():
+            self.state = "COMPLETE"
+        elif self.state == "STOPPING":
+            self.state = "STOPPED"
+
+    def _latch(self, name: str, *, halt: bool = True) -> None:
+        """Latch fault ``name`` (the first fault keeps its code), drop the job, stop the punches."""
+        if self.fault_code == 0:
+            self.fault_code = self.map.fault(name)
+        self.state = "FAULT"
+        self.validated = (0, 0)
+        if halt:
+            self.hydraulics.halt()
+        else:
+            self.hydraulics.stop()
+
+    # ----------------------------------------------------------------- status ---
+    def status_bits(self) -> dict[str, bool]:
+        """Status-word flags by name."""
+        moving = self.hydraulics.moving
+        in_position = not moving and bool(
+            np.all(np.abs(self.hydraulics.position - self.goal_mm) <= self.press.position_tolerance_mm))
+        return {
+            "ready": self.state in ("IDLE", "LOADED", "VALIDATED", "COMPLETE", "STOPPED")
+            and not self.fault_code and not self.estop_pressed,
+            "busy": self.state in ("EXECUTING", "STOPPING") or moving,
+            "in_position": in_position,
+            "fault": self.fault_code != 0,
+            "estop": self.estop_pressed,
+            "remote_enabled": self.remote_key,
+            "owned": self.owner != 0,
+            "lease_ok": self.owner != 0 and self._lease_fresh(),
+            "setpoints_locked": self.map.states.by_name[self.state]["setpoints"] == "refuse",
+        }
+
+    def publish(self) -> None:
+        """Write actual positions, fault bits, status, codes and tokens into the register image."""
+        m = self.map
+        actual = self.hydraulics.position
+        if self.noise_mm > 0:
+            actual = actual + self._rng.normal(0.0, self.noise_mm, actual.shape)
+        for k, side in enumerate(MATRICES):
+            self._set(f"{side}_actuals", encode_int32(mm_to_counts(actual[k].ravel(), m.count_mm), self.word_order))
+            self._set(f"{side}_fault_bits", pack_bits(self.punch_faults[k].ravel()))
+        counter, master, command, result = self.ack
+        self._set("status_word", [m.status_word(**self.status_bits())])
+        for name, value in (("state", m.states.code(self.state)), ("fault_code", self.fault_code),
+                            ("ack_counter", counter), ("ack_command", command), ("result_code", result),
+                            ("validated_sequence", self.validated[0]), ("motion_sequence", self.motion[0]),
+                            ("plc_heartbeat", self.heartbeat), ("refused_writes", self.refused_writes),
+                            ("last_sequence", self.last_sequence), ("stop_count", self.stop_count),
+                            ("stop_cause", m.stop_causes.code(self.stop_cause))):
+            self._set(name, [value])
+        for name, value in (("ack_master", master), ("owner_master", self.owner), ("validated_crc", self.validated[1]),
+                            ("motion_crc", self.motion[1]), ("last_stop_master", self.last_stop_master)):
+            self._set_u32(name, value)
+        self._shadow = self.regs[: m.total_registers]
 
     # ---------------------------------------------------------------- reading ---
     def actual_positions_mm(self) -> tuple[np.ndarray, np.ndarray]:
@@ -292,9 +355,11 @@ class PlcProgram(Commands, ProgramFaults):
 
     def setpoints_mm(self) -> tuple[np.ndarray, np.ndarray]:
         """Setpoints in the registers (upper, lower), each (rows, cols) mm."""
-        sp = self._setpoints_mm()
+        sp = np.stack([counts_to_mm(decode_int32(self._setpoint_words(side), self.word_order),
+                                    self.map.count_mm).reshape(self.press.shape) for side in MATRICES])
         return sp[0], sp[1]
 
-    def status_bits(self) -> dict[str, bool]:
-        """Status-word flags by name."""
-        return self._status_flags()
+    @property
+    def busy(self) -> bool:
+        """Motion in progress (state EXECUTING or STOPPING, or a punch still braking)."""
+        return self.state in ("EXECUTING", "STOPPING") or self.hydraulics.moving

@@ -1,9 +1,12 @@
-"""Injectable faults of the simulated PLC's program: stuck punch, e-stop, overpressure, halt.
+"""Injectable faults and machine inputs of the simulated PLC's program.
 
 :class:`ProgramFaults` is the fault part of :class:`mppf.sim.plc.program.PlcProgram`: the
-injected conditions, the timers that trigger them during motion, and how they latch. The
-faults of the link (slow replies, dropped connections, restarts) are the Modbus server's
-(:mod:`mppf.sim.plc.server`). The grammar of ``--fault`` specs is :mod:`mppf.sim.faults`.
+injected conditions (stuck punch, e-stop, overpressure, halted program, key switch turned
+to local), the timers that trigger them a given time into the motion, how they latch, and
+the machine's inputs an operator changes at the press (releasing the e-stop, the
+remote-enable key switch). The faults of the link (slow replies, dropped connections,
+restarts) are the Modbus server's (:mod:`mppf.sim.plc.server`). The grammar of ``--fault``
+specs is :mod:`mppf.sim.faults`.
 """
 
 from __future__ import annotations
@@ -14,12 +17,12 @@ from mppf.core.errors import InputError
 from mppf.sim.faults import KINDS
 from mppf.sim.plc.commands import MATRICES
 
-PROGRAM_FAULTS = ("stuck", "estop", "overpressure", "freeze")
+PROGRAM_FAULTS = ("stuck", "estop", "overpressure", "freeze", "local")
 """Faults of the PLC program (the rest of :data:`mppf.sim.faults.KINDS` act on the link)."""
 
 
 class ProgramFaults:
-    """Fault injection and fault timers of the PLC program (a mixin of ``PlcProgram``).
+    """Fault injection, fault timers and machine inputs of the PLC program (a mixin of ``PlcProgram``).
 
     Attributes
     ----------
@@ -27,6 +30,8 @@ class ProgramFaults:
         The e-stop circuit is open (until :meth:`release_estop` or :meth:`clear_faults`).
     frozen : bool
         The program is halted: no scan, writes land in memory unacted.
+    remote_key : bool
+        The remote-enable key switch is in remote (set with :meth:`set_remote`).
     """
 
     def _init_faults(self) -> None:
@@ -40,13 +45,14 @@ class ProgramFaults:
 
         Parameters
         ----------
-        kind : {"stuck", "estop", "overpressure", "freeze"}
+        kind : {"stuck", "estop", "overpressure", "freeze", "local"}
         **params
-            stuck: ``matrix`` ("upper"/"lower"), ``row``, ``col``, ``percent`` (of each
-            move done before it sticks, default 50), ``fault_after_s`` (simulated s after
-            the other punches arrived until fault STUCK_PUNCH and the punch's fault bit;
-            None: no fault, motion simply ends short). estop / overpressure / freeze:
-            ``after_s`` (simulated s of motion of the next or current GO; None: now).
+            stuck: ``matrix`` ("upper"/"lower"), ``row``, ``col`` (0-based), ``percent`` (of
+            each move done before it sticks, default 50), ``fault_after_s`` (simulated s
+            after the other punches arrived until fault STUCK_PUNCH and the punch's fault
+            bit; None: no fault, motion simply ends short). estop / overpressure / freeze /
+            local (key switch to local): ``after_s`` (simulated s into the motion of the
+            current or next GO; None: now).
 
         Raises
         ------
@@ -56,7 +62,8 @@ class ProgramFaults:
         if kind not in PROGRAM_FAULTS:
             if kind in KINDS:
                 raise InputError(f"fault {kind!r} acts on the Modbus link, which this PLC program does not have",
-                                 hint="inject it into a simulated PLC served over Modbus (mppf.sim.plc.run_simulated_plc)")
+                                 hint="inject it into a simulated PLC served over Modbus "
+                                      "(mppf.sim.plc.run_simulated_plc)")
             raise InputError(f"unknown fault {kind!r}", hint=f"known faults: {', '.join(KINDS)}")
         try:
             if kind == "stuck":
@@ -73,7 +80,7 @@ class ProgramFaults:
         if not (0 <= row < self.press.rows and 0 <= col < self.press.cols):
             raise InputError(
                 f"stuck punch: row {row}, col {col} outside the {self.press.rows} x {self.press.cols} matrix",
-                hint="rows and columns count from 0",
+                hint="rows and columns count from 0 here (the register order)",
             )
         if not 0 <= percent <= 100:
             raise InputError(f"stuck punch: percent must be 0..100, got {percent}")
@@ -93,10 +100,12 @@ class ProgramFaults:
             self.frozen = True
             self.hydraulics.halt()  # outputs off: the valves close
         elif kind == "estop":
-            self.estop_pressed = True
+            self.estop_pressed = True  # the e-stop circuit cuts the valves at once
             self._latch("ESTOP")
         elif kind == "overpressure":
             self._latch("OVERPRESSURE")
+        elif kind == "local":
+            self.remote_key = False  # seen by the next scan: a motion stops
 
     def _run_motion_faults(self) -> None:
         """Trigger the faults whose time of motion has come."""
@@ -105,6 +114,11 @@ class ProgramFaults:
                 self._motion_faults.remove((after_s, kind))
                 self._trigger(kind)
 
+    def _read_inputs(self) -> None:
+        """Scan step 1: an open e-stop circuit latches ESTOP in any state."""
+        if self.estop_pressed and self.state != "FAULT":
+            self._latch("ESTOP")
+
     def _stuck_short(self) -> np.ndarray:
         """(2, rows, cols) bool: stuck punches short of their goal."""
         stuck = ~np.isnan(self.hydraulics.stuck_fraction)
@@ -112,7 +126,7 @@ class ProgramFaults:
         return stuck & off
 
     def _stuck_pending(self) -> bool:
-        """A stuck punch whose fault timer is still running keeps the PLC busy."""
+        """A stuck punch whose fault timer is still running keeps the motion going."""
         if self.fault_code:
             return False
         return any(self._stuck_short()[idx] for idx in self._stuck_fault_after_s)
@@ -128,9 +142,15 @@ class ProgramFaults:
                 self.punch_faults[idx] = True
                 self._latch("STUCK_PUNCH")
 
+    # ------------------------------------------------------ operator inputs ---
     def release_estop(self) -> None:
         """Release a pressed e-stop (the ESTOP fault stays latched until RESET)."""
         self.estop_pressed = False
+        self.publish()
+
+    def set_remote(self, remote: bool) -> None:
+        """Turn the remote-enable key switch: True = remote (GO allowed), False = local."""
+        self.remote_key = bool(remote)
         self.publish()
 
     def clear_faults(self) -> None:

@@ -6,11 +6,15 @@ hooks are gone; the simulator data model's action hook is the way to act on requ
 
 - the device is a pymodbus ``SimDevice`` with one register block; its action hook (called
   before every request is applied) hands the block's register list to the program, which
-  then works on it directly (:meth:`PlcProgram.adopt_image`), and passes every master write
-  to :meth:`PlcProgram.write`, whose exception code refuses the request;
-- a scan task calls :meth:`PlcProgram.advance` every ``tick_s`` with the wall time passed;
+  then works on it directly (:meth:`PlcProgram.adopt_image`). pymodbus stores a master's
+  write in that list at once and answers it; the program sees it in its next scan, never
+  inside the request. The only exception reply is pymodbus's own for an address outside
+  the map (ILLEGAL DATA ADDRESS);
+- a scan task calls :meth:`PlcProgram.advance` every scan period (``program.scan_s``) with
+  the wall time passed;
 - the faults of the link live here: slow replies, dropped connections (the server shut
-  down and listening again later), restarts (program to power-on, connections dropped).
+  down and listening again later), restarts (program to power-on, connections dropped),
+  each now or a given time into the motion.
 
 Everything runs on the event loop the server was started on; :mod:`mppf.sim.plc.host`
 hosts it in a background thread for synchronous callers.
@@ -28,10 +32,13 @@ from pymodbus.server import ModbusSerialServer, ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
 from mppf.core.errors import InputError
+from mppf.drivers.modbus_adapter import RTU_SILENCE_CHARS
 from mppf.sim.plc.program import PlcProgram
 
 LINK_FAULTS = ("slow", "drop", "restart")
 """Faults of the link (the rest of :data:`mppf.sim.faults.KINDS` act on the program)."""
+LINK_PARAMETERS = {"slow": ("delay_ms",), "drop": ("duration_s", "after_writes"), "restart": ("downtime_s",)}
+"""The parameters of each link fault (besides ``after_s``)."""
 
 _FC_READ = 3
 
@@ -66,6 +73,11 @@ class PlcServer:
     ----------
     slow_s : float
         Delay of every reply (s; fault "slow").
+    master_writes : int
+        Write requests received (every function 6 or 16 request that reached the device).
+    on_write : callable or None
+        Called as ``on_write(address, values, time.monotonic())`` for every master write
+        (benchmarks time the arrival of a STOP with it).
     """
 
     def __init__(self, program: PlcProgram, *, unit: int = 1):
@@ -81,6 +93,10 @@ class PlcServer:
         self._tasks: set[asyncio.Task] = set()
         self._dropped = False
         self._drop_after_writes: tuple[int, float] | None = None
+        self._timed: list[tuple[float, str, dict]] = []  # link faults due a time into the motion
+        self.master_writes = 0
+        self.on_write = None
+        self.frame_silence_s = 0.0  # RTU: the slave answers after 3.5 characters of silence
 
     # ------------------------------------------------------------- the action ---
     async def _action(self, function_code, start, address, count, registers, set_values):
@@ -91,19 +107,23 @@ class PlcServer:
             self.program.adopt_image(registers)
         if self._internal:
             return None
+        if self.frame_silence_s:
+            time.sleep(self.frame_silence_s)  # sub-millisecond: the loop's timers are too coarse
         if self.slow_s:
             await asyncio.sleep(self.slow_s)
         if not set_values:
             return None
-        if not self.program.frozen and self._drop_after_writes is not None:
+        if self._drop_after_writes is not None:
             left, duration = self._drop_after_writes
             if left <= 1:
                 self._drop_after_writes = None
-                await self.drop(duration)  # the link is gone: this reply is never sent
+                await self.drop(duration)  # the link is gone: this write is not stored, never answered
                 return ExcCodes.DEVICE_FAILURE
             self._drop_after_writes = (left - 1, duration)
-        code = self.program.write(address, list(set_values))
-        return None if code is None else ExcCodes(code)
+        self.master_writes += 1
+        if self.on_write is not None:
+            self.on_write(address, list(set_values), time.monotonic())
+        return None  # pymodbus stores the values now; the program acts on them in its next scan
 
     # ---------------------------------------------------------------- serving ---
     def _device(self) -> SimDevice:
@@ -134,7 +154,9 @@ class PlcServer:
         return address[1]
 
     async def start_rtu(self, port: str, *, baud: int = 115200, parity: str = "E", stopbits: int = 1) -> None:
-        """Serve Modbus RTU on serial device ``port``."""
+        """Serve Modbus RTU on serial device ``port`` (each reply after 3.5 characters of silence)."""
+        bits = 1 + 8 + (parity != "N") + stopbits  # start, data, parity, stop
+        self.frame_silence_s = RTU_SILENCE_CHARS * bits / baud
         self._server_factory = lambda: _SerialServer(
             self._device(), framer=FramerType.RTU, port=port, baudrate=baud, parity=parity, stopbits=stopbits,
             bytesize=8,
@@ -143,13 +165,26 @@ class PlcServer:
         self._ticker = asyncio.get_running_loop().create_task(self._run_scan())
 
     async def _run_scan(self) -> None:
-        """The PLC scan: advance the program by the wall time passed, every ``tick_s``."""
-        last = time.monotonic()
+        """The PLC scan: advance the program by the wall time passed, every scan period."""
+        last = due = time.monotonic()
         while True:
-            await asyncio.sleep(self.program.tick_s)
+            due += self.program.scan_s
+            await asyncio.sleep(max(0.0, due - time.monotonic()))
             now = time.monotonic()
+            due = max(due, now - self.program.scan_s)  # a late scan is not followed by a burst of scans
             self.program.advance(now - last)
             last = now
+            self._run_timed()
+
+    def _run_timed(self) -> None:
+        """Trigger the link faults whose time into the motion has come."""
+        if not self._timed or self.program.state != "EXECUTING":
+            return
+        for entry in list(self._timed):
+            after_s, kind, params = entry
+            if self.program.motion_time_s >= after_s:
+                self._timed.remove(entry)
+                self._apply_link_fault(kind, params)
 
     async def stop(self) -> None:
         """Stop the scan and the server."""
@@ -170,12 +205,12 @@ class PlcServer:
 
         Parameters
         ----------
-        kind : {"stuck", "estop", "overpressure", "freeze", "slow", "drop", "restart"}
+        kind : {"stuck", "estop", "overpressure", "freeze", "local", "slow", "drop", "restart"}
         **params
-            slow: ``delay_ms``. drop: ``duration_s`` (2.0), ``after_s`` (wall s; None: now),
-            ``after_writes`` (drop on the n-th master write, which is not applied).
-            restart: ``after_s`` (wall s; None: now), ``downtime_s`` (0.3). The program's
-            faults: see :meth:`PlcProgram.inject`.
+            slow: ``delay_ms``. drop: ``duration_s`` (2.0), ``after_writes`` (drop on the n-th
+            master write, which is not stored). restart: ``downtime_s`` (0.3). Each of the
+            three takes ``after_s``: simulated seconds into the motion of the current or next
+            GO (None: now). The program's faults: see :meth:`PlcProgram.inject`.
 
         Raises
         ------
@@ -185,31 +220,34 @@ class PlcServer:
         if kind not in LINK_FAULTS:
             self.program.inject(kind, **params)
             return
-        try:
-            {"slow": self._inject_slow, "drop": self._inject_drop, "restart": self._inject_restart}[kind](**params)
-        except TypeError as exc:
-            raise InputError(f"fault {kind!r}: {exc}", hint="see docs/simulator.md for the parameters") from None
-        self.program.publish()
-
-    def _inject_slow(self, delay_ms) -> None:
-        if not delay_ms >= 0:
-            raise InputError(f"slow replies: delay_ms must be >= 0, got {delay_ms}")
-        self.slow_s = delay_ms / 1000.0
-
-    def _inject_drop(self, duration_s=2.0, after_s=None, after_writes=None) -> None:
-        if not duration_s >= 0:
-            raise InputError(f"dropped connection: duration_s must be >= 0, got {duration_s}")
-        if after_writes is not None:
-            self._drop_after_writes = (int(after_writes), float(duration_s))
+        params = dict(params)
+        after_s = params.pop("after_s", None)
+        unknown = sorted(set(params) - set(LINK_PARAMETERS[kind]))
+        if unknown:
+            raise InputError(f"fault {kind!r}: unexpected keyword argument {unknown[0]!r}",
+                             hint=f"{kind} takes {', '.join(LINK_PARAMETERS[kind])} and after_s (docs/simulator.md)")
+        for name in ("delay_ms", "duration_s", "downtime_s"):
+            if name in params and not params[name] >= 0:
+                raise InputError(f"fault {kind!r}: {name} must be >= 0, got {params[name]}")
+        if after_s is None:
+            self._apply_link_fault(kind, params)
         else:
-            self._spawn(self._drop(duration_s, delay_s=after_s or 0.0))
+            self._timed.append((float(after_s), kind, params))
 
-    def _inject_restart(self, after_s=None, downtime_s=0.3) -> None:
-        self._spawn(self._restart(delay_s=after_s or 0.0, downtime_s=downtime_s))
+    def _apply_link_fault(self, kind: str, params: dict) -> None:
+        if kind == "slow":
+            self.slow_s = params.get("delay_ms", 0.0) / 1000.0
+        elif kind == "drop" and params.get("after_writes") is not None:
+            self._drop_after_writes = (int(params["after_writes"]), float(params.get("duration_s", 2.0)))
+        elif kind == "drop":
+            self._spawn(self.drop(float(params.get("duration_s", 2.0))))
+        else:
+            self._spawn(self.restart(float(params.get("downtime_s", 0.3))))
 
     def clear_faults(self) -> None:
         """Remove every injected condition, of the link and of the program (latched faults stay)."""
         self._drop_after_writes = None
+        self._timed = []
         self.slow_s = 0.0
         self.program.clear_faults()
 
@@ -255,11 +293,4 @@ class PlcServer:
         self.program.restart()
         await self.drop(downtime_s)
 
-    async def _drop(self, duration_s: float, delay_s: float = 0.0) -> None:
-        await asyncio.sleep(delay_s)
-        await self.drop(duration_s)
-
-    async def _restart(self, delay_s: float, downtime_s: float) -> None:
-        await asyncio.sleep(delay_s)
-        await self.restart(downtime_s)
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -109,3 +110,62 @@ def test_console_script_exit_code_and_stderr(tmp_path):
     assert proc.returncode == EXIT_INPUT
     assert "a.csv: file not found" in " ".join(proc.stderr.split())
     assert "Traceback" not in proc.stderr and proc.stdout == ""
+
+
+def test_every_command_is_registered_lazily_and_listed_in_the_help(capsys):
+    import importlib
+
+    from mppf.cli import COMMAND_MODULES
+
+    defined = {}
+    for module in sorted(set(COMMAND_MODULES.values())):
+        for command in importlib.import_module(f"mppf.cli.{module}").COMMANDS:
+            defined[command.name] = module
+    assert defined == COMMAND_MODULES  # the table names every command of every module, and only those
+    assert main(["--help"]) == 0
+    listed = {line.split()[0] for line in capsys.readouterr().out.split("Commands:")[1].splitlines() if line.strip()}
+    assert listed == set(COMMAND_MODULES)
+
+
+def test_stop_status_and_reset_import_neither_numpy_nor_rich_nor_the_planner(tmp_path):
+    """The light commands start fast: ``mppf stop`` has to leave at once."""
+    from mppf.sim.plc.host import run_simulated_plc
+
+    with run_simulated_plc(watchdog_s=None) as sim:
+        script = ("import sys; from mppf.cli import main; "
+                  f"codes = [main([c, '--plc', {sim.url!r}]) for c in ('status', 'stop', 'reset')]; "
+                  "print(*codes, *(m in sys.modules for m in ('numpy', 'rich', 'mppf.planning.press', "
+                  "'mppf.drivers.plc_press')))")
+        proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60,
+                              env={**os.environ, "MPPF_HOME": str(tmp_path)})
+        assert sim.state() == "IDLE"  # stopped, then reset by the third command
+    assert proc.stdout.split()[-7:] == ["0", "0", "0", "False", "False", "False", "False"], proc.stdout + proc.stderr
+
+
+@pytest.mark.parametrize("args, expected", [
+    (["stop", "--plc", "tcp://h:1"], ("tcp://h:1", None)),
+    (["stop", "--audit=a.sqlite", "--plc=tcp://h:1"], ("tcp://h:1", "a.sqlite")),
+    (["stop"], None),  # click reports the missing --plc
+    (["stop", "--plc", "tcp://h:1", "--help"], None),
+    (["stop", "--plc", "tcp://h:1", "--plc", "tcp://h:2"], None),
+    (["stop", "--plc", "--audit", "x"], None),
+    (["--debug", "stop", "--plc", "tcp://h:1"], None),
+    (["status", "--plc", "tcp://h:1"], None),
+])
+def test_only_a_plain_stop_takes_the_path_without_click(args, expected):
+    from mppf.cli.plc_ops import stop_arguments
+
+    assert stop_arguments(args) == expected
+
+
+def test_a_plain_stop_does_not_import_click_and_says_what_the_plc_did(tmp_path):
+    from mppf.sim.plc.host import run_simulated_plc
+
+    with run_simulated_plc(watchdog_s=None) as sim:
+        script = (f"import sys; from mppf.cli import main; code = main(['stop', '--plc', {sim.url!r}]); "
+                  "print(code, 'click' in sys.modules, 'pymodbus' in sys.modules)")
+        proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60,
+                              env={**os.environ, "MPPF_HOME": str(tmp_path)})
+        assert sim.state() == "STOPPED"
+    assert "the PLC took it (state STOPPED)" in proc.stdout
+    assert proc.stdout.split()[-3:] == ["0", "False", "False"], proc.stdout + proc.stderr

@@ -114,7 +114,7 @@ def test_too_few_steps_exits_2(hull_dir, tmp_path, capsys):
     code = main(["plan", str(design), str(flat), "--thickness", "20", "--steps", "1", "-o", str(job_path)])
     err = " ".join(capsys.readouterr().err.split())
     assert code == 2
-    assert "dimpling limit" in err and "upper[" in err
+    assert "dimpling limit" in err and "upper punches (row " in err
     assert not job_path.exists()
     assert main(["plan", str(design), str(flat), "--thickness", "20", "-o", str(job_path), "--json"]) == 0
     job = load_job(job_path)

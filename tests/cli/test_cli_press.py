@@ -6,6 +6,7 @@ import io
 import json
 import time
 
+import numpy as np
 import pytest
 from driver_helpers import small_job, small_press
 
@@ -27,7 +28,7 @@ def job_path(tmp_path, press):
 
 @pytest.fixture
 def sim(press):
-    handle = start_simulated_plc(press, time_scale=50.0)
+    handle = start_simulated_plc(press, time_scale=50.0, watchdog_s=2.0)
     yield handle
     handle.stop()
 
@@ -59,7 +60,8 @@ def test_dry_run_of_one_step_uses_the_default_audit_log(job_path, mppf_home, cap
     assert main(["press", str(job_path), "--step", "2", "--time-scale", "50"]) == 0
     assert "dry run: 1 step(s) pressed" in capsys.readouterr().out
     assert [a[:2] for a in audit_actions(mppf_home / "audit.sqlite") if a[0] != "connect"] == [
-        ("upload", "ok"), ("validate", "ok"), ("go", "ok"), ("complete", "ok")]
+        ("claim", "ok"), ("upload", "ok"), ("upload", "ok"), ("validate", "ok"), ("go", "ok"), ("complete", "ok"),
+        ("release", "ok")]
 
 
 def test_bad_input_exits_2(job_path, tmp_path, press, capsys):
@@ -92,7 +94,7 @@ def test_strokes_beyond_limits_exit_2_before_anything_moves(tmp_path, press, sim
 def test_real_plc_without_confirmation_is_refused(job_path, press, tmp_path, monkeypatch, capsys):
     monkeypatch.setattr("sys.stdin", io.StringIO(""))  # not a terminal
     audit = tmp_path / "audit.sqlite"
-    real = start_simulated_plc(press, time_scale=50.0, announce_simulated=False)  # poses as a real press
+    real = start_simulated_plc(press, time_scale=50.0)
     try:
         assert main(["press", str(job_path), "--plc", real.url, "--audit", str(audit)]) == 4
         before = real.actual_positions_mm()
@@ -103,13 +105,14 @@ def test_real_plc_without_confirmation_is_refused(job_path, press, tmp_path, mon
     assert (before[0] == press.upper.park_mm).all()  # nothing moved
 
 
-def test_the_simulated_plc_needs_no_confirmation(job_path, sim, tmp_path, monkeypatch, capsys):
-    """The simulator sets status bit `simulated`: pressing on it asks nothing, even without a terminal."""
+def test_a_simulator_reached_with_plc_is_asked_for_like_any_plc(job_path, sim, tmp_path, monkeypatch, capsys):
+    """Nothing a PLC says about itself skips the question: only the in-process dry run moves unasked."""
     monkeypatch.setattr("sys.stdin", io.StringIO(""))  # not a terminal
     audit = tmp_path / "audit.sqlite"
-    assert main(["press", str(job_path), "--plc", sim.url, "--audit", str(audit)]) == 0
-    assert "no confirmation needed" in " ".join(capsys.readouterr().err.split())
-    assert "go" in [a[0] for a in audit_actions(audit)]
+    assert main(["press", str(job_path), "--plc", sim.url, "--audit", str(audit)]) == 4
+    assert "without confirmation" in " ".join(capsys.readouterr().err.split())
+    assert [a[0] for a in audit_actions(audit)] == ["connect"] and sim.server.master_writes == 0
+    assert main(["press", str(job_path), "--audit", str(audit)]) == 0  # the dry run asks nothing
 
 
 def test_real_plc_with_yes_runs(job_path, sim, tmp_path, capsys):
@@ -143,7 +146,7 @@ def test_status_json_and_text(sim, press, capsys):
     report = json.loads(capsys.readouterr().out)
     assert (report["rows"], report["cols"], report["word_order"]) == (press.rows, press.cols, "ABCD")
     assert report["status"]["ready"] and not report["status"]["busy"]
-    assert report["fault_code"] == 0 and report["acknowledged_sequence"] == 0
+    assert report["fault_code"] == 0 and report["validated"]["sequence"] == 0 and report["state"] == "IDLE"
     assert report["plc_heartbeat"] > 0 and report["limits_mm"]["lower"] == [press.lower.min_mm, press.lower.max_mm]
     assert main(["status", "--plc", sim.url]) == 0
     out = capsys.readouterr().out
@@ -167,8 +170,97 @@ def test_ctrl_c_during_motion_exits_130_after_stop(job_path, tmp_path, monkeypat
     def operator_presses_ctrl_c(self, completed):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr("mppf.cli.press_cmd.RichReporter.update", operator_presses_ctrl_c)
+    monkeypatch.setattr("mppf.cli._common.RichReporter.update", operator_presses_ctrl_c)
     audit = tmp_path / "audit.sqlite"
     assert main(["press", str(job_path), "--audit", str(audit), "--time-scale", "2"]) == 130
     assert "STOP was sent" in " ".join(capsys.readouterr().err.split())
-    assert [a[:2] for a in audit_actions(audit)][-2:] == [("go", "ok"), ("stop", "ok")]
+    assert [a[:2] for a in audit_actions(audit) if a[0] != "release"][-2:] == [("go", "ok"), ("stop", "ok")]
+
+
+# ------------------------------------------------------------ tampered jobs ------
+def _edit(doc: dict, kind: str) -> None:
+    """Tamper with a job document the way a hand edit (or a broken tool) would."""
+    up, lo = doc["steps"][0]["upper_mm"], doc["steps"][0]["lower_mm"]
+    if kind == "bool":
+        up[1][2] = True
+    elif kind == "string":
+        up[1][2] = "12.5"
+    elif kind == "nan":
+        lo[2][3] = float("nan")
+    elif kind == "active":
+        doc["steps"][0]["active"][1][1] = "yes"
+    elif kind == "limit":
+        doc["steps"][1]["upper_mm"][1][2] = 450.0
+    elif kind == "gap":
+        up[2][2] = lo[2][2] - 50.0  # the upper tip 50 mm below the lower tip
+    elif kind == "dimpling":
+        up[2][3] += 250.0  # one punch 250 mm above its neighbours
+        lo[2][3] += 250.0
+    elif kind == "parked":
+        up[0][0] = 100.0  # a stroke for the parked punch
+    elif kind == "reversal":
+        doc["steps"][1]["lower_mm"][3][4] = lo[3][4] - 5.0  # step 2 moves back
+        doc["steps"][1]["upper_mm"][3][4] = up[3][4] - 5.0
+    elif kind == "thickness":
+        doc["thickness_mm"] = 60.0
+    elif kind == "parks":
+        doc["press"]["upper"]["park_mm"], doc["press"]["lower"]["park_mm"] = -300.0, 300.0
+    elif kind == "plc_limits":  # a press block widened: consistent in itself, only the PLC can tell
+        doc["press"]["upper"]["max_mm"] = doc["press"]["upper"]["park_mm"] = 500.0
+
+
+TAMPERED = {
+    "bool": "step 1 upper punch (row 2, col 3): stroke true is not a finite number of mm",
+    "string": 'step 1 upper punch (row 2, col 3): stroke "12.5" is not a finite number of mm',
+    "nan": "step 1 lower punch (row 3, col 4): stroke NaN is not a finite number of mm",
+    "active": 'step 1 punch (row 2, col 2): active is "yes", not true or false',
+    "limit": "step 2 upper punch (row 2, col 3): stroke 450.00 mm beyond the stroke limits -300..400 mm",
+    "gap": "step 1 punch pair (row 3, col 3): tip gap -50.00 mm < thickness 20 mm",
+    "dimpling": ("step 1 upper punches (row 3, col 3) and (row 3, col 4): the height difference changes by +2",
+                 "mm, dimpling limit 30 mm"),
+    "parked": "step 1 upper punch (row 1, col 1) is parked (not active) but has a stroke 100.00 mm; parked punches "
+              "stand at park 400.0 mm",
+    "reversal": "step 2 lower punch (row 4, col 5) reverses direction: moves -5.00 mm",
+    "thickness": "the plate thickness 60 mm is above the largest plate this press takes, [forming] "
+                 "max_thickness_mm 50 mm",
+    "parks": "[upper] park_mm -300 mm is below [lower] park_mm 300 mm: the parked tips would cross",
+    "plc_limits": "[upper] max_mm 500 mm of the job's press is beyond the PLC's limit 400 mm",
+}
+
+
+@pytest.mark.parametrize("kind", sorted(TAMPERED))
+def test_every_tampered_job_exits_2_naming_punch_value_and_limit_and_writes_nothing(
+        kind, job_path, tmp_path, sim, capsys):
+    doc = json.loads(job_path.read_text())
+    _edit(doc, kind)
+    path = tmp_path / f"tampered-{kind}.json"
+    path.write_text(json.dumps(doc))
+    audit = tmp_path / "audit.sqlite"
+    assert main(["press", str(path), "--plc", sim.url, "--yes", "--audit", str(audit)]) == 2
+    err = " ".join(capsys.readouterr().err.split())
+    expected = TAMPERED[kind] if isinstance(TAMPERED[kind], tuple) else (TAMPERED[kind],)
+    assert all(part in err for part in expected) and "Traceback" not in err, err
+    # nothing reached the PLC: no write request at all, no write in the audit log, nothing moved
+    assert sim.server.master_writes == 0
+    assert {a[0] for a in audit_actions(audit)} <= {"connect", "limits"}
+    assert sim.state() == "IDLE"
+    np.testing.assert_array_equal(sim.actual_positions_mm()[0], np.full(sim.plc.press.shape,
+                                                                        sim.plc.press.upper.park_mm))
+
+
+def test_a_job_for_another_press_file_or_another_matrix_exits_2(job_path, tmp_path, press, sim, capsys):
+    other = press.to_dict()
+    other["forming"]["max_neighbour_diff_mm"] = 25.0
+    press_toml = tmp_path / "other.toml"
+    press_toml.write_text(
+        "\n".join([f'name = "{other["name"]}"'] + [
+            f"[{table}]\n" + "\n".join(f"{k} = {v!r}" for k, v in other[table].items())
+            for table in ("matrix", "upper", "lower", "forming")]))
+    assert main(["press", str(job_path), "--plc", sim.url, "--yes", "--press", str(press_toml)]) == 2
+    err = " ".join(capsys.readouterr().err.split())
+    assert f"the job was planned for another press than {press_toml}: [forming] max_neighbour_diff_mm is 30.0 " \
+           f"in the job, 25.0 in {press_toml}" in err
+    wide = save_job(small_job(small_press(5, 6)), tmp_path / "wide.json")
+    assert main(["press", str(wide), "--plc", sim.url, "--yes"]) == 2
+    assert "drives 4 x 6 punches" in " ".join(capsys.readouterr().err.split())
+    assert sim.server.master_writes == 0

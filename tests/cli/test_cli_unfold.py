@@ -126,3 +126,52 @@ def test_console_script_bad_input_exit_code(tmp_path):
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2
     assert "2 point" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_unfold_reads_a_step_design(tmp_path, capsys):
+    from cad_helpers import trimmed_plate_area_mm2, write_bspline_plate
+
+    design = write_bspline_plate(tmp_path / "plate.step")
+    out = tmp_path / "flat.csv"
+    assert main(["unfold", str(design), "-o", str(out), "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    cloud = read_points(design)
+    assert report["n_points"] == cloud.n_points and report["design_sha256"] == cloud.sha256
+    assert report["max_strain_pct"] < 0.1  # a 55 mm deep, 3 x 2 m plate: nearly developable
+    flat = read_points(out).points
+    # the flat keeps the trimmed plate's area (the cut corner included)
+    tri = cloud.faces
+    a, b, c = flat[tri[:, 0]], flat[tri[:, 1]], flat[tri[:, 2]]
+    flat_area = 0.5 * np.abs(np.cross(b - a, c - a)[:, 2]).sum()
+    assert flat_area == pytest.approx(trimmed_plate_area_mm2(), rel=1e-3)
+
+
+def test_unfold_scale_reads_a_model_scale_design(tmp_path, capsys):
+    model = _write(tmp_path / "model.csv", read_points(DESIGN).points / 31.6)
+    out = tmp_path / "flat.csv"
+    assert main(["unfold", str(model), "-o", str(out), "--scale", "31.6", "--json"]) == 0
+    width, height = json.loads(capsys.readouterr().out)["flat_size_mm"]
+    assert 3000.0 <= width < 3010.0 and 2000.0 <= height < 2030.0
+    assert main(["unfold", str(model), "-o", str(out), "--scale", "0"]) == 2
+    assert "--scale" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("suffix, message", [(".e57", "does not start with 'ASTM-E57'"),
+                                             (".las", "does not start with 'LASF'"),
+                                             (".laz", "does not start with 'LASF'")])
+def test_unfold_bad_scan_files_exit_2(tmp_path, capsys, suffix, message):
+    from cad_helpers import truncated, write_e57, write_las
+
+    points = np.random.default_rng(2).uniform(0.0, 3.0, size=(2000, 3))
+    good = write_e57(tmp_path / "good.e57", [(points, (1, 0, 0, 0), (0, 0, 0))]) if suffix == ".e57" \
+        else write_las(tmp_path / f"good{suffix}", points)
+    empty, text = tmp_path / f"empty{suffix}", tmp_path / f"text{suffix}"
+    empty.write_bytes(b"")
+    text.write_text("1,2,3\n4,5,6\n")
+    for path, expected in ((empty, "file is empty"), (text, message),
+                           (truncated(good, tmp_path / f"cut{suffix}"), "truncated|not a readable")):
+        assert main(["unfold", str(path), "-o", str(tmp_path / "flat.csv"), "--units", "m"]) == 2
+        err = " ".join(capsys.readouterr().err.split())
+        assert f"error: {path}" in err and "what to do:" in err and "Traceback" not in err
+        assert any(part in err for part in expected.split("|"))
+    assert not (tmp_path / "flat.csv").exists()

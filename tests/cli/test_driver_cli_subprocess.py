@@ -104,7 +104,7 @@ def test_ctrl_c_or_sigterm_to_mppf_press_stops_the_plc_and_exits_130(tmp_path, e
         err = " ".join(err.split())
         assert press.returncode == 130, err
         assert "cancelled by the operator; STOP was sent" in err and "Traceback" not in err
-        entries = audit_entries(audit)
+        entries = [e for e in audit_entries(audit) if e.action != "release"]
         assert [(e.action, e.outcome) for e in entries][-2:] == [("go", "ok"), ("stop", "ok")]
         assert {e.job_sha256 for e in entries} == {load_job(job_path).sha256()}
         assert entries[-1].sequence == entries[-2].sequence == 1
@@ -112,7 +112,7 @@ def test_ctrl_c_or_sigterm_to_mppf_press_stops_the_plc_and_exits_130(tmp_path, e
         time.sleep(0.3)  # braking from 20 mm/s at 100 mm/s^2 takes 0.2 s
         report = status(url, capsys)
         assert not report["status"]["busy"] and not report["status"]["in_position"]
-        assert not report["status"]["fault"] and report["motion_sequence"] == 1
+        assert not report["status"]["fault"] and report["motion"]["sequence"] == 1 and report["state"] == "STOPPED"
     finally:
         end_sim(sim)
 
@@ -132,7 +132,7 @@ def test_status_stop_reset_against_a_sim_process(tmp_path, env, press_toml, caps
     finally:
         end_sim(sim)
     assert [(e.action, e.outcome) for e in audit_entries(audit) if e.action != "connect"] == [
-        ("stop", "ok"), ("reset", "refused")]
+        ("stop", "ok"), ("claim", "ok"), ("reset", "refused"), ("release", "ok")]
 
     sim, url = start_sim(env, press_toml, "--fault", "overpressure")
     try:
@@ -142,5 +142,49 @@ def test_status_stop_reset_against_a_sim_process(tmp_path, env, press_toml, caps
         assert "faults reset" in capsys.readouterr().out
         report = status(url, capsys)
         assert report["status"]["ready"] and not report["status"]["fault"] and report["fault_code"] == 0
+    finally:
+        end_sim(sim)
+
+
+def test_kill_9_of_the_master_during_motion_the_plc_stops_within_its_watchdog(tmp_path, env, press_toml):
+    """No STOP can come from a killed master: the PLC's watchdog ends the motion; the audit log keeps
+    the intent row of GO, written before the GO was sent, and no outcome of the motion."""
+    from mppf.drivers.modbus_session import ModbusSession
+
+    job_path = save_job(small_job(small_press(ROWS, COLS), n_steps=1), tmp_path / "job.json")
+    audit = tmp_path / "audit.sqlite"
+    sim, url = start_sim(env, press_toml, "--time-scale", "1", "--watchdog", "1.0", "--scan-ms", "10")
+    try:
+        press = subprocess.Popen(
+            [sys.executable, "-m", "mppf", "press", str(job_path), "--plc", url, "--yes", "--audit", str(audit)],
+            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env,
+        )
+        try:
+            deadline = time.monotonic() + 30.0
+            while not any(e.action == "go" and e.outcome == "ok" for e in audit_entries(audit)):
+                assert press.poll() is None, press.communicate()[1]
+                assert time.monotonic() < deadline, "mppf press did not send GO"
+                time.sleep(0.05)
+            time.sleep(0.5)  # the punches are moving
+            with ModbusSession(url, heartbeat_s=None) as plc:
+                assert plc.status().state == "EXECUTING" and plc.status().lease_ok
+                killed_at = time.monotonic()
+                press.send_signal(signal.SIGKILL)
+                press.communicate(timeout=10)
+                while (st := plc.status()).state == "EXECUTING":
+                    assert time.monotonic() - killed_at < 5.0, "the PLC kept moving"
+                    time.sleep(0.01)
+                stopped_after_s = time.monotonic() - killed_at
+                report = plc.status_report()
+        finally:
+            press.kill()
+        assert st.state == "FAULT" and report["fault_text"].startswith("WATCHDOG")
+        assert stopped_after_s <= 1.0 + 0.1  # the watchdog time, plus a few scans and this poll
+        assert not report["status"]["owned"]  # the lease lapsed with the heartbeat
+        entries = audit_entries(audit)
+        go = [e for e in entries if e.action == "go"]
+        assert len(go) == 1 and go[0].time_s < go[0].outcome_time_s  # the intent was committed before GO left
+        assert entries[-1].action == "go"  # no outcome of the motion, no STOP, no release: the master died
+        assert all(e.outcome != "intent" for e in entries[:-1])
     finally:
         end_sim(sim)

@@ -67,3 +67,82 @@ def test_failed_unfold_keeps_a_pre_existing_flat_file(tmp_path, capsys):
     assert main(["unfold", str(design), "-o", str(out)]) == 2
     assert "collinear" in capsys.readouterr().err
     assert out.read_text() == "previous\n"
+
+
+def test_flat_for_the_cutter_beside_the_flat_file(sphere_cap, tmp_path, capsys):
+    import ezdxf
+
+    from mppf.core.polygon import area, convex_outline, offset_convex, perimeter
+
+    csv, dxf = tmp_path / "flat.csv", tmp_path / "flat.dxf"
+    assert main(["unfold", str(sphere_cap), "-o", str(csv), "-o", str(dxf), "--margin", "80", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["outputs"] == [str(csv), str(dxf)] and report["output"] == str(csv)
+    flat = read_points(csv).points
+    doc = ezdxf.readfile(dxf)
+    assert not doc.audit().has_errors and doc.header["$INSUNITS"] == 4
+    (cut,) = [np.array(e.get_points("xy")) for e in doc.modelspace().query('LWPOLYLINE[layer=="CUT"]')]
+    grown = offset_convex(convex_outline(flat[:, :2]), 80.0)
+    assert area(cut) == pytest.approx(area(grown), rel=1e-9) and perimeter(cut) == pytest.approx(perimeter(grown))
+    assert report["dxf"]["margin_mm"] == 80.0
+    assert report["dxf"]["cut_area_mm2"] == pytest.approx(area(grown), rel=1e-9)
+    np.testing.assert_allclose(report["dxf"]["reference_corner_mm"], cut[np.argmin(cut.sum(axis=1))])
+
+
+def test_the_default_margin_is_the_example_press_margin(sphere_cap, tmp_path, capsys):
+    from mppf.planning.press import example_press_path, load_press
+
+    assert main(["unfold", str(sphere_cap), "-o", str(tmp_path / "flat.dxf"), "--json"]) == 0
+    margin = json.loads(capsys.readouterr().out)["dxf"]["margin_mm"]
+    assert margin == load_press(example_press_path()).margin_mm == 100.0
+    assert main(["unfold", str(sphere_cap), "-o", str(tmp_path / "flat.dxf"), "--margin", "-5"]) == 2
+    assert "--margin" in capsys.readouterr().err
+
+
+def test_a_job_of_another_design_is_refused(sphere_cap, tmp_path, capsys):
+    job = {"format": "mppf-job", "version": 2}
+    path = tmp_path / "job.json"
+    path.write_text(json.dumps(job))
+    assert main(["unfold", str(sphere_cap), "-o", str(tmp_path / "flat.dxf"), "--job", str(path)]) == 2
+    assert "error:" in capsys.readouterr().err
+    assert not (tmp_path / "flat.dxf").exists()
+
+
+def test_a_job_marks_its_punch_centres_on_the_flat(sphere_cap, tmp_path, capsys):
+    import ezdxf
+
+    from mppf.core.polygon import contains
+    from mppf.core.transform import apply_tf
+    from mppf.planning.job import load_job, reference_corner_xy
+
+    flat, job_path, dxf = tmp_path / "flat.csv", tmp_path / "job.json", tmp_path / "flat.dxf"
+    assert main(["unfold", str(sphere_cap), "-o", str(flat)]) == 0
+    assert main(["plan", str(sphere_cap), str(flat), "--thickness", "20", "--margin", "60", "-o", str(job_path)]) == 0
+    assert main(["unfold", str(sphere_cap), "-o", str(dxf), "--job", str(job_path), "--json"]) == 0
+    capsys.readouterr()
+    job = load_job(job_path)
+    msp = ezdxf.readfile(dxf).modelspace()
+    (cut,) = [np.array(e.get_points("xy")) for e in msp.query('LWPOLYLINE[layer=="CUT"]')]
+    centres = np.array([c.dxf.center for c in msp.query('CIRCLE[layer=="PUNCH"]')])[:, :2]
+    active = job.steps[-1].active
+    assert centres.shape[0] == int(active.sum()) and np.all(contains(cut, centres))
+    on_press = apply_tf(job.tf_press_flat, np.column_stack([centres, np.zeros(len(centres))]))[:, :2]
+    x, y = np.meshgrid(job.punch_x_mm, job.punch_y_mm)
+    np.testing.assert_allclose(on_press, np.column_stack([x[active], y[active]]), atol=1e-6)
+    # the job's margin, and the mark on the corner that lies at the smallest x + y on that press
+    from mppf.core.polygon import area, convex_outline, offset_convex
+
+    assert area(cut) == pytest.approx(area(offset_convex(convex_outline(read_points(flat).points[:, :2]), 60.0)))
+    (mark,) = msp.query('POINT[layer=="MARK"]')
+    cut_on_press = apply_tf(job.tf_press_flat, np.column_stack([cut, np.zeros(len(cut))]))[:, :2]
+    mark_on_press = apply_tf(job.tf_press_flat, np.r_[np.array(mark.dxf.location)[:2], 0.0][None])[0, :2]
+    np.testing.assert_allclose(mark_on_press, reference_corner_xy(cut_on_press), atol=1e-6)
+    assert job.layout.margin_mm == 60.0
+    # a job of another design is refused, and nothing is written
+    doc = json.loads(job_path.read_text())
+    doc["inputs"]["design"]["sha256"] = "0" * 64
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps(doc))
+    assert main(["unfold", str(sphere_cap), "-o", str(tmp_path / "x.dxf"), "--job", str(other)]) == 2
+    assert "planned for another design" in " ".join(capsys.readouterr().err.split())
+    assert not (tmp_path / "x.dxf").exists()

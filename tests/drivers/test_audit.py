@@ -64,3 +64,39 @@ def test_unwritable_or_bad_file_is_an_input_error(tmp_path):
     bad.write_bytes(b"this is not sqlite" * 100)
     with pytest.raises(InputError, match="cannot open the audit log"):
         AuditLog(bad)
+
+
+def test_rows_are_written_ahead_and_a_crash_leaves_the_intent(tmp_path):
+    path = tmp_path / "audit.sqlite"
+    log = AuditLog(path)
+    row = log.intent("tcp://plc:502?unit=1", "go", sequence=3, detail="crc 0x12345678")
+    # another process (the auditor) sees the intent before the request is even sent
+    with AuditLog(path) as reader:
+        (entry,) = reader.entries()
+    assert (entry.action, entry.outcome, entry.outcome_time_s, entry.detail) == ("go", "intent", None, "crc 0x12345678")
+    log.outcome(row, "refused", "TOKEN_MISMATCH")
+    log.intent("tcp://plc:502?unit=1", "upload", sequence=4, detail="upper setpoints")  # then the process dies
+    log.close()
+    with AuditLog(path) as again:
+        go, upload = again.entries()
+    assert (go.outcome, go.detail) == ("refused", "crc 0x12345678; TOKEN_MISMATCH") and go.outcome_time_s >= go.time_s
+    assert (upload.action, upload.outcome, upload.outcome_time_s) == ("upload", "intent", None)
+
+
+def test_a_version_1_log_is_upgraded_in_place(tmp_path):
+    path = tmp_path / "old.sqlite"
+    db = sqlite3.connect(path)
+    db.executescript("""
+        CREATE TABLE audit (id INTEGER PRIMARY KEY AUTOINCREMENT, time_utc TEXT NOT NULL, time_s REAL NOT NULL,
+            host TEXT NOT NULL, user TEXT NOT NULL, pid INTEGER NOT NULL, plc TEXT NOT NULL, job_sha256 TEXT,
+            sequence INTEGER, action TEXT NOT NULL, outcome TEXT NOT NULL, detail TEXT NOT NULL DEFAULT '');
+        INSERT INTO audit (time_utc, time_s, host, user, pid, plc, action, outcome)
+            VALUES ('2026-01-01T00:00:00+00:00', 1.0, 'h', 'u', 1, 'tcp://x:1?unit=1', 'go', 'ok');
+        PRAGMA user_version = 1;
+    """)
+    db.close()
+    with AuditLog(path) as log:
+        log.record("tcp://x:1?unit=1", "stop", "ok")
+        rows = log.entries()
+    assert [(r.action, r.outcome, r.outcome_time_s is None) for r in rows] == [("go", "ok", True),
+                                                                               ("stop", "ok", False)]

@@ -92,3 +92,15 @@ def test_bits_round_trip():
     assert len(words) == 24
     assert words[0] == 1 and words[1] == 2 and words[23] == 0x8000
     assert np.array_equal(codec.unpack_bits(words, flags.size), flags)
+
+
+def test_scalar_words_need_no_numpy_and_agree_with_the_arrays():
+    for order in ("ABCD", "CDAB"):
+        for value in (0, 1, 0x4D505046, 0xFFFFFFFF):
+            words = codec.u32_to_words(value, order)
+            assert words == codec.encode_uint32([value], order)
+            assert codec.words_to_u32(words, order) == value
+        for value in (-1, -123456, 2**31 - 1):
+            assert codec.words_to_i32(codec.encode_int32([value], order), order) == value
+    with pytest.raises(LimitError):
+        codec.u32_to_words(-1)

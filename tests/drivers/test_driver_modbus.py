@@ -38,6 +38,7 @@ def start_sim(press):
 
     def start(**options):
         options.setdefault("time_scale", FAST)
+        options.setdefault("watchdog_s", 2.0)  # margin for a loaded test machine: a beat every 0.2 s, GO if <= 0.5 s
         handle = start_simulated_plc(options.pop("press", press), **options)
         handles.append(handle)
         return handle
@@ -86,9 +87,11 @@ def test_upload_verify_go_complete(start_sim, press, audit, word_order):
     # progress: upload, then motion
     assert reporter.tasks[0].startswith("upload") and reporter.tasks[1].startswith("motion")
     assert any("verified" in m for m in reporter.messages)
-    # the audit log has the handshake in order, with sequence and job hash
+    # the audit log has the handshake in order, with sequence and job hash, every row written ahead
     steps = [a for a in actions(audit) if a[0] != "connect"]
-    assert steps == [("upload", "ok"), ("validate", "ok"), ("go", "ok"), ("complete", "ok")] * 2
+    one_step = [("upload", "ok"), ("upload", "ok"), ("validate", "ok"), ("go", "ok"), ("complete", "ok")]
+    assert steps == [("claim", "ok"), *one_step, ("reset", "ok"), *one_step, ("release", "ok")]
+    assert all(e.outcome_time_s >= e.time_s for e in audit.entries())
     rows = [e for e in audit.entries() if e.action == "go"]
     assert [e.sequence for e in rows] == [first.sequence, second.sequence]
     assert all(e.job_sha256 == "f" * 64 and e.plc == str(parse_plc_url(sim.url)) for e in rows)
@@ -107,14 +110,15 @@ def test_strokes_beyond_limits_are_refused_before_any_write(start_sim, press, au
         status_after = plc.status_report()
     message = str(info.value)
     assert "2 setpoint(s) beyond" in message and "nothing was written" in message
-    assert "upper punch 8 (row 1, col 2)" in message and f"{press.upper.max_mm + 10.0:.2f}" in message
-    assert "lower punch 23 (row 3, col 5)" in message
-    # nothing reached the PLC: setpoints, sequence, CRC handshake untouched
+    assert "upper punch (row 2, col 3)" in message and f"{press.upper.max_mm + 10.0:.2f}" in message
+    assert "lower punch (row 4, col 6)" in message and "limits -400.00..300.00 mm" in message
+    # nothing reached the PLC: setpoints, owner, jobs, mailbox untouched
     after = sim.setpoints_mm()
     for a, b in zip(before, after):
         np.testing.assert_array_equal(a, b)
-    for key in ("acknowledged_sequence", "motion_sequence", "refusal_code"):
+    for key in ("state", "owner_master", "validated", "motion", "last_command", "last_sequence"):
         assert status_after[key] == status_before[key]
+    assert sim.server.master_writes == 0
     assert ("upload", "ok") not in actions(audit)
     assert ("limits", "refused") in actions(audit)
 
@@ -137,26 +141,29 @@ def test_bad_setpoint_arrays_are_input_errors(start_sim, press):
     with ModbusPress(sim.url, press) as plc:
         with pytest.raises(InputError, match="shape"):
             plc.run_step(upper[:2], lower)
+        with pytest.raises(InputError, match="must be numbers .* got an array of bool"):
+            plc.run_step(np.ones(press.shape, bool), lower)
         upper[0, 1] = np.nan
         with pytest.raises(InputError, match="NaN"):
             plc.run_step(upper, lower)
+    assert sim.server.master_writes == 0
 
 
 def test_link_dropped_mid_upload_no_go_then_a_retry_works(start_sim, press, audit):
     sim = start_sim(watchdog_s=None)
     upper, lower = step_setpoints(press)
     with ModbusPress(sim.url, press, audit=audit, heartbeat_s=None, timeout_s=0.5) as plc:
-        sim.inject("drop", after_writes=1, duration_s=1.5)  # the first setpoint frame is lost
+        sim.inject("drop", after_writes=2, duration_s=1.5)  # write 1 is the CLAIM: the first setpoint frame is lost
         with pytest.raises(LinkError) as info:
             plc.run_step(upper, lower)
         assert "before GO" in str(info.value) and "did not move" in str(info.value)
         flags = sim.status_bits()
-        assert not flags["busy"] and not flags["data_valid"]
+        assert not flags["busy"] and sim.state() != "VALIDATED"
         assert ("go", "ok") not in actions(audit) and ("upload", "failed") in actions(audit)
         time.sleep(1.6)  # the link comes back
         result = plc.run_step(upper, lower)
     assert result.max_error_mm <= press.position_tolerance_mm
-    assert actions(audit)[-2:] == [("go", "ok"), ("complete", "ok")]
+    assert actions(audit)[-3:] == [("go", "ok"), ("complete", "ok"), ("release", "ok")]
 
 
 def test_plc_restart_during_motion_is_detected(start_sim, press, audit):
@@ -172,7 +179,7 @@ def test_plc_restart_during_motion_is_detected(start_sim, press, audit):
             plc.run_step(upper, lower, reporter=HookReporter(on_start=restart))
         assert "restarted" in str(info.value)
         st = plc.status()
-    assert not st.busy and st.acknowledged_sequence == 0
+    assert not st.busy and st.motion_sequence == 0
     assert ("stop", "ok") in actions(audit)
 
 
@@ -196,7 +203,7 @@ def test_link_lost_during_motion_stop_after_reconnect(start_sim, press, audit):
 
 
 def test_estop_during_motion_stops_and_reports(start_sim, press, audit):
-    sim = start_sim(time_scale=10.0)
+    sim = start_sim(time_scale=50.0)
     upper, lower = step_setpoints(press)
     sim.inject("estop", after_s=2.0)  # 2 simulated s into the motion
     with ModbusPress(sim.url, press, audit=audit) as plc:
@@ -226,7 +233,7 @@ def test_stuck_punch_is_named_from_the_actual_positions(start_sim, press):
         plc.run_step(upper, lower)
     message = str(info.value)
     assert "1 punch(es) not in position" in message
-    assert f"lower (row 2, col 4) target {lower[2, 4]:.2f} mm" in message
+    assert f"lower punch (row 3, col 5) target {lower[2, 4]:.2f} mm" in message
     actual = sim.actual_positions_mm()[1][2, 4]
     assert f"actual {actual:.2f} mm" in message
 
@@ -237,7 +244,7 @@ def test_stuck_punch_fault_of_the_plc_names_the_punch(start_sim, press):
     sim.inject("stuck", matrix="upper", row=0, col=1, percent=30, fault_after_s=0.5)
     with ModbusPress(sim.url, press) as plc, pytest.raises(PressFault) as info:
         plc.run_step(upper, lower)
-    assert "STUCK_PUNCH" in str(info.value) and "upper (row 0, col 1)" in str(info.value)
+    assert "STUCK_PUNCH" in str(info.value) and "upper punch (row 1, col 2)" in str(info.value)
 
 
 def test_a_halted_plc_program_is_detected_from_its_stale_heartbeat(start_sim, press, audit):
@@ -254,7 +261,7 @@ def test_a_halted_plc_program_is_detected_from_its_stale_heartbeat(start_sim, pr
 
 
 def test_watchdog_expiry_when_the_heartbeat_stops(start_sim, press, audit):
-    sim = start_sim(time_scale=5.0, watchdog_s=0.3)
+    sim = start_sim(time_scale=5.0, watchdog_s=1.0)
     upper, lower = step_setpoints(press)
     with ModbusPress(sim.url, press, audit=audit, heartbeat_s=0.1) as plc:
         hook = HookReporter(on_start=lambda task: task.startswith("motion") and plc.stop_heartbeat())
@@ -279,9 +286,9 @@ def test_foreign_write_between_verification_and_go_is_refused(start_sim, press, 
         with pytest.raises(PressRefused) as info:
             plc.run_step(upper, lower, reporter=HookReporter(on_info=foreign))
         st = plc.status_report()
-    assert "refused GO" in str(info.value) and "CRC_MISMATCH" in str(info.value)
-    assert "nothing moved" in str(info.value)
-    assert st["motion_sequence"] == 0 and not st["status"]["busy"]
+    assert "refused GO" in str(info.value) and "WRONG_STATE" in str(info.value)
+    assert "the setpoints changed after validation" in str(info.value) and "nothing moved" in str(info.value)
+    assert st["motion"]["sequence"] == 0 and not st["status"]["busy"] and st["state"] == "LOADED"
     for a, b in zip(before, sim.actual_positions_mm()):
         np.testing.assert_array_equal(a, b)
     assert ("go", "refused") in actions(audit)
@@ -343,17 +350,18 @@ def test_ctrl_c_again_while_stop_is_sent_repeats_the_stop(start_sim, press, audi
     with ModbusPress(sim.url, press, audit=audit) as plc:
         send = plc._io.write_command
 
-        def write_command(address, words):
-            if address == rmap["command"].address and words[0] == rmap.command("STOP") and not interrupted:
+        def write_command(address, words, urgent=False):
+            if address == rmap["stop_request"].address and not interrupted:
                 interrupted.append(words)
                 raise KeyboardInterrupt  # the operator's second Ctrl-C, before the STOP frame left
-            return send(address, words)
+            return send(address, words, urgent=urgent)
 
         plc._io.write_command = write_command
         with pytest.raises(Cancelled, match="STOP was sent"):
             plc.run_step(upper, lower, reporter=HookReporter(on_update=operator_presses_ctrl_c))
     assert interrupted
     assert [(e.outcome, e.detail) for e in audit.entries() if e.action == "stop"] == [
+        ("interrupted", "cancelled by the operator"),  # its intent was written ahead, then Ctrl-C came
         ("ok", "cancelled by the operator (Ctrl-C again: STOP repeated)")]
     flags = sim.wait_idle(5.0)
     assert not flags["busy"] and not flags["in_position"]
@@ -440,17 +448,24 @@ def test_a_device_that_is_not_an_mppf_plc_is_refused_untouched(foreign_device, p
         assert io.read_holding(0, 200) == [0x1234] * 200
 
 
-def test_heartbeat_keeps_the_plc_in_remote(start_sim, press):
-    sim = start_sim(watchdog_s=0.3)
-    with ModbusPress(sim.url, press, heartbeat_s=0.05) as plc:
-        time.sleep(0.4)
-        first = plc.status_report()["master_heartbeat"]
+def test_the_heartbeat_after_a_claim_keeps_the_lease(start_sim, press):
+    sim = start_sim(watchdog_s=1.0)
+    with ModbusPress(sim.url, press, heartbeat_s=0.25) as plc:
+        assert plc.heartbeat_period_s == pytest.approx(0.1)  # a tenth of the PLC's watchdog
         time.sleep(0.2)
+        assert plc.status_report()["heartbeat"]["counter"] == 0  # no beat before the claim
+        plc.claim()
+        time.sleep(0.2)
+        first = plc.status_report()["heartbeat"]
+        time.sleep(0.15)
         second = plc.status_report()
-        assert second["status"]["remote"] and second["master_heartbeat"] != first
+        assert second["status"]["lease_ok"] and second["owner_master"] == plc.master_id
+        assert second["heartbeat"]["master"] == plc.master_id and second["heartbeat"]["counter"] != first["counter"]
+        assert plc.heartbeat_gap_s() < 1.0 / 4
         plc.stop_heartbeat()
-        time.sleep(0.5)
-        assert not plc.status().remote
+        time.sleep(1.2)
+        st = plc.status()
+        assert not st.lease_ok and not st.owned
 
 
 def test_reads_are_retried_commands_are_not(start_sim):
@@ -462,7 +477,7 @@ def test_reads_are_retried_commands_are_not(start_sim):
             io.read_holding(0, 2)
         assert io.requests == 3  # one attempt + two retries
         with pytest.raises(LinkError, match="no reply"):
-            io.write_command(load_register_map()["master_heartbeat"].address, [7])
+            io.write_command(load_register_map()["heartbeat_counter"].address, [7])
         assert io.requests == 4  # exactly one attempt
 
 
@@ -477,7 +492,7 @@ def test_a_refusal_after_go_sends_stop_and_is_a_plc_error_not_a_link_failure(sta
         read = plc._io.read_holding
 
         def refuses_during_motion(address, count, **kw):
-            if sim.status_bits()["busy"] and address == load_register_map()["status_word"].address:
+            if sim.status_bits()["busy"] and address == load_register_map()["stop_request"].address:
                 error = PlcError("the PLC at the test refused reading the status: Modbus exception 4")
                 error.exception_code = 4
                 raise error

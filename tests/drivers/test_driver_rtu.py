@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 from driver_helpers import HookReporter, small_press, step_setpoints
@@ -31,19 +33,29 @@ def test_upload_verify_go_complete_over_rtu(tmp_path, word_order):
 
 
 def test_heartbeat_goes_on_during_a_long_paced_upload():
-    """At 115200 baud a 16 x 24 upload and read-back take about 0.8 s, far longer than the
-    watchdog: the heartbeat frames slip in between the setpoint frames, so the PLC stays
-    in remote and the motion is not stopped by the watchdog."""
+    """At 115200 baud a 16 x 24 upload and read-back take about 0.8 s: the heartbeat frames slip
+    in between the setpoint frames (urgent requests go first), so the gap between two beats
+    stays far below the upload's length and within a quarter of the watchdog (else the driver
+    would refuse GO); the owner's lease holds and the motion is not stopped by the watchdog."""
     press = small_press(16, 24)
     upper, lower = step_setpoints(press)
-    remote_at_go = []
-    with run_simulated_plc(press, rtu=True, baud=115200, paced=True, time_scale=50.0, watchdog_s=0.25) as sim:
-        hook = HookReporter(on_start=lambda task: task.startswith("motion") and remote_at_go.append(
-            sim.status_bits()["remote"]))
+    seen = {}
+    with run_simulated_plc(press, rtu=True, baud=115200, paced=True, time_scale=200.0, watchdog_s=1.0) as sim:
         with ModbusPress(sim.url, press, heartbeat_s=0.05, timeout_s=2.0) as plc:
-            result = plc.run_step(upper, lower, reporter=hook)
-    assert remote_at_go == [True]
-    assert result.max_error_mm <= press.position_tolerance_mm
+
+            def upload_started(task):
+                if task.startswith("upload"):
+                    seen["start"] = time.monotonic()
+                elif task.startswith("motion"):
+                    seen["lease_at_go"] = sim.status_bits()["lease_ok"]
+
+            def verified(message):
+                if "written and verified" in message:
+                    seen["upload_s"], seen["gap_s"] = time.monotonic() - seen["start"], plc.heartbeat_gap_s()
+
+            result = plc.run_step(upper, lower, reporter=HookReporter(on_start=upload_started, on_info=verified))
+    assert seen["lease_at_go"] and result.max_error_mm <= press.position_tolerance_mm
+    assert seen["upload_s"] > 0.6 and seen["gap_s"] < min(0.25, seen["upload_s"] / 3)
 
 
 def test_stuck_punch_over_rtu():
@@ -51,24 +63,25 @@ def test_stuck_punch_over_rtu():
     upper, lower = step_setpoints(press)
     with run_simulated_plc(press, rtu=True, time_scale=50.0) as sim:
         sim.inject("stuck", matrix="upper", row=3, col=0, percent=20)
-        with ModbusPress(sim.url, press) as plc, pytest.raises(PressFault, match=r"upper \(row 3, col 0\)"):
+        with ModbusPress(sim.url, press) as plc, pytest.raises(PressFault, match=r"upper punch \(row 4, col 1\)"):
             plc.run_step(upper, lower)
 
 
 def test_exception_reply_over_rtu_is_a_plc_error():
-    """A write to a read-only status register is answered with a Modbus exception frame
-    (5 bytes), which the exact-length RTU reader must decode into PlcError, not a timeout."""
+    """A write beyond the register map is answered with a Modbus exception frame (5 bytes; the
+    only exception the PLC sends), which the exact-length RTU reader must decode into
+    PlcError, not a timeout."""
     from mppf.drivers.modbus_adapter import ModbusAdapter
     from mppf.drivers.regmap import load_register_map
     from mppf.core.errors import PlcError
 
-    status = load_register_map()["status_word"]
+    rmap = load_register_map()
     with run_simulated_plc(small_press(), rtu=True, time_scale=50.0) as sim:
         with ModbusAdapter(parse_plc_url(sim.url)) as link:
-            with pytest.raises(PlcError):
-                link.write_registers(status.address, [0xFFFF], retries=0)
+            with pytest.raises(PlcError, match="exception 2"):
+                link.write_registers(rmap.total_registers - 1, [1, 2], retries=0)
             # the link is still in step: the next request gets its own answer
-            assert link.read_holding(status.address, 1) is not None
+            assert link.read_holding(rmap["map_version"].address, 1) == [rmap.version]
 
 
 def test_silent_rtu_line_is_a_link_error_within_the_timeout():

@@ -57,6 +57,15 @@ def test_mbpoll_reads_magic_and_a_setpoint_over_tcp(mbpoll, word_order):
             mbpoll, *order_flag, "-p", port, "-a", "1", "-r", str(address), "-c", "1", "-t", "4:int", "127.0.0.1"
         )
         assert int(values[address]) == -12345
+        # identity and status as a third-party master reads them
+        identity = run_mbpoll(mbpoll, "-p", port, "-a", "1", "-r", "2", "-c", "4", "-t", "4", "127.0.0.1")
+        assert [int(identity[a]) for a in (2, 3, 4)] == [MAP.version, PRESS.rows, PRESS.cols]
+        status = run_mbpoll(mbpoll, "-p", port, "-a", "1", "-r", str(MAP["status_word"].address), "-c", "3",
+                            "-t", "4", "127.0.0.1")
+        flags = MAP.status_flags(int(status[MAP["status_word"].address]))
+        assert flags["ready"] and not flags["busy"] and not flags["owned"]
+        assert MAP.states.name(int(status[MAP["state"].address])) == "LOADED"  # the setpoint written above
+        assert int(status[MAP["fault_code"].address]) == 0
 
 
 @pytest.mark.rtu

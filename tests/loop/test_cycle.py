@@ -91,7 +91,8 @@ def test_ctrl_c_during_a_step_stops_the_press_and_the_cycle_is_never_pressed_aga
             status = link.status()
         record = history.cycle("C1", 1)
         assert record.state == "pressing" and (record.step_started, record.steps_done) == (1, 0)
-        assert [(e.action, e.outcome) for e in audit.entries()][-2:] == [("go", "ok"), ("stop", "ok")]
+        assert [(e.action, e.outcome) for e in audit.entries() if e.action != "release"][-2:] == [("go", "ok"),
+                                                                                                 ("stop", "ok")]
         assert not status.busy and not status.in_position  # braked to a standstill short of the targets
 
 

@@ -20,4 +20,4 @@ def test_an_unknown_plate_is_refused_naming_the_bundled_ones_before_anything_is_
 def test_the_default_press_is_the_in_process_press():
     press = load_press(example_press_path())
     with in_process_press(press) as link:
-        assert isinstance(link, InProcessPress) and link.status().ready and link.status().simulated
+        assert isinstance(link, InProcessPress) and link.status().ready and link.url == "inprocess://simulated-plc"

@@ -178,3 +178,32 @@ def test_a_valid_press_built_in_code_keeps_its_values_and_defaults():
     assert press.shape == (4, 6) and isinstance(press.pitch_x_mm, float)
     assert (press.trim_allowance_mm, press.speed_mm_s, press.margin_mm, press.name) == (100.0, 20.0, 0.0, "press")
     assert press_from_dict(press.to_dict()) == press
+
+
+@pytest.mark.parametrize(
+    "changes, message",
+    [
+        ({"upper__park_mm": -300.0, "lower__park_mm": 300.0},
+         "[upper] park_mm -300 mm is below [lower] park_mm 300 mm: the parked tips would cross"),
+        ({"upper__park_mm": 20.0, "lower__park_mm": 0.0},
+         "[upper] park_mm 20 mm and [lower] park_mm 0 mm leave 20 mm between the parked tips, less than the largest "
+         "plate thickness [forming] max_thickness_mm 50 mm"),
+        ({"upper__park_mm": 60.0, "lower__park_mm": 0.0, "forming__max_thickness_mm": 80.0},
+         "leave 60 mm between the parked tips, less than the largest plate thickness [forming] max_thickness_mm 80 mm"),
+        ({"forming__max_thickness_mm": 0.0}, "[forming] max_thickness_mm must be above 0"),
+        ({"matrix__label_base": 2}, "[matrix] label_base must be from 0 to 1, got 2"),
+        ({"matrix__label_base": 1.0}, "[matrix] label_base must be a whole number, got 1.0"),
+    ],
+)
+def test_parking_heights_must_leave_room_for_the_thickest_plate(changes, message):
+    with pytest.raises(ConfigError) as info:
+        press_from_dict(_doc(**changes), "press.toml")
+    assert message in info.value.message and info.value.message.startswith("press.toml")
+
+
+def test_parks_exactly_the_thickest_plate_apart_and_the_punch_labels():
+    press = press_from_dict(_doc(upper__park_mm=50.0, lower__park_mm=0.0))
+    assert press.upper.park_mm - press.lower.park_mm == press.max_thickness_mm == 50.0
+    assert EXAMPLE.label_base == 1 and EXAMPLE.punch_label(0, 0) == "row 1, col 1"
+    assert press_from_dict(_doc(matrix__label_base=0)).punch_label(2, 3) == "row 2, col 3"
+    assert press_from_dict(EXAMPLE.to_dict()) == EXAMPLE  # the new keys go through the dict layout

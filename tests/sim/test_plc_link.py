@@ -48,10 +48,11 @@ def test_a_step_is_instant_and_reports_the_programs_positions(press, audit):
     np.testing.assert_allclose(result.actual_lower_mm, actual_lower, atol=0.005)
     np.testing.assert_allclose(result.target_upper_mm, upper, atol=1e-9)
     assert result.max_error_mm <= press.position_tolerance_mm and result.sequence == 1
-    assert status.in_position and status.remote and status.simulated and status.acknowledged_sequence == 1
+    assert status.in_position and status.lease_ok and status.state == "COMPLETE" and status.motion_sequence == 1
     # the same handshake and audit records as the Modbus driver, with the job hash
-    assert [a for a in actions(audit) if a[0] != "connect"] == [("upload", "ok"), ("validate", "ok"), ("go", "ok"),
-                                                                ("complete", "ok")]
+    assert [a for a in actions(audit) if a[0] != "connect"] == [
+        ("claim", "ok"), ("upload", "ok"), ("upload", "ok"), ("validate", "ok"), ("go", "ok"), ("complete", "ok"),
+        ("release", "ok")]
     assert {e.job_sha256 for e in audit.entries() if e.action == "go"} == {"a" * 64}
     assert reporter.tasks[0].startswith("upload") and reporter.tasks[1].startswith("motion") and reporter.updates > 10
 
@@ -73,7 +74,7 @@ def test_strokes_beyond_the_limits_are_a_limit_error_before_any_write(press, aud
     upper[1, 2] = press.upper.max_mm + 10.0
     with InProcessPress(press, audit=audit) as link:
         before = link.program.setpoints_mm()
-        with pytest.raises(LimitError, match="upper punch 8 \\(row 1, col 2\\)"):
+        with pytest.raises(LimitError, match="upper punch \\(row 2, col 3\\)"):
             link.run_step(upper, lower)
         after = link.program.setpoints_mm()
     for a, b in zip(before, after):
@@ -101,7 +102,7 @@ def test_a_stuck_punch_is_named(press):
     with InProcessPress(press) as link, pytest.raises(PressFault) as info:
         link.program.inject("stuck", matrix="lower", row=2, col=4, percent=50)
         link.run_step(upper, lower)
-    assert "1 punch(es) not in position" in str(info.value) and "lower (row 2, col 4)" in str(info.value)
+    assert "1 punch(es) not in position" in str(info.value) and "lower punch (row 3, col 5)" in str(info.value)
 
 
 def test_ctrl_c_sends_stop_and_the_press_comes_to_rest_short_of_the_targets(press, audit):
@@ -127,3 +128,20 @@ def test_a_halted_program_is_found_from_its_stale_heartbeat_at_once(press, audit
         link.run_step(upper, lower)
     assert time.monotonic() - started < 5.0
     assert ("stop", "ok") in actions(audit)
+
+
+def test_the_in_process_press_follows_the_programs_scans_and_ownership(press, audit):
+    """The same program as behind Modbus: a second in-process master is refused, STOP from it is obeyed."""
+    from mppf.core.errors import PressRefused as Refused
+
+    upper, lower = step_setpoints(press)
+    with InProcessPress(press, audit=audit) as link:
+        link.run_step(upper, lower)
+        with InProcessPress(press, program=link.program) as other:
+            with pytest.raises(Refused, match="owned by master"):
+                other.run_step(upper + 1, lower)
+            assert other._io.writes == 0  # refused before any write
+            other.stop("second master")
+        assert link.status().state == "STOPPED"
+        result = link.run_step(upper - 1, lower)  # the owner resets the stopped job and goes on
+    assert result.max_error_mm <= press.position_tolerance_mm

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 from pymodbus.exceptions import ConnectionException, ModbusIOException
+from driver_helpers import RawMaster
 
 from mppf.cli import main
 from mppf.drivers import codec, regmap as rm
@@ -30,52 +31,42 @@ PRESS = dataclasses.replace(load_press(example_press_path()), rows=4, cols=6)
 SCALE = 100.0  # motion 100x faster than real time
 
 
-class Master:
-    """A bare Modbus master speaking the register map (the test's own, not the driver)."""
+class Master(RawMaster):
+    """A bare Modbus master over a socket speaking the register map (the test's own, not the driver)."""
 
-    def __init__(self, sim, word_order="ABCD"):
+    def __init__(self, sim, word_order="ABCD", master_id=0x0BADCAFE):
         self.sim = sim
-        self.word_order = word_order
         self.client = ModbusTcpClient("127.0.0.1", port=sim.port, timeout=1.0, retries=0)
         assert self.client.connect()
+        super().__init__(MAP, self.write_ok, self.read_at, lambda: sim.scans(2), master_id, word_order)
+
+    def read_at(self, address, count):
+        rr = self.client.read_holding_registers(address, count=count, device_id=1)
+        assert not rr.isError(), rr
+        return rr.registers
 
     def read(self, name, count=None):
         field = MAP[name]
-        rr = self.client.read_holding_registers(field.address, count=count or field.count, device_id=1)
-        assert not rr.isError(), rr
-        return rr.registers
+        return self.read_at(field.address, count or field.count)
 
     def write(self, address, words):
         """Write; return the exception code (None if accepted)."""
         rr = self.client.write_registers(address, list(words), device_id=1)
         return rr.exception_code if rr.isError() else None
 
-    def flags(self):
-        return MAP.status_flags(self.read("status_word")[0])
+    def write_ok(self, address, words):
+        assert self.write(address, words) is None
 
-    def upload(self, upper_mm, lower_mm):
-        words = {}
-        for side, values in (("upper", upper_mm), ("lower", lower_mm)):
-            words[side] = codec.encode_int32(codec.mm_to_counts(np.ravel(values)), self.word_order)
-            for address, part in codec.chunks(MAP[f"{side}_setpoints"].address, words[side]):
-                assert self.write(address, part) is None
-        return codec.setpoint_crc32(words["upper"], words["lower"])
+    def validated(self, upper, lower, sequence):
+        crc = self.upload(upper, lower)
+        assert self.command("VALIDATE", sequence, crc) == "ACCEPTED"
+        return crc
 
-    def validate(self, crc, sequence):
-        return self.write(MAP["setpoint_crc"].address, codec.encode_uint32([crc], self.word_order) + [sequence])
-
-    def command(self, name, arg=0):
-        return self.write(MAP["command"].address, [MAP.command(name), arg])
-
-    def actuals_mm(self, side):
-        n = PRESS.rows * PRESS.cols
-        words = self.read(f"{side}_actuals", 2 * n)
-        return codec.counts_to_mm(codec.decode_int32(words, self.word_order)).reshape(PRESS.shape)
-
-    def wait_idle(self, timeout_s=5.0):
+    def wait_state(self, *states, timeout_s=5.0):
         deadline = time.monotonic() + timeout_s
-        while self.flags()["busy"]:
-            assert time.monotonic() < deadline, "motion did not end"
+        while self.state() not in states:
+            assert time.monotonic() < deadline, f"still {self.state()}"
+            self.beat()
             time.sleep(0.01)
         return self.flags()
 
@@ -94,46 +85,42 @@ def targets(seed=0):
 def plc():
     with run_simulated_plc(PRESS, time_scale=SCALE, watchdog_s=None) as sim:
         master = Master(sim)
+        assert master.command("CLAIM") == "ACCEPTED"
         yield sim, master
         master.close()
-
-
-def refusal(master):
-    return MAP.fault_codes[master.read("refusal_code")[0]].name
 
 
 # ------------------------------------------------------------------ identity ------
 @pytest.mark.parametrize("word_order", ["ABCD", "CDAB"])
 def test_magic_and_identity_in_both_word_orders(word_order):
-    with run_simulated_plc(PRESS, word_order=word_order) as sim:
+    with run_simulated_plc(PRESS, word_order=word_order, scan_s=0.02, watchdog_s=0.8) as sim:
         master = Master(sim, word_order)
         words = master.read("magic")
         assert codec.detect_word_order(words, MAP.magic) == word_order
-        assert master.read("map_version") == [MAP.version]
+        assert master.read("map_version") == [MAP.version] == [2]
         assert master.read("rows") + master.read("cols") == [PRESS.rows, PRESS.cols]
+        assert master.read("scan_time_max_ms") + master.read("watchdog_ms") == [20, 800]
         limit = codec.decode_int32(master.read("upper_max"), word_order)[0]
         assert limit * MAP.count_mm == pytest.approx(PRESS.upper.max_mm)
-        # power-on: punches parked, setpoints equal to the actual positions
-        assert np.allclose(master.actuals_mm("lower"), PRESS.lower.park_mm)
+        # power-on: IDLE, no owner, punches parked, setpoints equal to the actual positions
+        assert master.state() == "IDLE" and master.field("owner_master") == 0
+        assert np.allclose(master.actuals_mm("lower", PRESS.shape), PRESS.lower.park_mm)
         assert sim.url == f"tcp://127.0.0.1:{sim.port}?unit=1"
         url = parse_plc_url(sim.url)  # the driver's URL grammar
         assert (url.scheme, url.host, url.port, url.unit) == ("tcp", "127.0.0.1", sim.port, 1)
         master.close()
 
 
-def test_writes_to_status_registers_are_refused(plc):
+def test_writes_to_read_only_registers_are_undone_at_the_next_scan(plc):
     sim, master = plc
-    for name in ("magic", "status_word", "acknowledged_sequence", "upper_actuals"):
+    for name in ("magic", "status_word", "owner_master", "upper_actuals"):
         before = master.read(name, 2 if MAP[name].count > 1 else 1)
-        assert master.write(MAP[name].address, [1] * len(before)) == MAP.exceptions["read_only"]
+        assert master.write(MAP[name].address, [1] * len(before)) is None  # stored: no exception inside the map
+        master.scan()
         assert master.read(name, len(before)) == before
-        assert refusal(master) == "READ_ONLY"
-    # a write spanning a writable and a read-only register is refused as a whole
-    hb = MAP["master_heartbeat"]
-    assert master.write(hb.address, [7] * (MAP["status_word"].address - hb.address + 1)) == 2
-    assert master.read("master_heartbeat") == [0]
-    # so is a write to the unused registers between the fields
-    assert master.write(MAP["master_heartbeat"].end, [1]) == 2
+    assert master.field("refused_writes") == 4
+    # a write beyond the map is the only exception: ILLEGAL DATA ADDRESS, nothing stored
+    assert master.write(MAP.total_registers - 1, [1, 2]) == MAP.illegal_address
 
 
 # -------------------------------------------------------------------- motion ------
@@ -141,20 +128,20 @@ def test_motion_completes_at_the_setpoints(plc):
     sim, master = plc
     upper, lower = targets()
     crc = master.upload(upper, lower)
-    assert not master.flags()["data_valid"]
-    assert master.validate(crc, 7) is None
-    assert master.flags()["data_valid"] and master.read("acknowledged_sequence") == [7]
+    master.scan()
+    assert master.state() == "LOADED"
+    assert master.command("VALIDATE", 7, crc) == "ACCEPTED"
+    assert master.state() == "VALIDATED" and master.field("validated_sequence") == 7
     started = time.monotonic()
-    assert master.command("GO", 7) is None
-    assert master.flags()["busy"]
-    assert master.command("GO", 7) is None  # a repeated GO does nothing
-    assert master.command("GO", 8) == MAP.exceptions["refused"] and refusal(master) == "BUSY"
-    flags = master.wait_idle()
+    assert master.command("GO", 7, crc) == "ACCEPTED"
+    assert master.flags()["busy"] and master.state() == "EXECUTING"
+    assert master.command("GO", 7, crc) == "WRONG_STATE"  # a repeated GO cannot start a second motion
+    flags = master.wait_state("COMPLETE")
     elapsed = time.monotonic() - started
     assert flags["in_position"] and flags["ready"] and not flags["fault"]
-    assert np.allclose(master.actuals_mm("upper"), upper, atol=0.005)
-    assert np.allclose(master.actuals_mm("lower"), lower, atol=0.005)
-    assert master.read("motion_sequence") == [7]
+    assert np.allclose(master.actuals_mm("upper", PRESS.shape), upper, atol=0.005)
+    assert np.allclose(master.actuals_mm("lower", PRESS.shape), lower, atol=0.005)
+    assert master.field("motion_sequence") == 7 and master.field("motion_crc") == crc
     # trapezoid: longest travel 400 + 60 mm (lower park -400 -> -40 ... -60) at 20 mm/s
     travel = max(np.abs(upper - PRESS.upper.park_mm).max(), np.abs(lower - PRESS.lower.park_mm).max())
     expected_s = (travel / PRESS.speed_mm_s + PRESS.speed_mm_s / PRESS.accel_mm_s2) / SCALE
@@ -167,12 +154,12 @@ def test_motion_completes_at_the_setpoints(plc):
 def test_stop_decelerates_short_of_the_target(plc):
     sim, master = plc
     upper, lower = targets()
-    assert master.validate(master.upload(upper, lower), 3) is None
-    assert master.command("GO", 3) is None
+    crc = master.validated(upper, lower, 3)
+    assert master.command("GO", 3, crc) == "ACCEPTED"
     time.sleep(0.05)
-    assert master.command("STOP") is None
-    flags = master.wait_idle()
-    assert not flags["in_position"]
+    master.stop()
+    flags = master.wait_state("STOPPED")
+    assert not flags["in_position"] and master.field("stop_count") == 1
     actual_upper, _ = sim.actual_positions_mm()
     assert np.all(actual_upper > upper + 10.0)  # stopped on the way down from 400 mm
     time.sleep(0.05)
@@ -183,60 +170,54 @@ def test_stop_decelerates_short_of_the_target(plc):
 def test_go_refused_after_a_foreign_setpoint_write(plc):
     sim, master = plc
     upper, lower = targets()
-    assert master.validate(master.upload(upper, lower), 5) is None
+    crc = master.validated(upper, lower, 5)
     sim.write_foreign_setpoint("upper", 1, 2, 55.55)
-    assert master.command("GO", 5) == MAP.exceptions["refused"]
-    assert refusal(master) == "CRC_MISMATCH"
+    assert master.command("GO", 5, crc) == "WRONG_STATE" and master.state() == "LOADED"
     assert not master.flags()["busy"]
     assert np.allclose(sim.actual_positions_mm()[0], PRESS.upper.park_mm)
 
 
-def test_job_block_refused_on_wrong_crc_and_beyond_limits(plc):
+def test_validation_refused_on_wrong_crc_and_beyond_limits(plc):
     sim, master = plc
     upper, lower = targets()
     crc = master.upload(upper, lower)
-    assert master.validate(crc ^ 1, 4) == MAP.exceptions["refused"]
-    assert refusal(master) == "CRC_MISMATCH"
-    assert master.read("acknowledged_sequence") == [0] and not master.flags()["data_valid"]
+    assert master.command("VALIDATE", 4, crc ^ 1) == "CRC_MISMATCH"
+    assert master.field("validated_sequence") == 0 and master.state() == "LOADED"
     upper[0, 0] = PRESS.upper.max_mm + 0.01
     crc = master.upload(upper, lower)
-    assert master.validate(crc, 4) == MAP.exceptions["refused"]
-    assert refusal(master) == "LIMIT"
-    # writing the matching CRC alone (no job_sequence) does not validate: GO checks again
-    assert master.write(MAP["setpoint_crc"].address, codec.encode_uint32([crc], "ABCD")) is None
-    assert master.command("GO", 4) == MAP.exceptions["refused"]
-    assert refusal(master) == "LIMIT"
+    assert master.command("VALIDATE", 4, crc) == "LIMIT"
+    assert master.command("GO", 4, crc) == "WRONG_STATE"  # nothing validated
     assert not master.flags()["busy"]
 
 
-def test_go_refused_on_sequence_mismatch(plc):
+def test_go_refused_on_a_token_mismatch(plc):
     sim, master = plc
     upper, lower = targets()
-    assert master.validate(master.upload(upper, lower), 9) is None
-    assert master.command("GO", 8) == MAP.exceptions["refused"]
-    assert refusal(master) == "SEQUENCE_MISMATCH"
-    assert master.read("command") == [0]  # the refused command was not stored
-    assert master.command("GO", 9) is None
-    master.wait_idle()
-    assert master.read("refusal_code") == [0]
+    crc = master.validated(upper, lower, 9)
+    assert master.command("GO", 8, crc) == "TOKEN_MISMATCH"
+    assert master.command("GO", 9, crc) == "ACCEPTED"
+    master.wait_state("COMPLETE")
+    assert master.result() == "ACCEPTED"
 
 
 def test_estop_refuses_go_and_reset_until_released(plc):
     sim, master = plc
     upper, lower = targets()
-    assert master.validate(master.upload(upper, lower), 2) is None
+    crc = master.validated(upper, lower, 2)
     sim.inject("estop")
     flags = master.flags()
-    assert flags["estop"] and flags["fault"] and not flags["ready"]
-    assert MAP.fault_codes[master.read("fault_code")[0]].name == "ESTOP"
-    assert master.command("GO", 2) == MAP.exceptions["refused"] and refusal(master) == "ESTOP_ACTIVE"
-    assert master.command("RESET") == MAP.exceptions["refused"] and refusal(master) == "ESTOP_ACTIVE"
+    assert flags["estop"] and flags["fault"] and not flags["ready"] and master.state() == "FAULT"
+    assert MAP.faults.name(master.field("fault_code")) == "ESTOP"
+    assert master.command("GO", 2, crc) == "ESTOP_ACTIVE"
+    assert master.command("RESET") == "ESTOP_ACTIVE"
     sim.release_estop()
-    assert master.command("GO", 2) == MAP.exceptions["refused"] and refusal(master) == "FAULT_ACTIVE"
-    assert master.command("RESET") is None
-    assert master.flags()["ready"] and master.read("fault_code") == [0]
-    assert master.command("GO", 2) is None
-    assert master.wait_idle()["in_position"]
+    assert master.command("GO", 2, crc) == "FAULT_ACTIVE"
+    assert master.command("RESET") == "ACCEPTED"
+    assert master.flags()["ready"] and master.field("fault_code") == 0 and master.state() == "IDLE"
+    assert master.command("GO", 2, crc) == "WRONG_STATE"  # RESET dropped the job: validate again
+    crc = master.validated(upper, lower, 3)
+    assert master.command("GO", 3, crc) == "ACCEPTED"
+    assert master.wait_state("COMPLETE")["in_position"]
 
 
 @pytest.mark.parametrize("kind", ["estop", "overpressure"])
@@ -244,12 +225,13 @@ def test_fault_during_motion_halts_the_punches(plc, kind):
     sim, master = plc
     upper, lower = targets()
     sim.inject(kind, after_s=3.0)  # 3 s of simulated motion
-    assert master.validate(master.upload(upper, lower), 1) is None
-    assert master.command("GO", 1) is None
-    flags = master.wait_idle()
-    assert flags["fault"] and not flags["in_position"] and flags["estop"] == (kind == "estop")
-    assert MAP.fault_codes[master.read("fault_code")[0]].name == kind.upper()
-    actual_upper = master.actuals_mm("upper")
+    crc = master.validated(upper, lower, 1)
+    assert master.command("GO", 1, crc) == "ACCEPTED"
+    flags = master.wait_state("FAULT")
+    sim.wait_idle()
+    assert flags["fault"] and not master.flags()["in_position"] and flags["estop"] == (kind == "estop")
+    assert MAP.faults.name(master.field("fault_code")) == kind.upper()
+    actual_upper = master.actuals_mm("upper", PRESS.shape)
     # about 3 s of motion from 400 mm at 20 mm/s with 100 mm/s2: 400 - (0.5*100*0.2**2 + 20*2.8) = 342 mm
     assert np.all((actual_upper > 330.0) & (actual_upper < 352.0))
 
@@ -258,40 +240,45 @@ def test_freeze_halts_the_program_but_the_link_still_answers(plc):
     sim, master = plc
     upper, lower = targets()
     sim.inject("freeze", after_s=3.0)
-    assert master.validate(master.upload(upper, lower), 1) is None
-    assert master.command("GO", 1) is None
+    crc = master.validated(upper, lower, 1)
+    assert master.command("GO", 1, crc) == "ACCEPTED"
     deadline = time.monotonic() + 5.0
     while not sim.plc.frozen:
         assert time.monotonic() < deadline, "the freeze did not happen"
         time.sleep(0.01)
-    beat, actual = master.read("plc_heartbeat"), master.actuals_mm("upper")
-    time.sleep(0.2)  # ten scan periods
-    assert master.read("plc_heartbeat") == beat and (master.actuals_mm("upper") == actual).all()
+    beat, actual = master.read("plc_heartbeat"), master.actuals_mm("upper", PRESS.shape)
+    time.sleep(0.2)  # twenty scan periods
+    assert master.read("plc_heartbeat") == beat and (master.actuals_mm("upper", PRESS.shape) == actual).all()
     assert master.flags()["busy"]  # frozen status: still says moving
     assert np.all((actual > 330.0) & (actual < 352.0))  # halted about 3 s into the move (see above)
-    assert master.command("STOP") is None  # accepted into memory; nothing acts on it
-    sim.clear_faults()  # the program runs again
+    master.stop()  # stored in memory; nothing acts on it
+    time.sleep(0.05)
+    assert master.field("stop_request") == 1
+    sim.clear_faults()  # the program runs again, and takes the STOP
     time.sleep(0.1)
-    assert not master.flags()["busy"] and master.read("plc_heartbeat") != beat
+    assert not master.flags()["busy"] and master.read("plc_heartbeat") != beat and master.state() == "STOPPED"
 
 
 def test_watchdog_stops_motion_when_the_heartbeat_goes_stale():
     with run_simulated_plc(PRESS, time_scale=2.0, watchdog_s=0.3) as sim:
         master = Master(sim)
+        assert master.command("CLAIM") == "ACCEPTED"
+        master.beat()
         upper, lower = targets()
-        assert master.validate(master.upload(upper, lower), 1) is None
-        assert master.write(MAP["master_heartbeat"].address, [1]) is None
-        assert master.flags()["remote"]
-        assert master.command("GO", 1) is None
-        for beat in range(2, 6):  # heartbeats keep it moving
+        crc = master.validated(upper, lower, 1)
+        master.beat()
+        assert master.flags()["lease_ok"]
+        assert master.command("GO", 1, crc) == "ACCEPTED"
+        for _ in range(4):  # heartbeats keep it moving
             time.sleep(0.1)
-            assert master.write(MAP["master_heartbeat"].address, [beat]) is None
-        assert master.flags()["busy"]
+            master.beat()
+        assert master.flags()["busy"] and master.state() == "EXECUTING"
         time.sleep(0.5)  # then the master falls silent
-        flags = master.wait_idle()
-        assert flags["fault"] and not flags["remote"]
-        assert MAP.fault_codes[master.read("fault_code")[0]].name == "WATCHDOG"
-        assert np.all(master.actuals_mm("upper") > 300.0)
+        sim.wait_idle()
+        flags = master.flags()
+        assert flags["fault"] and not flags["lease_ok"] and not flags["owned"] and master.state() == "FAULT"
+        assert MAP.faults.name(master.field("fault_code")) == "WATCHDOG"
+        assert np.all(master.actuals_mm("upper", PRESS.shape) > 300.0)
         master.close()
 
 
@@ -300,11 +287,11 @@ def test_stuck_punch_ends_short_without_a_fault(plc):
     sim, master = plc
     upper, lower = targets()
     sim.inject("stuck", matrix="lower", row=2, col=3, percent=25)
-    assert master.validate(master.upload(upper, lower), 1) is None
-    assert master.command("GO", 1) is None
-    flags = master.wait_idle()
+    crc = master.validated(upper, lower, 1)
+    assert master.command("GO", 1, crc) == "ACCEPTED"
+    flags = master.wait_state("COMPLETE")
     assert not flags["in_position"] and not flags["fault"] and flags["ready"]
-    error = np.abs(master.actuals_mm("lower") - lower)
+    error = np.abs(master.actuals_mm("lower", PRESS.shape) - lower)
     assert error[2, 3] == pytest.approx(0.75 * abs(lower[2, 3] - PRESS.lower.park_mm), abs=0.01)
     error[2, 3] = 0
     assert error.max() < 0.006
@@ -315,13 +302,13 @@ def test_stuck_punch_with_fault_timer_sets_its_fault_bit(plc):
     sim, master = plc
     upper, lower = targets()
     sim.inject("stuck", matrix="upper", row=1, col=4, percent=50, fault_after_s=2.0)
-    assert master.validate(master.upload(upper, lower), 1) is None
-    assert master.command("GO", 1) is None
-    flags = master.wait_idle()
-    assert flags["fault"] and MAP.fault_codes[master.read("fault_code")[0]].name == "STUCK_PUNCH"
+    crc = master.validated(upper, lower, 1)
+    assert master.command("GO", 1, crc) == "ACCEPTED"
+    flags = master.wait_state("FAULT")
+    assert flags["fault"] and MAP.faults.name(master.field("fault_code")) == "STUCK_PUNCH"
     bits = codec.unpack_bits(master.read("upper_fault_bits", 2), PRESS.rows * PRESS.cols)
     assert np.flatnonzero(bits).tolist() == [MAP.punch_index(1, 4, PRESS.cols)]
-    assert master.command("RESET") is None
+    assert master.command("RESET") == "ACCEPTED"
     assert not any(master.read("upper_fault_bits", 2)) and not master.flags()["fault"]
 
 
@@ -335,6 +322,21 @@ def test_slow_replies(plc):
     started = time.monotonic()
     master.read("magic")
     assert time.monotonic() - started < 0.1
+
+
+def test_link_faults_timed_from_the_start_of_motion(plc):
+    sim, master = plc
+    sim.inject("slow", delay_ms=120, after_s=2.0)  # 2 simulated s into the next motion (0.02 s wall)
+    started = time.monotonic()
+    master.read("magic")
+    assert time.monotonic() - started < 0.1  # not before the motion
+    upper, lower = targets()
+    crc = master.validated(upper, lower, 1)
+    assert master.command("GO", 1, crc) == "ACCEPTED"
+    time.sleep(0.1)
+    started = time.monotonic()
+    master.read("magic")
+    assert time.monotonic() - started >= 0.12
 
 
 def test_dropped_connection_and_recovery(plc):
@@ -351,7 +353,6 @@ def test_dropped_connection_and_recovery(plc):
 def test_drop_on_a_write_leaves_it_unapplied(plc):
     sim, master = plc
     sim.inject("drop", after_writes=2, duration_s=0.3)
-    upper, lower = targets()
     assert master.write(MAP["upper_setpoints"].address, codec.encode_int32([100], "ABCD")) is None
     with pytest.raises((ConnectionException, ModbusIOException)):
         master.write(MAP["upper_setpoints"].address + 2, codec.encode_int32([200], "ABCD"))
@@ -362,20 +363,20 @@ def test_drop_on_a_write_leaves_it_unapplied(plc):
     assert codec.decode_int32(words, "ABCD").tolist() == [100, round(PRESS.upper.park_mm * 100)]
 
 
-def test_restart_loses_the_sequence(plc):
+def test_restart_loses_the_owner_and_the_job(plc):
     sim, master = plc
     upper, lower = targets()
-    assert master.validate(master.upload(upper, lower), 11) is None
-    assert master.command("GO", 11) is None
-    master.wait_idle()
+    crc = master.validated(upper, lower, 11)
+    assert master.command("GO", 11, crc) == "ACCEPTED"
+    master.wait_state("COMPLETE")
     sim.restart(downtime_s=0.2)
     time.sleep(0.4)
     master.client.close()
     assert master.client.connect()
-    assert master.read("acknowledged_sequence") == [0] and not master.flags()["data_valid"]
-    assert master.command("GO", 11) == MAP.exceptions["refused"]
-    assert refusal(master) in ("CRC_MISMATCH", "SEQUENCE_MISMATCH")
-    assert np.allclose(master.actuals_mm("upper"), upper, atol=0.005)  # the punches stayed put
+    assert master.state() == "IDLE" and master.field("owner_master") == 0 and master.field("last_sequence") == 0
+    assert master.command("GO", 11, crc) == "NOT_OWNER"
+    assert master.command("CLAIM") == "ACCEPTED" and master.command("GO", 11, crc) == "WRONG_STATE"
+    assert np.allclose(master.actuals_mm("upper", PRESS.shape), upper, atol=0.005)  # the punches stayed put
 
 
 def test_inject_rejects_bad_parameters(plc):
@@ -403,8 +404,8 @@ def test_rtu_over_a_pty_pair(word_order):
             rr = client.read_holding_registers(MAP["magic"].address, count=2, device_id=1)
             assert not rr.isError(), rr
             assert codec.detect_word_order(rr.registers, MAP.magic) == word_order
-            rr = client.write_registers(MAP["status_word"].address, [1], device_id=1)
-            assert rr.isError() and rr.exception_code == MAP.exceptions["read_only"]
+            rr = client.write_registers(MAP.total_registers - 1, [1, 2], device_id=1)
+            assert rr.isError() and rr.exception_code == MAP.illegal_address
         finally:
             client.close()
 
@@ -478,6 +479,8 @@ def test_paced_pty_relay_takes_the_wire_time():
         ("drop@3", "drop", {"after_s": 3.0}),
         ("drop:0.5@3", "drop", {"duration_s": 0.5, "after_s": 3.0}),
         ("restart@1", "restart", {"after_s": 1.0}),
+        ("local@0.5", "local", {"after_s": 0.5}),
+        ("slow:80@2", "slow", {"delay_ms": 80.0, "after_s": 2.0}),
     ],
 )
 def test_fault_spec_grammar(spec, kind, params):

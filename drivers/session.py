@@ -1,0 +1,387 @@
+"""A session with a press PLC: identity, status, the command mailbox, ownership, STOP, RESET.
+
+:class:`PlcSession` is what ``mppf status``, ``mppf stop`` and ``mppf reset`` need, and the
+base of the press driver (:class:`mppf.drivers.plc_press.PlcPress`). It works on a register
+transport (``connect``, ``close``, ``read_holding``, ``write_registers``, ``write_command``,
+as :class:`mppf.drivers.modbus_adapter.ModbusAdapter` offers them) and a clock (``now()``,
+``sleep(s)``), and imports neither numpy nor pymodbus, so these commands start at once.
+
+The protocol (docs/register-map.md): a command is the mailbox written in ONE request
+(command, counter, master id, CRC, sequence); the PLC acknowledges it on a later scan by
+copying the counter and the master id into the acknowledgement registers with a result
+code, and the master waits for the acknowledgement of its own pair. STOP has its own
+register and is obeyed from anyone. A master owns the PLC after CLAIM and keeps its lease
+with the heartbeat (started by the transport's host after the claim). Every command and
+write is written ahead into the audit log (:mod:`mppf.drivers.audit`).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+
+from mppf.core.errors import LinkError, PlcError, PressFault, PressRefused
+from mppf.core.presslink import PressStatus
+from mppf.drivers import codec, regmap as rm
+from mppf.drivers.audit import NULL_AUDIT, Audited
+from mppf.drivers.identity import identify
+
+STATUS_SPAN = ("stop_request", "stop_cause")
+"""The registers read for a status: the STOP register and the whole status block (one request)."""
+ACK_MARGIN_S = 0.25
+"""Added to the acknowledgement timeout: the time a loaded master takes to poll."""
+HEARTBEAT_MAX_S = 0.25
+"""Longest heartbeat period (a watchdog of 2.5 s or more still gets 4 beats a second)."""
+HEARTBEAT_DIVISOR = 10
+"""The heartbeat period is at most the watchdog / this: a late beat still keeps within a quarter."""
+
+
+class WallClock:
+    """Real time: ``time.monotonic`` and ``time.sleep``."""
+
+    @staticmethod
+    def now() -> float:
+        return time.monotonic()
+
+    @staticmethod
+    def sleep(seconds: float) -> None:
+        time.sleep(seconds)
+
+
+def new_master_id() -> int:
+    """A random 32-bit master id, never 0 (one per session; the audit log records it)."""
+    return int.from_bytes(os.urandom(4), "big") or 1
+
+
+class PlcSession:
+    """A connected press PLC: status, STOP, and the owner's commands (no numpy, no pymodbus).
+
+    Connects on construction and reads the PLC's identity (:func:`mppf.drivers.identity.identify`).
+
+    Parameters
+    ----------
+    io
+        The register transport.
+    url : PlcUrl or str
+        Where the PLC is (messages, audit log).
+    press : PressConfig, optional
+        The press description, checked against the PLC's matrix (needed to press).
+    word_order : {"auto", "ABCD", "CDAB"}
+        Expected word order of 32-bit values; "auto" takes the PLC's.
+    unit : int
+        The PLC's unit id (messages).
+    audit : AuditLog, optional
+        Where commands and writes are recorded, written ahead (default: nowhere).
+    job_sha256 : str, optional
+        Hash of the job being pressed, recorded in the audit log.
+    register_map : RegisterMap, optional
+        Default: the packaged map.
+    clock : object with ``now()`` and ``sleep(s)``
+        Default :class:`WallClock`.
+    reply_timeout_s : float
+        The transport's reply timeout (for the acknowledgement timeout).
+    master_id : int, optional
+        This master's id (default: a random one).
+
+    Attributes
+    ----------
+    master_id : int
+    identity : PlcIdentity
+
+    Raises
+    ------
+    InputError
+        Bad word order.
+    LinkError
+        The PLC cannot be reached, or is not an mppf press PLC with this register map.
+    ConfigError
+        The press description does not match the PLC's matrix size.
+    """
+
+    def __init__(self, io, url, press=None, *, word_order: str = "auto", unit: int = 1, audit=None,
+                 job_sha256: str | None = None, register_map: rm.RegisterMap | None = None, clock=None,
+                 reply_timeout_s: float = 1.0, master_id: int | None = None):
+        if word_order != "auto":
+            codec.check_word_order(word_order)
+        self.url = url
+        self.press = press
+        self.map = register_map if register_map is not None else rm.load_register_map()
+        self.audit = audit if audit is not None else NULL_AUDIT
+        self.job_sha256 = job_sha256
+        self.reply_timeout_s = float(reply_timeout_s)
+        self.master_id = int(master_id) if master_id else new_master_id()
+        self._clock = clock if clock is not None else WallClock()
+        self._counter = int.from_bytes(os.urandom(2), "big") % 0xFFFF + 1
+        self._beat_counter = 0
+        self._owner = False
+        self._plc_halted = False
+        self._last_sequence = 0
+        self._io = io
+        try:
+            self._io.connect()
+            self.identity = identify(self._io, self.map, self.url, unit, word_order, press)
+        except BaseException as exc:
+            self._io.close()
+            self.audit.record(str(url), "connect", "failed", job_sha256=job_sha256, detail=str(exc))
+            raise
+        ident = self.identity
+        self.audit.record(str(url), "connect", "ok", job_sha256=job_sha256,
+                          detail=f"master 0x{self.master_id:08X}, word order {ident.word_order}, "
+                                 f"{ident.rows} x {ident.cols} punches, scan {ident.scan_time_s * 1000:g} ms, "
+                                 f"watchdog {(ident.watchdog_s or 0) * 1000:g} ms")
+
+    def close(self) -> None:
+        """Give the PLC back (RELEASE, when this master owns it and nothing moves) and disconnect.
+
+        The press is not stopped: a motion in progress is ended by the PLC's watchdog once
+        the heartbeat stops.
+        """
+        try:
+            if self._owner and not self._plc_halted:
+                self.release()
+        except (LinkError, PlcError, PressFault):
+            pass  # recorded in the audit log; the lease lapses after the watchdog time
+        finally:
+            self._stop_heartbeat()
+            self._io.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------ timing ---
+    @property
+    def ack_timeout_s(self) -> float:
+        """How long to wait for the acknowledgement of a command (or the PLC taking a STOP)."""
+        scans = self.map.timing.get("command_ack_scans", 2) + 2
+        return 2 * self.reply_timeout_s + scans * self.identity.scan_time_s + ACK_MARGIN_S
+
+    @property
+    def _poll_s(self) -> float:
+        """Pause between two status reads while waiting for the PLC (half a scan)."""
+        return min(max(self.identity.scan_time_s / 2, 0.002), 0.05)
+
+    @property
+    def heartbeat_period_s(self) -> float:
+        """The heartbeat period: a tenth of the PLC's watchdog, at most :data:`HEARTBEAT_MAX_S`."""
+        watchdog = self.identity.watchdog_s
+        return HEARTBEAT_MAX_S if watchdog is None else min(HEARTBEAT_MAX_S, watchdog / HEARTBEAT_DIVISOR)
+
+    # -------------------------------------------------------- heartbeat hooks ---
+    def _start_heartbeat(self) -> None:
+        """Start beating after a claim (the Modbus driver's thread; the in-process press beats as it waits)."""
+
+    def _stop_heartbeat(self) -> None:
+        """Stop beating."""
+
+    def heartbeat_gap_s(self) -> float:
+        """Longest time between two heartbeats since :meth:`_mark_heartbeat` (s)."""
+        return 0.0
+
+    def _mark_heartbeat(self) -> None:
+        """Start measuring the heartbeat gap afresh (at the start of a step)."""
+
+    def _beat(self) -> None:
+        """One heartbeat: the master id and a new counter, in one request."""
+        self._beat_counter = self._beat_counter % 0xFFFF + 1
+        words = codec.u32_to_words(self.master_id, self.identity.word_order) + [self._beat_counter]
+        self._io.write_command(self.map["heartbeat_master"].address, words, urgent=True)
+
+    # ------------------------------------------------------------------ status ---
+    def _status_raw(self) -> dict[str, int]:
+        """The STOP register and the status block, decoded by field name (one read)."""
+        first, count = self.map.span(*STATUS_SPAN)
+        words = self._io.read_holding(first, count, max_chunk=self.map.max_read_registers)
+        out = {}
+        for field in self.map.fields.values():
+            if first <= field.address < first + count:
+                part = words[field.address - first : field.end - first]
+                out[field.name] = part[0] if field.count == 1 else codec.words_to_u32(part, self.identity.word_order)
+        out["flags"] = self.map.status_flags(out["status_word"])
+        out["state_name"] = self.map.states.name(out["state"]) or f"unknown state {out['state']}"
+        return out
+
+    def _status_from(self, raw: dict) -> PressStatus:
+        flags = raw["flags"]
+        return PressStatus(state=raw["state_name"], **{name: flags[name] for name in rm.REQUIRED_BITS},
+                           fault_code=raw["fault_code"], fault_text=self.map.fault_text(raw["fault_code"]),
+                           owner_master=raw["owner_master"], validated_sequence=raw["validated_sequence"],
+                           motion_sequence=raw["motion_sequence"], plc_heartbeat=raw["plc_heartbeat"])
+
+    def status(self) -> PressStatus:
+        """Read the PLC status (retried reads).
+
+        Raises
+        ------
+        LinkError, PlcError
+        """
+        return self._status_from(self._status_raw())
+
+    def status_report(self) -> dict:
+        """Everything ``mppf status`` shows: identity, state, status bits, codes, owner, tokens, counters."""
+        raw = self._status_raw()
+        ident = self.identity
+        hb_first, hb_count = self.map.span("heartbeat_master", "heartbeat_counter")
+        hb = self._io.read_holding(hb_first, hb_count)
+        return {
+            "plc": str(self.url), "word_order": ident.word_order, "map_version": ident.map_version,
+            "rows": ident.rows, "cols": ident.cols, "limits_mm": {k: list(v) for k, v in ident.limits_mm.items()},
+            "scan_time_ms": round(ident.scan_time_s * 1000), "watchdog_ms": round((ident.watchdog_s or 0) * 1000),
+            "position_tolerance_mm": ident.position_tolerance_mm,
+            "state": raw["state_name"], "status": raw["flags"],
+            "fault_code": raw["fault_code"], "fault_text": self.map.fault_text(raw["fault_code"]),
+            "owner_master": raw["owner_master"],
+            "last_command": {"command": self.map.commands.name(raw["ack_command"]), "counter": raw["ack_counter"],
+                             "master": raw["ack_master"], "result": self.map.results.name(raw["result_code"]),
+                             "result_text": self.map.result_text(raw["result_code"])},
+            "validated": {"sequence": raw["validated_sequence"], "crc": raw["validated_crc"]},
+            "motion": {"sequence": raw["motion_sequence"], "crc": raw["motion_crc"]},
+            "last_sequence": raw["last_sequence"], "refused_writes": raw["refused_writes"],
+            "stops": {"count": raw["stop_count"], "last_master": raw["last_stop_master"],
+                      "cause": self.map.stop_causes.name(raw["stop_cause"])},
+            "plc_heartbeat": raw["plc_heartbeat"],
+            "heartbeat": {"master": codec.words_to_u32(hb[:2], ident.word_order), "counter": hb[2]},
+        }
+
+    # ----------------------------------------------------------------- mailbox ---
+    def _send(self, name: str, *, sequence: int = 0, crc: int = 0) -> int:
+        """Write the mailbox (one request, one attempt, never retried); return the command counter."""
+        self._counter = self._counter % 0xFFFF + 1
+        order = self.identity.word_order
+        words = ([self.map.command(name), self._counter] + codec.u32_to_words(self.master_id, order)
+                 + codec.u32_to_words(crc, order) + [sequence])
+        self._io.write_command(self.map["command"].address, words)
+        return self._counter
+
+    def _await_ack(self, counter: int) -> dict | None:
+        """Poll until the PLC acknowledges ``counter`` of this master; the status then, or None on timeout."""
+        deadline = self._clock.now() + self.ack_timeout_s
+        while True:
+            raw = self._status_raw()
+            if raw["ack_counter"] == counter and raw["ack_master"] == self.master_id:
+                return raw
+            if self._clock.now() >= deadline:
+                return None
+            self._clock.sleep(self._poll_s)
+
+    def _command(self, name: str, *, sequence: int = 0, crc: int = 0) -> dict:
+        """Send a command and wait for its acknowledgement; return the status read with it.
+
+        Raises
+        ------
+        PressRefused
+            No acknowledgement within :attr:`ack_timeout_s`.
+        LinkError, PlcError
+        """
+        raw = self._await_ack(self._send(name, sequence=sequence, crc=crc))
+        if raw is None:
+            raise PressRefused(
+                f"the PLC at {self.url} did not acknowledge {name} within {self.ack_timeout_s:.1f} s",
+                hint="check that the PLC program runs ('mppf status': plc_heartbeat counts) and that no other "
+                     "master writes the command mailbox")
+        return raw
+
+    def _result(self, raw: dict) -> str:
+        return self.map.results.name(raw["result_code"]) or f"result {raw['result_code']}"
+
+    # -------------------------------------------------------------- ownership ---
+    def claim(self) -> None:
+        """Own the PLC (CLAIM) and start the heartbeat; nothing is written while another master owns it.
+
+        Raises
+        ------
+        PressRefused
+            Another master holds a live lease, or the PLC refused the claim.
+        LinkError, PlcError
+        """
+        raw = self._status_raw()
+        owner, lease_ok = raw["owner_master"], raw["flags"]["lease_ok"]
+        if owner == self.master_id and lease_ok:
+            self._owner = True
+            self._start_heartbeat()
+            return
+        if owner not in (0, self.master_id) and lease_ok:
+            self.audit.record(str(self.url), "claim", "not sent", job_sha256=self.job_sha256,
+                              detail=f"owned by master 0x{owner:08X}")
+            raise PressRefused(f"the PLC at {self.url} is owned by master 0x{owner:08X}, whose lease is alive: "
+                               "another master is driving the press; nothing was written",
+                               hint="wait until it has finished (see 'mppf status'), or stop it with 'mppf stop'")
+        with Audited(self, "claim", detail=f"master 0x{self.master_id:08X}") as row:
+            raw = self._command("CLAIM")
+            if raw["result_code"]:
+                row.outcome, row.detail = "refused", self.map.result_text(raw["result_code"])
+                raise PressRefused(f"the PLC at {self.url} refused CLAIM: {row.detail}; nothing was written",
+                                   hint="wait until the other master has finished (see 'mppf status')")
+        self._owner = True
+        self._start_heartbeat()
+
+    def release(self) -> None:
+        """Give the PLC back (RELEASE) and stop the heartbeat; refused (and recorded) while it moves."""
+        if not self._owner:
+            return
+        try:
+            with Audited(self, "release") as row:
+                raw = self._command("RELEASE")
+                if raw["result_code"]:
+                    row.outcome, row.detail = "refused", self.map.result_text(raw["result_code"])
+        finally:
+            self._owner = False
+            self._stop_heartbeat()
+
+    def reset(self) -> None:
+        """Reset latched faults and drop the job (claims the PLC first; on request only).
+
+        Raises
+        ------
+        PressRefused
+            Another master owns the PLC, or the PLC refused (e.g. the e-stop is still pressed).
+        LinkError
+        """
+        self.claim()
+        with Audited(self, "reset") as row:
+            raw = self._command("RESET")
+            if raw["result_code"]:
+                row.outcome, row.detail = "refused", self.map.result_text(raw["result_code"])
+                raise PressRefused(f"the PLC at {self.url} refused RESET: {row.detail}",
+                                   hint="remove the cause (release the e-stop), then reset again")
+
+    # -------------------------------------------------------------------- STOP ---
+    def stop(self, reason: str = "operator request", *, wait: bool = True) -> None:
+        """STOP: its own register, one request, obeyed from anyone in every state.
+
+        Parameters
+        ----------
+        reason : str
+            Recorded in the audit log.
+        wait : bool
+            Wait until the PLC has taken the request (it writes ``stop_request`` back to 0).
+
+        Raises
+        ------
+        LinkError
+            STOP could not be delivered.
+        PlcError
+            The PLC refused the request (a device that is not an mppf press PLC).
+        PressFault
+            ``wait`` and the PLC did not take the STOP within :attr:`ack_timeout_s`.
+        """
+        words = [1] + codec.u32_to_words(self.master_id, self.identity.word_order)
+        with Audited(self, "stop", sequence=self._last_sequence or None, detail=reason) as row:
+            self._io.write_command(self.map["stop_request"].address, words, urgent=True)
+            if wait:
+                self._await_stop_taken(row)
+
+    def _await_stop_taken(self, row: Audited) -> None:
+        """Wait until the PLC has taken the STOP (``stop_request`` back to 0)."""
+        deadline = self._clock.now() + self.ack_timeout_s
+        try:
+            while self._status_raw()["stop_request"] != 0:
+                if self._clock.now() >= deadline:
+                    row.outcome = "not taken"
+                    raise PressFault(f"the PLC at {self.url} did not take the STOP within {self.ack_timeout_s:.1f} s",
+                                     hint="stop the press at the machine, then check the PLC")
+                self._clock.sleep(self._poll_s)
+        except (LinkError, PlcError) as exc:  # the STOP itself was delivered; only the confirmation is missing
+            row.detail = f"not confirmed: {exc.message}"

@@ -1,0 +1,130 @@
+"""Laser-scanner files: E57 (``pye57``) and LAS / LAZ (``laspy`` with ``lazrs``).
+
+* E57 (ASTM E2807): every scan in the file is read, invalid points dropped, spherical
+  coordinates converted, and each scan's pose (rotation quaternion w, x, y, z and
+  translation) applied, so all scans come back in the file's common frame. E57 lengths
+  are metres by the standard; they are returned in mm whatever ``units`` says.
+* LAS 1.0-1.4 and LAZ: the integer coordinates with the header's scale and offset
+  applied. LAS declares no length unit of its own (it is the coordinate system's, usually
+  metres): ``units`` says which.
+
+The point count in the header is checked against the memory available before any point
+is read (:func:`mppf.geometry.files.check_fits`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from mppf.core.errors import FileFormatError
+from mppf.geometry.files import check_fits, check_readable, quiet
+
+E57_SUFFIXES = (".e57",)
+LAS_SUFFIXES = (".las", ".laz")
+SCAN_SUFFIXES = E57_SUFFIXES + LAS_SUFFIXES
+
+E57_BYTES_PER_POINT = 3 * 8 * 3
+"""Memory per E57 point while reading: the buffers, the valid copy and the transformed copy."""
+
+LAS_XYZ_BYTES = 3 * 8 * 2
+"""Memory per LAS point beyond its record: the scaled copy and the result."""
+
+_RESCAN_HINT = "export the scan again from the scanner software"
+
+
+def read_e57(path) -> np.ndarray:
+    """All scans of an E57 file, poses applied: (n, 3) float, mm.
+
+    Raises
+    ------
+    FileFormatError
+        Missing, empty, truncated or damaged file, not an E57 file, no scans, no points.
+    """
+    import pye57
+
+    path = check_readable(path, "an E57 scan")
+    with open(path, "rb") as stream:
+        if stream.read(8) != b"ASTM-E57":
+            raise FileFormatError(path, "is not an E57 file (it does not start with 'ASTM-E57')",
+                                  hint=f"is it another scan format (.las, .laz, .ply, .xyz)? {_RESCAN_HINT}")
+    with quiet():
+        try:
+            e57 = pye57.E57(str(path))
+            try:
+                headers = [e57.get_header(index) for index in range(e57.scan_count)]
+                total = sum(header.point_count for header in headers)
+                check_fits(path, total * E57_BYTES_PER_POINT, f"its {total:,} points")
+                scans = [_e57_scan(e57, index) for index in range(len(headers))]
+            finally:
+                e57.close()
+        except FileFormatError:
+            raise
+        except Exception as exc:  # libE57Format raises its own exception types
+            raise FileFormatError(path, f"is not a readable E57 file: {_first_line(exc)}",
+                                  hint=f"the file may be truncated or damaged; {_RESCAN_HINT}") from None
+    if not scans:
+        raise FileFormatError(path, "holds no scans", hint=_RESCAN_HINT)
+    points = np.vstack(scans) * 1000.0  # E57 is metres
+    if points.shape[0] == 0:
+        raise FileFormatError(path, f"holds {len(scans)} scan(s) but no valid points", hint=_RESCAN_HINT)
+    return points
+
+
+def _e57_scan(e57, index: int) -> np.ndarray:
+    """One scan in the file's frame (pose applied by pye57: p' = R(q) p + t), metres."""
+    data = e57.read_scan(index, ignore_missing_fields=True, transform=True)
+    return np.column_stack([np.asarray(data[key], dtype=float) for key in ("cartesianX", "cartesianY", "cartesianZ")])
+
+
+def _first_line(exc: Exception) -> str:
+    text = str(exc).strip().splitlines()
+    return (text[0] if text else type(exc).__name__)[:200]
+
+
+def read_las(path, units_scale: float = 1.0) -> np.ndarray:
+    """Points of a LAS or LAZ file, scale and offset applied: (n, 3) float, in the file's unit times ``units_scale``.
+
+    Raises
+    ------
+    FileFormatError
+        Missing, empty, truncated or damaged file, not a LAS/LAZ file, no points.
+    """
+    import laspy
+
+    path = check_readable(path, "a LAS or LAZ scan")
+    with open(path, "rb") as stream:
+        if stream.read(4) != b"LASF":
+            raise FileFormatError(path, "is not a LAS/LAZ file (it does not start with 'LASF')",
+                                  hint=f"is it another scan format (.e57, .ply, .xyz)? {_RESCAN_HINT}")
+    try:
+        with laspy.open(str(path)) as reader:
+            header = reader.header
+            count = int(header.point_count)
+            _check_las_size(path, header, count)
+            check_fits(path, count * (header.point_format.size + LAS_XYZ_BYTES), f"its {count:,} points")
+            points = np.asarray(reader.read().xyz, dtype=float)
+    except FileFormatError:
+        raise
+    except Exception as exc:  # laspy and lazrs raise several types for a broken file
+        raise FileFormatError(path, f"is not a readable {path.suffix[1:].upper()} file: {exc}",
+                              hint=f"the file may be truncated or damaged; {_RESCAN_HINT}") from None
+    if points.shape[0] != count:
+        raise FileFormatError(path, f"is truncated: its header announces {count:,} points, "
+                              f"{points.shape[0]:,} are there", hint=_RESCAN_HINT)
+    if count == 0:
+        raise FileFormatError(path, "holds no points", hint=_RESCAN_HINT)
+    return points * units_scale
+
+
+def _check_las_size(path: Path, header, count: int) -> None:
+    """An uncompressed LAS file must hold every record its header announces."""
+    if path.suffix.lower() != ".las" or header.are_points_compressed:
+        return
+    needed = header.offset_to_point_data + count * header.point_format.size
+    size = path.stat().st_size
+    if size < needed:
+        raise FileFormatError(
+            path, f"is truncated: {count:,} points of {header.point_format.size} bytes need {needed:,} bytes, "
+            f"the file has {size:,}", hint=f"the file was cut off (an interrupted copy or export); {_RESCAN_HINT}")

@@ -1,0 +1,373 @@
+"""The one job validator: every check a job and its setpoints pass before anything is written.
+
+The planner (:func:`mppf.planning.plan.plan_job`), ``mppf press`` and the press driver
+(:meth:`mppf.drivers.plc_press.PlcPress.check_job` and every step's setpoints in
+:meth:`~mppf.drivers.plc_press.PlcPress.run_step`) all call these functions, so a job is
+held to the same rules whoever made it or edited it:
+
+- numbers only where strokes go: finite numbers or ``null``, never booleans or strings (a
+  stroke ``true`` is refused, not read as 1 mm) (:func:`check_job_document`);
+- the plate no thicker than the press takes (``[forming] max_thickness_mm``);
+- every active stroke within the stroke limits of its matrix, of the press description and
+  of the PLC;
+- the tip gap (upper minus lower) of every active pair at least the plate thickness;
+- no step adding more than the dimpling limit to the height difference of neighbouring
+  punches; strokes monotonic from step to step;
+- parked (inactive) punches at their parking heights: no stroke in the job, park heights in
+  the setpoints;
+- the job's press equal to the press file when one is given, its matrix and limits those
+  of the PLC when connected (:func:`validate_job`).
+
+A violation raises :class:`~mppf.core.errors.LimitError` or
+:class:`~mppf.core.errors.ConfigError` (exit code 2) naming the punch the way the press
+labels punches (:meth:`~mppf.planning.press.PressConfig.punch_label`), the value and the limit.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import numbers
+from pathlib import Path
+
+import numpy as np
+
+from mppf.core.errors import ConfigError, InputError, LimitError
+from mppf.core.grid import neighbour_differences
+from mppf.planning.job import Job, StepStrokes, job_from_dict
+from mppf.planning.press import PressConfig
+from mppf.planning.steps import flat_heights
+
+GAP_TOLERANCE_MM = 0.01
+"""The tip gap of a punch pair may be this much below the thickness (rounding)."""
+LIMIT_TOLERANCE_MM = 1e-6
+MAX_LISTED = 10
+SIDES = ("upper", "lower")
+
+
+class _Problems:
+    """Collects problems; raises one error listing the first :data:`MAX_LISTED` and how many more."""
+
+    def __init__(self):
+        self.items: list[str] = []
+        self.count = 0
+
+    def add(self, texts) -> None:
+        texts = list(texts)
+        self.count += len(texts)
+        self.items += texts[: max(0, MAX_LISTED - len(self.items))]
+
+    def raise_if_any(self, what: str, hint: str, error=LimitError) -> None:
+        if self.count:
+            more = f"; and {self.count - len(self.items)} more" if self.count > len(self.items) else ""
+            raise error(f"{what} ({self.count} problem(s)): " + "; ".join(self.items) + more, hint=hint)
+
+
+# ------------------------------------------------------------------ the raw file ---
+def check_job_document(doc, source: str = "job") -> None:
+    """Refuse a job document whose strokes or activity flags are not what they claim to be.
+
+    Every ``upper_mm`` / ``lower_mm`` entry must be ``null`` or a finite JSON number (not a
+    boolean, not a string), and ``null`` for a parked punch (``active`` false: it stands at
+    its park height, a stroke there would silently not be pressed); every ``active`` entry
+    ``true`` or ``false``; the thickness a number. The rest of the format is
+    :func:`mppf.planning.job.job_from_dict`'s.
+
+    Raises
+    ------
+    ConfigError
+        Naming the step, the punch (row, col from 1), the value as written and what is allowed.
+    """
+    if not isinstance(doc, dict) or not isinstance(doc.get("steps"), list):
+        return  # job_from_dict names what is missing
+    label = _labeller(doc)
+    problems = _Problems()
+    if "thickness_mm" in doc and not _is_number(doc["thickness_mm"]):
+        problems.add([f"thickness_mm is {json.dumps(doc['thickness_mm'])}, not a finite number of mm"])
+    parks = _parks(doc)
+    for k, step in enumerate(doc["steps"], start=1):
+        if not isinstance(step, dict):
+            continue
+        active = {(r, c): value for r, c, value in _cells(step.get("active"))}
+        for (r, c), value in active.items():
+            if not isinstance(value, bool):
+                problems.add([f"step {k} punch ({label(r, c)}): active is {json.dumps(value)}, not true or false"])
+        for key in ("upper_mm", "lower_mm"):
+            side = key[:5]
+            for r, c, value in _cells(step.get(key)):
+                if value is not None and not _is_number(value):
+                    problems.add([f"step {k} {side} punch ({label(r, c)}): stroke {json.dumps(value)} is not a "
+                                  "finite number of mm (a stroke is a number, or null for a parked punch)"])
+                elif value is not None and active.get((r, c)) is False:
+                    problems.add([f"step {k} {side} punch ({label(r, c)}) is parked (not active) but has a stroke "
+                                  f"{value:.2f} mm; parked punches stand at park {parks.get(side, '?')} mm"])
+    problems.raise_if_any(f"{source}: the job holds values that cannot be pressed",
+                          "re-plan the plate with 'mppf plan'; never edit strokes by hand", ConfigError)
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _cells(grid):
+    if isinstance(grid, list):
+        for r, row in enumerate(grid):
+            if isinstance(row, list):
+                for c, value in enumerate(row):
+                    yield r, c, value
+
+
+def _parks(doc: dict) -> dict:
+    press = doc.get("press") if isinstance(doc.get("press"), dict) else {}
+    return {side: press[side].get("park_mm") for side in SIDES if isinstance(press.get(side), dict)}
+
+
+def _labeller(doc: dict):
+    matrix = doc.get("press", {}).get("matrix", {}) if isinstance(doc.get("press"), dict) else {}
+    base = matrix.get("label_base", 1) if matrix.get("label_base", 1) in (0, 1) else 1
+    return lambda r, c: f"row {r + base}, col {c + base}"
+
+
+def load_checked_job(path) -> Job:
+    """Read a job file, refusing non-numbers where numbers belong (:func:`check_job_document`).
+
+    Raises
+    ------
+    InputError
+        Missing or unreadable file, invalid JSON, values that are not numbers, an invalid job.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise InputError(f"job file {path} does not exist", hint="make one with 'mppf plan'") from None
+    except (IsADirectoryError, UnicodeDecodeError, PermissionError) as exc:
+        raise InputError(f"job file {path} cannot be read: {exc}") from None
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f"{path}, line {exc.lineno}: not valid JSON: {exc.msg}") from None
+    check_job_document(doc, str(path))
+    return job_from_dict(doc, source=str(path))
+
+
+# ---------------------------------------------------------------- setpoints ---
+def stroke_limits(press: PressConfig, plc_limits: dict | None = None) -> dict[str, tuple[float, float]]:
+    """``{side: (lo, hi)}``: the press description's limits narrowed to the PLC's (mm)."""
+    out = {}
+    for side in SIDES:
+        axis = getattr(press, side)
+        lo, hi = (axis.min_mm, axis.max_mm) if plc_limits is None else plc_limits[side]
+        out[side] = (max(axis.min_mm, lo), min(axis.max_mm, hi))
+    return out
+
+
+def check_setpoints(upper_mm, lower_mm, press: PressConfig, plc_limits: dict | None = None,
+                    active=None) -> dict[str, np.ndarray]:
+    """One step's setpoints of every punch, checked before they are written.
+
+    Parameters
+    ----------
+    upper_mm, lower_mm : (rows, cols) float
+        Tip heights of every punch (parking heights where inactive), finite numbers.
+    press : PressConfig
+    plc_limits : dict, optional
+        The PLC's limits ``{"upper": (min, max), "lower": (min, max)}`` mm.
+    active : (rows, cols) bool, optional
+        Given: the inactive punches must stand at their parking heights.
+
+    Returns
+    -------
+    dict of str to (rows, cols) float
+        ``{"upper": ..., "lower": ...}``.
+
+    Raises
+    ------
+    InputError
+        Wrong shape, booleans or other non-numbers, NaN or infinite values.
+    LimitError
+        Setpoints beyond the limits, or parked punches away from park (lists the punches).
+    """
+    grids = {}
+    for side, values in (("upper", upper_mm), ("lower", lower_mm)):
+        grid = np.asarray(values)
+        if grid.dtype == bool or not np.issubdtype(grid.dtype, np.number):
+            raise InputError(f"{side} setpoints must be numbers (mm), got an array of {grid.dtype}",
+                             hint="give the tip heights as floats; True is not a 1 mm stroke")
+        grid = grid.astype(float)
+        if grid.shape != press.shape:
+            raise InputError(f"{side} setpoints have shape {grid.shape}, the press has {press.shape}")
+        if not np.all(np.isfinite(grid)):
+            r, c = np.argwhere(~np.isfinite(grid))[0]
+            raise InputError(f"{side} setpoint of punch ({press.punch_label(r, c)}) is {grid[r, c]} (NaN or "
+                             "infinite), not a finite number of mm",
+                             hint="fill inactive punches with parking heights (StepStrokes.setpoints_mm)")
+        grids[side] = grid
+    problems = _Problems()
+    for side, (lo, hi) in stroke_limits(press, plc_limits).items():
+        grid = grids[side]
+        problems.add(f"{side} punch ({press.punch_label(r, c)}) = {grid[r, c]:.2f} mm, limits {lo:.2f}..{hi:.2f} mm"
+                     for r, c in np.argwhere((grid < lo - LIMIT_TOLERANCE_MM) | (grid > hi + LIMIT_TOLERANCE_MM)))
+        if active is not None:
+            park = getattr(press, side).park_mm
+            away = ~np.asarray(active, bool) & (np.abs(grid - park) > LIMIT_TOLERANCE_MM)
+            problems.add(f"parked {side} punch ({press.punch_label(r, c)}) = {grid[r, c]:.2f} mm, park {park:g} mm"
+                         for r, c in np.argwhere(away))
+    if problems.count:
+        more = f"; and {problems.count - len(problems.items)} more" if problems.count > len(problems.items) else ""
+        raise LimitError(f"{problems.count} setpoint(s) beyond the stroke limits, nothing was written to the PLC: "
+                         + "; ".join(problems.items) + more,
+                         hint="re-plan the job for this press (limits from the press description and the PLC)")
+    return grids
+
+
+# -------------------------------------------------------------------- steps ---
+def validate_steps(steps: list[StepStrokes], press: PressConfig, thickness_mm: float,
+                   plc_limits: dict | None = None) -> dict:
+    """Check every step of a job before anything is written.
+
+    Checks: the thickness at most ``press.max_thickness_mm``; active strokes finite and
+    inside the limits of their matrix (the press's, narrowed to ``plc_limits``); the tip gap
+    of each active pair at least the thickness (within :data:`GAP_TOLERANCE_MM`); no step
+    adding more than ``max_neighbour_diff_mm`` to the height difference of neighbouring
+    punches; strokes monotonic from step to step. Inactive punches are not checked here (they
+    are parked: :func:`check_job_document`, :func:`check_setpoints`).
+
+    Returns
+    -------
+    dict
+        ``passed`` and the measured figures: ``min_gap_mm``, ``max_neighbour_step_mm``,
+        stroke ranges per matrix.
+
+    Raises
+    ------
+    LimitError
+        Listing the steps, punches, values and limits that violate a check.
+    """
+    if thickness_mm > press.max_thickness_mm:
+        raise LimitError(f"the plate thickness {thickness_mm:g} mm is above the largest plate this press takes, "
+                         f"[forming] max_thickness_mm {press.max_thickness_mm:g} mm",
+                         hint="check the thickness, or use a press made for thicker plates")
+    limits = stroke_limits(press, plc_limits)
+    label = press.punch_label
+    flat = dict(zip(SIDES, flat_heights(thickness_mm)))
+    problems = _Problems()
+    min_gap, max_step_diff = math.inf, 0.0
+    prev = {side: np.full(press.shape, flat[side]) for side in SIDES}
+    direction = {side: np.zeros(press.shape) for side in SIDES}
+    for k, step in enumerate(steps, start=1):
+        act = np.asarray(step.active, bool)
+        values = {"upper": step.upper_mm, "lower": step.lower_mm}
+        for side, (lo, hi) in limits.items():
+            v = values[side]
+            bad = act & ((v < lo - LIMIT_TOLERANCE_MM) | (v > hi + LIMIT_TOLERANCE_MM) | ~np.isfinite(v))
+            problems.add(f"step {k} {side} punch ({label(r, c)}): stroke {v[r, c]:.2f} mm beyond the stroke limits "
+                         f"{lo:g}..{hi:g} mm" for r, c in np.argwhere(bad))
+        gap = np.where(act, step.upper_mm - step.lower_mm, np.inf)
+        if act.any():
+            min_gap = min(min_gap, float(gap[act].min()))
+        problems.add(f"step {k} punch pair ({label(r, c)}): tip gap {gap[r, c]:.2f} mm < thickness {thickness_mm:g} mm"
+                     for r, c in np.argwhere(act & (gap < thickness_mm - GAP_TOLERANCE_MM)))
+        for side in SIDES:
+            for diff, first, second in neighbour_differences(values[side] - prev[side], act):
+                if diff.size:
+                    max_step_diff = max(max_step_diff, float(np.nanmax(np.abs(diff), initial=0.0)))
+                bad = np.abs(diff) > press.max_neighbour_diff_mm + LIMIT_TOLERANCE_MM
+                problems.add(f"step {k} {side} punches ({label(*a)}) and ({label(*b)}): the height difference "
+                             f"changes by {d:+.2f} mm, dimpling limit {press.max_neighbour_diff_mm:g} mm"
+                             for d, a, b in zip(diff[bad], first[bad], second[bad]))
+            move = np.where(act, values[side] - prev[side], 0.0)
+            back = act & (move * direction[side] < -LIMIT_TOLERANCE_MM)
+            problems.add(f"step {k} {side} punch ({label(r, c)}) reverses direction: moves {move[r, c]:+.2f} mm "
+                         "after moving the other way (strokes must be monotonic from step to step)"
+                         for r, c in np.argwhere(back))
+            direction[side] = np.where(np.abs(move) > LIMIT_TOLERANCE_MM, np.sign(move), direction[side])
+            prev[side] = np.where(act & np.isfinite(values[side]), values[side], prev[side])
+    problems.raise_if_any("the planned strokes fail validation",
+                          "give more steps (--steps), a press with longer strokes, or check the plate and thickness")
+    final = steps[-1]
+    act = np.asarray(final.active, bool)
+
+    def value_range(v):
+        return [float(np.min(v[act])), float(np.max(v[act]))] if act.any() else None
+
+    return {
+        "passed": True,
+        "n_steps": len(steps),
+        "min_gap_mm": None if not math.isfinite(min_gap) else min_gap,
+        "max_neighbour_step_mm": max_step_diff,
+        "dimpling_limit_mm": press.max_neighbour_diff_mm,
+        "upper_range_mm": value_range(final.upper_mm),
+        "lower_range_mm": value_range(final.lower_mm),
+        "upper_limits_mm": [press.upper.min_mm, press.upper.max_mm],
+        "lower_limits_mm": [press.lower.min_mm, press.lower.max_mm],
+    }
+
+
+# ---------------------------------------------------------------------- job ---
+def _flat_keys(press: PressConfig) -> dict:
+    """``{"[table] key": value}`` of a press description."""
+    out = {}
+    for table, block in press.to_dict().items():
+        if isinstance(block, dict):
+            out.update({f"[{table}] {key}": value for key, value in block.items()})
+        else:
+            out[table] = block
+    return out
+
+
+def _press_differences(job_press: PressConfig, press_file: PressConfig, source: str) -> list[str]:
+    mine, theirs = _flat_keys(job_press), _flat_keys(press_file)
+    return [f"{key} is {mine[key]!r} in the job, {theirs[key]!r} in {source}"
+            for key in mine if mine[key] != theirs[key]]
+
+
+def validate_job(job: Job, *, press_file: PressConfig | None = None, plc_shape: tuple[int, int] | None = None,
+                 plc_limits: dict | None = None, press_source: str = "the press file") -> dict:
+    """Every check of a job: its press against the press file and the PLC, then its steps.
+
+    Parameters
+    ----------
+    job : Job
+    press_file : PressConfig, optional
+        The press description the job must have been planned for (every key equal).
+    plc_shape : (int, int), optional
+        The PLC's matrix (rows, cols).
+    plc_limits : dict, optional
+        The PLC's stroke limits ``{"upper": (min, max), "lower": (min, max)}`` mm: the job's
+        press may not reach beyond them.
+    press_source : str
+        How to name ``press_file`` in messages (its path).
+
+    Returns
+    -------
+    dict
+        The report of :func:`validate_steps`.
+
+    Raises
+    ------
+    ConfigError
+        The job's press differs from the press file, or has another matrix than the PLC.
+    LimitError
+        The job's press reaches beyond the PLC's limits, or a step fails :func:`validate_steps`.
+    """
+    press = job.press
+    if press_file is not None and press_file != press:
+        raise ConfigError(f"the job was planned for another press than {press_source}: "
+                          + "; ".join(_press_differences(press, press_file, press_source)[:MAX_LISTED]),
+                          hint="plan the plate for this press, or give the press file the job was planned for")
+    if plc_shape is not None and tuple(plc_shape) != press.shape:
+        raise ConfigError(f"the job is for {press.rows} x {press.cols} punches, the PLC drives "
+                          f"{plc_shape[0]} x {plc_shape[1]}", hint="use the job planned for this press")
+    if plc_limits is not None:
+        problems = _Problems()
+        for side in SIDES:
+            axis, (lo, hi) = getattr(press, side), plc_limits[side]
+            for key, value, limit, beyond in (("min_mm", axis.min_mm, lo, axis.min_mm < lo - 0.005),
+                                              ("max_mm", axis.max_mm, hi, axis.max_mm > hi + 0.005)):
+                if beyond:
+                    problems.add([f"[{side}] {key} {value:g} mm of the job's press is beyond the PLC's limit "
+                                  f"{limit:g} mm"])
+        problems.raise_if_any("the job's press reaches beyond the PLC's stroke limits",
+                              "plan the plate with the press description of this press (its limits are the PLC's)")
+    return validate_steps(job.steps, press, job.thickness_mm, plc_limits)

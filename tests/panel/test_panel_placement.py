@@ -1,0 +1,62 @@
+"""Where to lay the plate: corners of the cut outline, corner A at the mark, the bed drawing."""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+
+import numpy as np
+
+from panel_helpers import CUT_MM, layout_job, rectangle
+
+from mppf.panel.placement import bed_svg, outline_corners, placement_of
+
+SVG = "{http://www.w3.org/2000/svg}"
+
+
+def test_collinear_points_are_not_corners():
+    outline = rectangle(CUT_MM, points_per_side=5)
+    assert len(outline) == 20
+    np.testing.assert_allclose(outline_corners(outline), CUT_MM)
+
+
+def test_a_gentle_arc_is_not_a_corner_but_a_chamfer_is():
+    arc = [(1000 * np.cos(t), 1000 * np.sin(t)) for t in np.linspace(0, np.pi / 2, 10)]
+    outline = np.array([(0.0, 0.0)] + arc)
+    corners = outline_corners(outline)
+    assert 3 <= len(corners) < len(outline)
+    assert any(np.allclose(c, (0.0, 0.0)) for c in corners)
+    chamfered = np.array([(0, 0), (1000, 0), (1000, 800), (900, 900), (0, 900)], dtype=float)
+    assert len(outline_corners(chamfered)) == 5
+
+
+def test_corner_a_is_the_cut_corner_at_the_mark_and_the_rest_follow_counter_clockwise():
+    placement = placement_of(layout_job().layout)
+    np.testing.assert_allclose(placement.mark_mm, (-1100.0, -700.0))  # the net outline's corner at R1 C1
+    rows = placement.rows()
+    assert [r["name"] for r in rows] == ["A", "B", "C", "D"]
+    assert rows[0]["mark"] and not any(r["mark"] for r in rows[1:])
+    assert [(r["x_mm"], r["y_mm"]) for r in rows] == [tuple(c) for c in CUT_MM]
+    assert len(placement.net_corners_mm) == 4
+
+
+def test_bed_drawing_shows_every_punch_the_outlines_and_the_corners():
+    job = layout_job()
+    svg = bed_svg(job.press, placement_of(job.layout), active=job.steps[0].active)
+    root = ET.fromstring(svg)
+    punches = [c for c in root.iter(f"{SVG}circle") if c.get("r") == f"{job.press.tip_radius_mm:.0f}"]
+    assert len(punches) == job.press.rows * job.press.cols
+    assert sum(c.get("fill") != "#ffffff" for c in punches) == int(job.steps[0].active.sum())
+    assert len([p for p in root.iter(f"{SVG}polygon") if p.get("class") == "cut-outline"]) == 1
+    assert len([p for p in root.iter(f"{SVG}polygon") if p.get("class") == "net-outline"]) == 1
+    labels = {t.get("data-corner"): "".join(t.itertext()) for t in root.iter(f"{SVG}text") if t.get("data-corner")}
+    assert labels == {"A": "A -1200, -800", "B": "B 1300, -800", "C": "C 1300, 700", "D": "D -1200, 700"}
+    # press y is up: the drawing flips it, row 1 at the bottom
+    r1 = [t for t in root.iter(f"{SVG}text") if t.text == "R1"][0]
+    r16 = [t for t in root.iter(f"{SVG}text") if t.text == "R16"][0]
+    assert float(r1.get("y")) > float(r16.get("y"))
+
+
+def test_bed_alone():
+    job = layout_job()
+    root = ET.fromstring(bed_svg(job.press, None))
+    assert not list(root.iter(f"{SVG}polygon"))
