@@ -24,6 +24,7 @@ COMMAND_MODULES = {
     "press": "press_cmd", "status": "press_cmd", "stop": "press_cmd", "reset": "press_cmd",
     "compare": "compare_cmd", "loop": "loop_cmd", "history": "history_cmd", "demo": "demo_cmd",
     "panel": "panel_cmd", "extract": "extract_cmd",
+    "batch": "batch_cmd",
 }
 """Every command of ``mppf`` and the module of :mod:`mppf.cli` that defines it (in its ``COMMANDS``)."""
 
@@ -91,7 +92,7 @@ def _run_stop(plc_url: str, audit_path: str | None) -> int:
     return 0
 
 
-def _run_click(args: list[str]) -> int:
+def _run_click(args: list[str], as_json: bool) -> int:
     """Every other command line: click parses it; its own exits and usage errors become exit codes."""
     import click
 
@@ -102,41 +103,91 @@ def _run_click(args: list[str]) -> int:
         return exc.exit_code
     except click.ClickException as exc:
         exc.show()
+        if getattr(exc, "ctx", None) is None:  # no usage line from click: say where help is
+            print(f"  what to do: see 'mppf {args[0] if args else ''} --help'".replace("  --", " --"),
+                  file=sys.stderr)
+        if as_json:
+            _json_error(type(exc).__name__, exc.format_message(), None, exc.exit_code)
         return exc.exit_code
     except click.exceptions.Abort:
         _err_console().print("[bold red]cancelled[/]")
         return EXIT_CANCELLED
 
 
+def _json_error(kind: str, message: str, hint: str | None, code: int) -> None:
+    """``--json`` commands: the error as one JSON object, the last line of stderr (after the readable message)."""
+    import json
+
+    print(json.dumps({"error": {"type": kind, "message": message, "hint": hint, "exit_code": code}}),
+          file=sys.stderr, flush=True)
+
+
+def _report(exc: BaseException, as_json: bool, debug: bool) -> int:
+    """Print one clear message for ``exc`` (traceback only with ``--debug``); its exit code."""
+    if debug:
+        traceback.print_exc()
+    if isinstance(exc, KeyboardInterrupt):
+        kind, message, hint, code = "Cancelled", "cancelled by the operator", None, EXIT_CANCELLED
+    elif isinstance(exc, MppfError):
+        kind, message, hint, code = type(exc).__name__, exc.message, exc.hint or _default_hint(exc), exc.exit_code
+    else:
+        kind, message, code = "InternalError", f"{type(exc).__name__}: {exc}", EXIT_BUG
+        hint = "a bug in mppf: run again with --debug for the traceback and report it"
+    _print_error(exc, message, hint, code)
+    if as_json:
+        _json_error(kind, message, hint, code)
+    return code
+
+
+def _default_hint(exc: MppfError) -> str | None:
+    """What to do, for an error raised without a hint."""
+    from mppf.core.errors import ConfigError, FileFormatError, InputError
+
+    if isinstance(exc, (FileFormatError, ConfigError)):
+        return "fix or replace the file named above (docs/file-formats.md says what it must hold)"
+    if isinstance(exc, InputError):
+        return "check the value named above; 'mppf COMMAND --help' lists the options and their ranges"
+    return None
+
+
+def _print_error(exc: BaseException, message: str, hint: str | None, code: int) -> None:
+    """The readable message (and what to do) on stderr, user text never read as markup."""
+    from rich.markup import escape
+
+    err_console = _err_console()
+    if isinstance(exc, KeyboardInterrupt):
+        err_console.print("[bold red]cancelled[/] by the operator", highlight=False)
+        return
+    label = "internal error (a bug in mppf):" if code == EXIT_BUG and not isinstance(exc, MppfError) else "error:"
+    err_console.print(f"[bold red]{label}[/] {escape(message)}", highlight=False, soft_wrap=True)
+    if hint:
+        err_console.print(f"  [yellow]what to do:[/] {escape(hint)}", highlight=False, soft_wrap=True)
+
+
+def _close_reporters() -> None:
+    """End the heartbeat of every progress reporter a command left running."""
+    common = sys.modules.get("mppf.cli._common")
+    if common is not None:
+        common.close_reporters()
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line; return (and exit with) the exit code."""
+    """Run the command line; return (and exit with) the exit code.
+
+    Errors print one message (and a hint) on stderr; with ``--json`` the last line of stderr
+    is the same error as one JSON object (``{"error": {"type", "message", "hint", "exit_code"}}``).
+    Exit codes as :mod:`mppf.core.errors` says.
+    """
     args = sys.argv[1:] if argv is None else list(argv)
     debug = "--debug" in args
+    as_json = "--json" in args
     try:
         stop = stop_arguments(args)
-        code = _run_stop(*stop) if stop is not None else _run_click(args)
-    except KeyboardInterrupt:
-        _err_console().print("[bold red]cancelled[/] by the operator")
-        code = EXIT_CANCELLED
-    except MppfError as exc:
-        from rich.markup import escape
-
-        err_console = _err_console()
-        if debug:
-            traceback.print_exc()
-        err_console.print(f"[bold red]error:[/] {escape(exc.message)}", highlight=False, markup=True)
-        if exc.hint:
-            err_console.print(f"  [yellow]what to do:[/] {escape(exc.hint)}", highlight=False)
-        code = exc.exit_code
-    except Exception as exc:  # noqa: BLE001 - the last line of defence
-        if debug:
-            traceback.print_exc()
-        _err_console().print(
-            f"[bold red]internal error (a bug in mppf):[/] {type(exc).__name__}: {exc}\n"
-            "  run again with --debug for the traceback and report it",
-            highlight=False,
-        )
-        code = EXIT_BUG
+        code = _run_stop(*stop) if stop is not None else _run_click(args, as_json)
+    except (KeyboardInterrupt, Exception) as exc:  # noqa: BLE001 - the one handler, the last line of defence
+        code = _report(exc, as_json, debug)
+    finally:
+        _close_reporters()
     if argv is None:
         sys.exit(code)
     return code

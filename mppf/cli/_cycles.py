@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-from rich.table import Table
-
 from mppf.cli._common import err_console
 
 
-def cycle_table(cycles, title: str) -> Table:
-    """One row per cycle: state, steps, deviations, share within tolerance, gain, decision."""
+def cycle_table(cycles, title: str):
+    """One row per cycle: state, steps, deviations, share within tolerance, gain, decision (a rich Table)."""
+    from rich.table import Table
+
     table = Table(title=title, title_justify="left", caption="deviations in mm; within% = share of the scan "
                   "within the tolerance; gain = mean correction gain of the strokes", caption_justify="left")
     for name, justify in (("cycle", "right"), ("state", "left"), ("steps", "right"), ("max|dev|", "right"),

@@ -14,10 +14,21 @@ from pathlib import Path
 
 import click
 
-from mppf.cli._common import RichReporter, console
+from mppf.cli._common import RichReporter, console, esc
 from mppf.cli._cycles import cycle_table, print_cycle
 from mppf.cli.press_policy import press_link, time_scale_option
 from mppf.loop.demo import DEMO_PLATE, DEMO_SEED, DEMO_THICKNESS_MM
+
+
+def _check_plate_name(name: str) -> None:
+    """Refuse a --plate that is not one of the bundled hull plates."""
+    import mppf
+    from mppf.core.errors import InputError
+
+    folder = Path(mppf.__file__).parent / "examples" / "hull"
+    known = sorted(p.stem for p in folder.glob("*.csv"))
+    if name not in known:
+        raise InputError(f"--plate: no bundled plate named {name!r}", hint=f"give one of {', '.join(known)}")
 
 
 @click.command("demo")
@@ -36,6 +47,14 @@ def demo(out_dir, plate_name, seed, thickness, time_scale):
     strokes, deviation per cycle, convergence), an HTML report and the history into
     --out, and prints a summary table.
     """
+    from mppf.core.validate import check_number
+
+    # the options checked before anything is imported, computed or written
+    check_number("--seed", seed, low=0, integer=True, hint="give a whole number, 0 or more")
+    check_number("--thickness", thickness, low=0.0, low_open=True, high=200.0, unit="mm",
+                 hint="give the plate thickness in mm, e.g. 20")
+    _check_plate_name(plate_name)
+
     from mppf.drivers.audit import AuditLog
     from mppf.loop.demo import run_demo
     from mppf.report.convergence import demo_report
@@ -60,12 +79,12 @@ def demo(out_dir, plate_name, seed, thickness, time_scale):
     finally:
         reporter.finish()
     result = run.result
-    console.print(cycle_table(result.cycles, f"demo plate {plate_name} ({thickness:g} mm, seed {seed}): "
+    console.print(cycle_table(result.cycles, f"demo plate {esc(plate_name)} ({thickness:g} mm, seed {seed}): "
                                              f"{result.status}"))
     console.print(f"dry run: {dry_run}", soft_wrap=True)
-    console.print(f"pictures and report in {out_dir}{os.sep}:", soft_wrap=True)
+    console.print(f"pictures and report in {out_dir}{os.sep}:", soft_wrap=True, markup=False)
     for path in files:
-        console.print(f"  {path}", soft_wrap=True)
+        console.print(f"  {path}", soft_wrap=True, markup=False)
     console.print(f"done in {time.monotonic() - started:.1f} s")
 
 

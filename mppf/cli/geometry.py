@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from mppf.cli._common import console, print_json, units_option
+from mppf.cli._common import console, print_json, read_input, units_option
 
 
 def _degree(value: str):
@@ -28,10 +28,9 @@ def fit_command(file: str, degree: str, kind: str, smoothing: float | None, unit
     residual (RMS and largest), degree, kind, point count and the local frame
     (origin and u, v, n axes in the file's coordinates).
     """
-    from mppf.geometry.read import read_points
     from mppf.geometry.surface import fit_plate
 
-    cloud = read_points(file, units=units)
+    cloud = read_input(file, units=units)
     plate = fit_plate(cloud.points, degree=_degree(degree), kind=kind, smoothing=smoothing,
                       faces=cloud.faces, source=str(file))
     surface = plate.surface

@@ -5,9 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
-from rich.table import Table
 
-from mppf.cli._common import console, print_json
+from mppf.cli._common import console, esc, print_json
 from mppf.cli._cycles import cycle_table
 from mppf.core.errors import InputError
 
@@ -39,15 +38,17 @@ def history(history_path, plate_id, as_json):
                 {**p.to_dict(), "cycles": [c.to_dict() for c in hist.cycles(p.plate_id)]} for p in plates]})
             return
         if not plates:
-            console.print(f"no plates in {hist.path}")
+            console.print(f"no plates in {hist.path}", markup=False)
             return
         console.print(_plates_table(hist, plates))
         if plate_id:
-            console.print(cycle_table(hist.cycles(plate_id), f"cycles of {plate_id}"))
+            console.print(cycle_table(hist.cycles(plate_id), f"cycles of {esc(plate_id)}"))
 
 
-def _plates_table(hist, plates) -> Table:
-    table = Table(title=f"plates in {hist.path}", title_justify="left",
+def _plates_table(hist, plates):
+    from rich.table import Table
+
+    table = Table(title=f"plates in {esc(str(hist.path))}", title_justify="left",
                   caption="max|dev|, RMS: deviations (mm) of the last measured cycle; t: thickness (mm)",
                   caption_justify="left")
     for name in ("plate", "status", "cycles", "max|dev|", "RMS", "t", "updated (UTC)"):
@@ -55,7 +56,7 @@ def _plates_table(hist, plates) -> Table:
     for p in plates:
         cycles = hist.cycles(p.plate_id)
         done = [c for c in cycles if c.max_abs_mm is not None]
-        table.add_row(p.plate_id, p.status, str(len(cycles)),
+        table.add_row(esc(p.plate_id), p.status, str(len(cycles)),
                       f"{done[-1].max_abs_mm:.2f}" if done else "-", f"{done[-1].rms_mm:.2f}" if done else "-",
                       f"{p.thickness_mm:g}", p.updated_utc[:16].replace("T", " "))
     return table

@@ -5,39 +5,74 @@ follows :mod:`mppf.cli.press_policy` like ``mppf press``: without ``--plc`` a dr
 simulated PLC in this process over loopback Modbus, with ``--plc`` the operator confirms
 first (or ``--yes``), SIGTERM stops the press like Ctrl-C. The simulated plate and scanner
 of dry runs come from :mod:`mppf.sim.shop`.
+
+Every option and file is checked, the plate planned and its job validated against the PLC
+(and the operator asked) before anything is recorded; the plate and its first cycle are then
+recorded in one transaction. The plate's lease (:mod:`mppf.loop.lease`) is held from before
+the planning to the end: one loop per plate.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import click
 
-from mppf.cli._common import RichReporter, console, err_console, print_json, units_option
+from mppf.cli._common import (RichReporter, check_db_path, check_design_size, console, err_console, esc, print_json,
+                              read_input, units_option)
 from mppf.cli._cycles import cycle_table, print_cycle
 from mppf.cli.history_cmd import history_option, open_history
 from mppf.cli.press_policy import confirm_motion, press_description, press_link, sigterm_as_ctrl_c, time_scale_option
 from mppf.core.errors import InputError
+from mppf.core.validate import check_number, check_positive
 from mppf.forming.material import MATERIALS
 from mppf.loop.settings import LoopSettings
 
 SCAN_SIM = "sim"
 _DEFAULTS = LoopSettings()  # the loop's defaults (tolerances from mppf.core.defaults), written once
+THICKNESS_MAX_MM = 200.0
+"""Thickest plate the loop takes (mm): beyond it a value is a typing error (or metres / micrometres)."""
 
 
-def _scanner(spec: str, press, plate, first_job, seed: int, scan_timeout_s: float):
-    """The Scanner named by ``--scanner``: "sim" or a folder."""
+@dataclass(frozen=True)
+class _Draft:
+    """A new plate read and planned, not yet recorded."""
+
+    plate_id: str
+    design: object
+    flat: object
+    press: object
+    job: object
+    press_path: Path
+
+
+def _check_options(thickness, scan_timeout, seed, audit_path) -> None:
+    """Refuse bad option values and an unwritable audit log before anything is read, planned or recorded."""
+    if thickness is not None:
+        check_number("--thickness", thickness, low=0.0, low_open=True, high=THICKNESS_MAX_MM, unit="mm",
+                     hint=f"give the plate thickness in mm, above 0 and at most {THICKNESS_MAX_MM:g}")
+    check_positive("--scan-timeout", scan_timeout, unit="s", hint="give the longest wait for a scan file in s")
+    check_number("--seed", seed, low=0, integer=True, hint="give a whole number, 0 or more")
+    if audit_path is not None:
+        check_db_path(audit_path, "the audit log", "--audit")
+
+
+def _scanner(history, plate, spec: str, press, scan_timeout_s: float):
+    """The Scanner named by ``--scanner``: "sim" (from the plate's recorded flat, first job and seed) or a folder."""
     if spec != SCAN_SIM:
         from mppf.loop.scanners import DirectoryScanner
 
         return DirectoryScanner(spec, timeout_s=scan_timeout_s)
     from mppf.geometry.read import read_points
+    from mppf.planning.job import load_job
     from mppf.sim.shop import SimulatedPlateScanner
 
     flat = read_points(plate.flat_path, units=plate.settings.get("units", "mm"))
+    first_job = load_job(history.cycle(plate.plate_id, 1).job_path)
     material = MATERIALS[plate.settings.get("material", "steel")]
-    return SimulatedPlateScanner.for_job(press, plate.thickness_mm, first_job, flat.points, seed=seed,
-                                         material=material)
+    return SimulatedPlateScanner.for_job(press, plate.thickness_mm, first_job, flat.points,
+                                         seed=int(plate.settings.get("seed", 0)), material=material)
 
 
 def _check_link_and_scanner(plc_url: str | None, scanner_spec: str) -> None:
@@ -67,58 +102,110 @@ def _pick_plate(history, plate_id: str | None):
     return active[0]
 
 
-def run_plate(history, plate, *, plc_url, scanner_spec, time_scale, audit, reporter, scan_timeout_s, yes=False,
-              on_cycle=print_cycle):
-    """Connect the press and scanner recorded for ``plate``, confirm, and run its loop to the end."""
-    from mppf.loop.cycle import run_loop
-    from mppf.planning.job import load_job
-    from mppf.planning.press import press_from_dict
-
-    press = press_from_dict(plate.press, source=f"history of plate {plate.plate_id}")
-    first_job = load_job(history.cycle(plate.plate_id, 1).job_path)
-    scanner = _scanner(scanner_spec, press, plate, first_job, int(plate.settings.get("seed", 0)), scan_timeout_s)
-    with sigterm_as_ctrl_c(), press_link(press, plc_url, audit=audit, time_scale=time_scale,
-                                         reporter=reporter) as link:
-        if plc_url:
-            confirm_motion(link, f"plate {plate.plate_id} on {press_description(link)}", yes)
-        return run_loop(history, plate.plate_id, link, scanner, reporter=reporter, on_cycle=on_cycle)
-
-
-def _new_plate(history, design, flat, press_path, thickness, plc_url, scanner_spec, settings, material, plate_id,
-               work_dir, seed, units, reporter):
-    """Check the link and the scanner, plan and record a new plate."""
-    from mppf.geometry.read import read_points
-    from mppf.loop.plate import new_plate_id, start_plate
-    from mppf.planning.press import load_press
-
+def _new_plate_id(history, design, flat, press_path, thickness, plate_id) -> str:
+    """The id of the new plate, checked (safe characters, not in the history yet)."""
     if design is None or flat is None or press_path is None or thickness is None:
         raise InputError("mppf loop needs DESIGN, FLAT, --press and --thickness (or --resume)",
                          hint="e.g. mppf loop design.csv flat.csv --press press.toml --thickness 20")
+    from mppf.loop.plate import new_plate_id
+
+    plate_id = plate_id or new_plate_id(design)
+    history.check_new_plate(plate_id)
+    return plate_id
+
+
+def _draft_plate(plate_id, design, flat, press_path, thickness, plc_url, scanner_spec, settings, material, units,
+                 reporter) -> _Draft:
+    """Check the link and the scanner, read the files and plan the new plate (nothing recorded)."""
+    from mppf.loop.plate import plan_first_cycle
+    from mppf.planning.press import load_press
+
     _check_link_and_scanner(plc_url, scanner_spec)  # before planning and recording anything
     if plc_url and scanner_spec == SCAN_SIM:
         err_console.print("[yellow]note:[/] real PLC with the simulated scanner: the scans are simulated")
     press = load_press(press_path)
-    design_cloud = read_points(design, units=units)
-    flat_cloud = read_points(flat, units=units)
-    plate_id = plate_id or new_plate_id(design)
-    work = work_dir or history.path.parent / "plates" / plate_id
-    return start_plate(
-        history, design_cloud, flat_cloud, press, thickness, plate_id=plate_id, work_dir=work,
-        settings=settings, material=MATERIALS[material], reporter=reporter,
-        setup={"plc": plc_url, "scanner": scanner_spec, "seed": seed, "units": units, "material": material},
-    )
+    design_cloud = read_input(design, units=units)
+    flat_cloud = read_input(flat, units=units)
+    for path, cloud in ((design, design_cloud), (flat, flat_cloud)):
+        check_design_size(path, cloud.n_points)
+    reporter.info(f"planning plate {plate_id}")
+    job = plan_first_cycle(design_cloud, flat_cloud, press, thickness, settings=settings,
+                           material=MATERIALS[material], reporter=reporter)
+    return _Draft(plate_id, design_cloud, flat_cloud, press, job, Path(press_path))
 
 
-def _resumed_plate(history, design, flat, plate_id):
-    """The unfinished plate to continue."""
+def _resumed_plate(history, design, flat, plate_id, press_path):
+    """The unfinished plate to continue (a --press given must be the press it was planned for)."""
     if design or flat:
         raise InputError("--resume continues a recorded plate and takes no DESIGN or FLAT",
                          hint="drop the file arguments, name the plate with --plate-id")
     plate = _pick_plate(history, plate_id)
+    if plate.status == "active" and not history.cycles(plate.plate_id):
+        raise InputError(f"plate {plate.plate_id} was recorded without its first cycle (an older mppf stopped in "
+                         "between): there is nothing to resume",
+                         hint=f"start it again under its id: mppf loop DESIGN FLAT ... --plate-id {plate.plate_id}")
+    if press_path is not None:
+        from mppf.planning.press import load_press, press_from_dict
+
+        given, recorded = load_press(press_path), press_from_dict(plate.press, source="the history")
+        if given != recorded:
+            raise InputError(
+                f"--press {press_path}: plate {plate.plate_id} was planned for another press ({recorded.name!r}, "
+                f"{recorded.rows} x {recorded.cols} punches; the file: {given.name!r}, {given.rows} x {given.cols}); "
+                "--resume continues on the press it was planned for",
+                hint="leave --press out with --resume, or start a new plate for the other press")
     if plate.status != "active":
         raise InputError(f"plate {plate.plate_id} has finished ({plate.status}); nothing to resume",
                          hint="see 'mppf history --plate-id " + plate.plate_id + "'")
     return plate
+
+
+def _record(history, draft: _Draft, settings, work_dir, setup):
+    """Record the drafted plate with its first cycle (one transaction)."""
+    from mppf.loop.plate import record_plate
+
+    work = work_dir or history.path.parent / "plates" / draft.plate_id
+    return record_plate(history, draft.design, draft.flat, draft.press, draft.job.thickness_mm, draft.job,
+                        plate_id=draft.plate_id, work_dir=work, settings=settings, setup=setup)
+
+
+def run_plate(history, plate_id, draft, *, plc_url, scanner_spec, time_scale, audit, reporter, scan_timeout_s,
+              yes=False, record=None, on_cycle=print_cycle):
+    """Connect the press and scanner, check the job against the PLC, confirm, record a drafted plate, run its loop.
+
+    ``draft`` is a new plate (recorded by ``record(history, draft)`` once the press took
+    its job and the operator confirmed), or None to continue the recorded ``plate_id``.
+    """
+    from mppf.cli._placement import placement_lines
+    from mppf.loop.cycle import run_loop
+    from mppf.planning.press import press_from_dict
+
+    plate = history.plate(plate_id) if draft is None else None
+    press = draft.press if plate is None else press_from_dict(plate.press, source=f"history of plate {plate_id}")
+    with sigterm_as_ctrl_c(), press_link(press, plc_url, audit=audit, time_scale=time_scale,
+                                         reporter=reporter) as link:
+        # the one job validator against this PLC (its matrix, its limits) before anything is recorded
+        if draft is not None:
+            link.check_job(draft.job, draft.press, str(draft.press_path))
+        # where to lay the plate; at --plc the operator confirms it lies there and the press is clear
+        for line in placement_lines(draft.job if draft is not None else _latest_job(history, plate_id)):
+            reporter.info(line)
+        if plc_url:
+            confirm_motion(link, f"plate {plate_id} on {press_description(link)}, with the plate laid as printed "
+                                 "above", yes)
+        # a new plate is recorded now, with its first cycle; the loop takes everything from the history
+        if draft is not None:
+            plate = record(history, draft)
+        recorded = press_from_dict(plate.press, source=f"history of plate {plate_id}")
+        scanner = _scanner(history, plate, scanner_spec, recorded, scan_timeout_s)
+        return run_loop(history, plate.plate_id, link, scanner, reporter=reporter, on_cycle=on_cycle)
+
+
+def _latest_job(history, plate_id):
+    """The job of a recorded plate's latest cycle (the plate lies the same way in every cycle)."""
+    from mppf.planning.job import load_job
+
+    return load_job(history.cycles(plate_id)[-1].job_path)
 
 
 @click.command("loop")
@@ -172,30 +259,43 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
     """
     from mppf.drivers.audit import AuditLog
 
+    # every option and file checked before anything is read, planned or recorded
+    _check_options(thickness, scan_timeout, seed, audit_path)
+    settings = LoopSettings(tolerance_mm=tolerance, rms_tolerance_mm=rms_tolerance, max_cycles=max_cycles,
+                            gain=gain, springback=not no_springback, margin_mm=margin_mm)
     reporter = RichReporter(enabled=not as_json)
-    with open_history(history_path) as history:
+    # SIGTERM ends the command like Ctrl-C: the press is stopped, the lease given back
+    with sigterm_as_ctrl_c(), open_history(history_path) as history:
         if resume:
-            plate = _resumed_plate(history, design, flat, plate_id)
+            plate = _resumed_plate(history, design, flat, plate_id, press_path)
+            plate_id = plate.plate_id
             plc_url = plc_url or plate.settings.get("plc")
             scanner_spec = scanner_spec or plate.settings.get("scanner", SCAN_SIM)
+            _check_link_and_scanner(plc_url, scanner_spec)
         else:
             scanner_spec = scanner_spec or SCAN_SIM
-            settings = LoopSettings(tolerance_mm=tolerance, rms_tolerance_mm=rms_tolerance, max_cycles=max_cycles,
-                                    gain=gain, springback=not no_springback, margin_mm=margin_mm)
-            plate = _new_plate(history, design, flat, press_path, thickness, plc_url, scanner_spec, settings, material,
-                               plate_id, work_dir, seed, units, reporter)
-        audit = AuditLog(audit_path or history.path.parent / "audit.sqlite")
-        try:
-            result = run_plate(history, plate, plc_url=plc_url, scanner_spec=scanner_spec, time_scale=time_scale,
-                               audit=audit, reporter=reporter, scan_timeout_s=scan_timeout, yes=yes)
-        finally:
-            reporter.finish()
-            audit.close()
+            plate_id = _new_plate_id(history, design, flat, press_path, thickness, plate_id)
+        # one loop per plate: the lease is held from here to the end
+        with history.lease(plate_id) as taken_over:
+            if taken_over:
+                reporter.info(f"plate {plate_id}: took over the stale lease of {taken_over}")
+            draft = None if resume else _draft_plate(plate_id, design, flat, press_path, thickness, plc_url,
+                                                     scanner_spec, settings, material, units, reporter)
+            setup = {"plc": plc_url, "scanner": scanner_spec, "seed": seed, "units": units, "material": material}
+            audit = AuditLog(audit_path or history.path.parent / "audit.sqlite")
+            try:
+                result = run_plate(history, plate_id, draft, plc_url=plc_url, scanner_spec=scanner_spec,
+                                   time_scale=time_scale, audit=audit, reporter=reporter,
+                                   scan_timeout_s=scan_timeout, yes=yes,
+                                   record=lambda h, d: _record(h, d, settings, work_dir, setup))
+            finally:
+                reporter.finish()
+                audit.close()
     if as_json:
         print_json({"plate_id": result.plate_id, "status": result.status, "resumed_state": result.resumed_state,
                     "cycles": [c.to_dict(grids=False) for c in result.cycles]})
         return
-    console.print(cycle_table(result.cycles, f"plate {result.plate_id}: {result.status}"))
+    console.print(cycle_table(result.cycles, f"plate {esc(result.plate_id)}: {result.status}"))
 
 
 COMMANDS = [loop]

@@ -6,20 +6,28 @@ import hashlib
 from pathlib import Path
 
 import click
-from rich.table import Table
 
-from mppf.cli._common import (PICTURE_SUFFIXES, RichReporter, check_output_path, console, print_json,
-                              scale_option, units_option)
+from mppf.cli._common import (PICTURE_SUFFIXES, RichReporter, check_design_size, check_output_path, console, esc,
+                              print_json, read_input, scale_option, units_option)
 from mppf.core.errors import InputError
-from mppf.geometry.read import read_points
 from mppf.forming.material import MATERIALS, Material
-from mppf.planning.job import save_job
-from mppf.planning.press import example_press_path, load_press
+
+
+THICKNESS_MAX_MM = 200.0
+"""Thickest plate planned (mm): beyond, the value is a typing error or in another unit."""
 
 
 def _material(name, youngs, poisson, yield_mpa) -> Material | None:
+    from mppf.core.validate import check_number, check_positive
+
     if name is None and youngs is None and poisson is None and yield_mpa is None:
         return None
+    for option, value in (("--youngs", youngs), ("--yield", yield_mpa)):
+        if value is not None:
+            check_positive(option, value, unit="MPa", hint=f"give {option} in MPa, e.g. 206000 (Young's modulus "
+                                                          "of steel) or 235 (its yield stress)")
+    if poisson is not None:
+        check_number("--poisson", poisson, low=0.0, high=0.5, high_open=True, hint="give e.g. 0.3 (steel)")
     base = MATERIALS[name or "steel"]
     return Material(
         youngs_modulus_mpa=base.youngs_modulus_mpa if youngs is None else youngs,
@@ -33,8 +41,10 @@ def _fmt(value, digits=1):
 
 
 def _print_summary(summary: dict, output) -> None:
+    from rich.table import Table
+
     reg, pose = summary["registration"], summary["pose"]
-    table = Table(title=f"plan: {summary['press']} ({summary['matrix'][0]} x {summary['matrix'][1]}), "
+    table = Table(title=f"plan: {esc(summary['press'])} ({summary['matrix'][0]} x {summary['matrix'][1]}), "
                         f"plate {summary['thickness_mm']:g} mm")
     table.add_column("item")
     table.add_column("value", justify="right")
@@ -82,7 +92,7 @@ def _print_summary(summary: dict, output) -> None:
         corners.add_row(name, f"{x:.1f}", f"{y:.1f}")
     console.print(corners)
     if output:
-        console.print(f"job written to {output}")
+        console.print(f"job written to {output}", markup=False, soft_wrap=True)
 
 
 @click.command("plan")
@@ -118,8 +128,13 @@ def plan_command(design, flat, press_path, thickness_mm, steps, springback, marg
     DESIGN (a model-scale CAD file); FLAT, written by mppf, is at full scale. Nothing is
     written when the plan fails validation.
     """
+    from mppf.planning.job import save_job
     from mppf.planning.plan import plan_job, plan_summary  # numpy/scipy work: imported when planning
+    from mppf.planning.press import example_press_path, load_press
 
+    if thickness_mm > THICKNESS_MAX_MM:  # 0, negative and NaN: the planner's own message
+        raise InputError(f"--thickness {thickness_mm:g} mm is not a plate thickness (at most {THICKNESS_MAX_MM:g} mm)",
+                         hint="give the plate thickness in mm, e.g. 20")
     if output:
         check_output_path(output, "the job file")
     if plot:
@@ -130,8 +145,10 @@ def plan_command(design, flat, press_path, thickness_mm, steps, springback, marg
     if springback and mat is None:
         raise InputError("--springback needs the plate material",
                          hint="add --material steel|ah36 or --youngs/--poisson/--yield")
-    design_cloud = read_points(design, units=units, scale=scale)
-    flat_cloud = read_points(flat, units=units)
+    design_cloud = read_input(design, units=units, scale=scale)
+    flat_cloud = read_input(flat, units=units)
+    for path, cloud in ((design, design_cloud), (flat, flat_cloud)):
+        check_design_size(path, cloud.n_points)
     inputs = {
         "design": {"path": str(design_cloud.path), "sha256": design_cloud.sha256},
         "flat": {"path": str(flat_cloud.path), "sha256": flat_cloud.sha256},

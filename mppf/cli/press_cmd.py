@@ -17,7 +17,7 @@ import click
 
 from mppf.cli.plc_ops import connect_session, open_audit, stop_plc
 from mppf.cli.press_policy import confirm_motion, press_description, press_link, sigterm_as_ctrl_c, time_scale_option
-from mppf.core.errors import InputError
+from mppf.core.errors import ConfigError, InputError, LimitError
 
 plc_option = click.option(
     "--plc",
@@ -40,12 +40,20 @@ def _need_plc(plc_url: str | None) -> str:
     return plc_url
 
 
+def parse_plc_url(plc_url: str):
+    """The parsed URL (InputError for a malformed one), without importing the driver's Modbus code."""
+    from mppf.drivers.url import parse_plc_url as parse
+
+    return parse(plc_url)
+
+
 def _select_steps(job, step: int | None) -> list[int]:
     n = len(job.steps)
     if step is None:
         return list(range(1, n + 1))
     if not 1 <= step <= n:
-        raise InputError(f"--step {step} does not exist: the job has steps 1..{n}")
+        raise InputError(f"--step {step} does not exist: the job has steps 1..{n}",
+                         hint=f"give --step from 1 to {n}, or leave it out to press every step")
     return [step]
 
 
@@ -69,6 +77,8 @@ def _result_table(step: int, result, tolerance_mm: float):
 @click.argument("job_path", metavar="JOB.json", type=click.Path(dir_okay=False, path_type=Path))
 @plc_option
 @click.option("--step", type=int, default=None, help="Press only step K (1-based). Default: every step in order.")
+@click.option("--section", type=int, default=None,
+              help="A plate in sections: press only section N (1-based). Default: every section in order.")
 @click.option("--yes", is_flag=True, help="Do not ask for confirmation before moving the press at --plc.")
 @click.option("--press", "press_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Press description the job must have been planned for (every key is compared).")
@@ -78,7 +88,7 @@ def _result_table(step: int, result, tolerance_mm: float):
 @click.option("--word-order", type=click.Choice(["auto", "ABCD", "CDAB"]), default="auto", show_default=True,
               help="Expected word order of 32-bit registers.")
 @time_scale_option
-def press_command(job_path, plc_url, step, yes, press_path, audit_path, timeout_s, word_order, time_scale):
+def press_command(job_path, plc_url, step, section, yes, press_path, audit_path, timeout_s, word_order, time_scale):
     """Send a planned job to the press and follow it, step by step.
 
     Without --plc this is a DRY RUN against the simulated PLC in this process (nothing
@@ -92,34 +102,68 @@ def press_command(job_path, plc_url, step, yes, press_path, audit_path, timeout_
     failure, 4 press fault or refusal (also: no confirmation), 130 cancelled by Ctrl-C or
     SIGTERM (STOP was sent).
     """
-    from mppf.cli._common import RichReporter, console
+    from mppf.cli._common import RichReporter, check_db_path, console
+    from mppf.cli._placement import placement_lines
     from mppf.planning.press import load_press
-    from mppf.planning.validate import load_checked_job
+    from mppf.planning.validate import load_checked_job, validate_job
 
     if timeout_s is not None and not math.isfinite(timeout_s):
         raise InputError(f"--timeout must be a finite number of seconds, got {timeout_s}",
                          hint="leave it out for the default (from the longest move)")
     job = load_checked_job(job_path)  # numbers where numbers belong, before anything else
-    steps = _select_steps(job, step)
+    if section is not None and job.sections is None:
+        raise InputError(f"--section {section}: the job {job_path.name} is a single piece (no sections)",
+                         hint="leave --section out for a single-piece job")
+    steps = _select_steps(job, step) if job.sections is None else []
     press_file = load_press(press_path) if press_path else None
+    if plc_url:
+        parse_plc_url(plc_url)
+    if audit_path is not None:
+        check_db_path(audit_path, "the audit log", "--audit")
+    # a job for another press than the press file: refused before any PLC is connected (or simulated);
+    # the whole validation runs against the PLC below, recorded in the audit log
+    if press_file is not None and press_file != job.press:
+        try:
+            validate_job(job, press_file=press_file, press_source=str(press_path))
+        except (ConfigError, LimitError) as exc:  # name the job file
+            raise type(exc)(f"job {job_path}: {exc.message}", hint=exc.hint) from None
     dry_run = plc_url is None
     with sigterm_as_ctrl_c(), press_link(job.press, plc_url, audit=open_audit(audit_path), time_scale=time_scale,
                                          reporter=RichReporter(), word_order=word_order,
                                          job_sha256=job.sha256()) as plc:
         # the one job validator, against this PLC and the press file, before any write
-        plc.check_job(job, press_file, str(press_path))
+        try:
+            plc.check_job(job, press_file, str(press_path))
+        except (ConfigError, LimitError) as exc:  # name the job file (the refusal is in the audit log)
+            raise type(exc)(f"job {job_path}: {exc.message}", hint=exc.hint) from None
+        if job.sections is not None:  # a plate larger than the bed: section by section (docs/sections.md)
+            from mppf.cli._sections import press_sections
+
+            n = press_sections(plc, job, job_name=job_path.name, dry_run=dry_run, yes=yes, timeout_s=timeout_s,
+                               show_result=lambda what, r: console.print(
+                                   _result_table(what, r, job.press.position_tolerance_mm)),
+                               echo=console.print, make_reporter=lambda: RichReporter(enabled=True),
+                               section=section, step=step, placement_lines=placement_lines)
+            console.print(f"{'dry run: ' if dry_run else ''}{n} step(s) pressed, all punches in position "
+                          f"within {job.press.position_tolerance_mm} mm")
+            return
         setpoints = {k: job.steps[k - 1].setpoints_mm(job.press) for k in steps}
         for k in steps:
             plc.check_setpoints(*setpoints[k], active=job.steps[k - 1].active)
-        # the press at --plc: the operator confirms
+        # where to lay the plate; at --plc the operator confirms it lies there and the press is clear
+        for line in placement_lines(job):
+            console.print(line, markup=False, highlight=False)
         if not dry_run:
             confirm_motion(plc, f"job {job_path.name}, step(s) {', '.join(map(str, steps))}, on "
-                                f"{press_description(plc)}", yes)
+                                f"{press_description(plc)}, with the plate laid as printed above", yes)
         # press, step by step
         for k in steps:
             reporter = RichReporter(enabled=True)
             reporter.info(f"step {k} of {len(job.steps)}")
-            result = plc.run_step(*setpoints[k], reporter=reporter, timeout_s=timeout_s)
+            try:
+                result = plc.run_step(*setpoints[k], reporter=reporter, timeout_s=timeout_s)
+            finally:
+                reporter.close()
             console.print(_result_table(k, result, job.press.position_tolerance_mm))
         console.print(f"{'dry run: ' if dry_run else ''}{len(steps)} step(s) pressed, all punches in position "
                       f"within {job.press.position_tolerance_mm} mm")

@@ -80,7 +80,7 @@ def press_link(press, plc_url: str | None, *, audit=None, time_scale: float = DR
             from mppf.sim.plc.host import run_simulated_plc
 
             sim = stack.enter_context(run_simulated_plc(press, time_scale=time_scale, watchdog_s=DRY_RUN_WATCHDOG_S))
-            reporter.info(f"[bold yellow]DRY RUN[/] against the simulated PLC at {sim.url} in this process "
+            reporter.info(f"DRY RUN against the simulated PLC at {sim.url} in this process "
                           f"(motion {time_scale:g}x faster than the real press); no press moves")
             plc_url, options = sim.url, {"timeout_s": DRY_RUN_REPLY_TIMEOUT_S, **options}
         yield stack.enter_context(connect(plc_url, press, audit=audit, **options))

@@ -150,7 +150,9 @@ def sim_command(
     for name, value, low in (("--time-scale", time_scale, None), ("--watchdog", watchdog, 0.0),
                              ("--status-every", status_every, None), ("--duration", duration, 0.0)):
         if value is not None and not (math.isfinite(value) and (value > 0 if low is None else value >= low)):
-            raise InputError(f"{name} must be a {'positive number' if low is None else 'number >= 0'}, got {value}")
+            raise InputError(f"{name} must be a {'positive number' if low is None else 'number >= 0'}, got {value}",
+                             hint=f"give {name} {'above 0' if low is None else 'of 0 or more'}; "
+                                  "see 'mppf sim --help'")
     if not (math.isfinite(scan_ms) and 0 < scan_ms <= 200):
         raise InputError(f"--scan-ms must be above 0 and at most 200 ms, got {scan_ms}",
                          hint="a PLC scans every 1-200 ms; 10 ms is typical")
@@ -164,7 +166,7 @@ def sim_command(
     )
 
     def echo(text: str) -> None:
-        console.print(text, soft_wrap=True)
+        console.print(text, soft_wrap=True, markup=False)
 
     try:
         echo(f"simulated PLC listening on {sim.url}")

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import click
 
-from mppf.cli._common import (PICTURE_SUFFIXES, check_output_path, console, print_json, scale_option,
-                              units_option)
+from mppf.cli._common import (PICTURE_SUFFIXES, RichReporter, check_design_size, check_output_path, console, esc,
+                              print_json, read_input, scale_option, units_option)
 from mppf.geometry.unfold_report import STRAIN_LIMIT_PCT
 
 DXF_SUFFIX = ".dxf"
@@ -49,13 +49,21 @@ def unfold_command(design: str, outputs: tuple[str, ...], units: str, scale: flo
     (RMS, max), the area and outline length changes and a warning when the strain exceeds
     --strain-limit.
     """
-    from mppf.geometry.read import read_points
     from mppf.geometry.unfold import unfold
 
+    from mppf.core.validate import check_number, check_positive
+
+    check_positive("--strain-limit", strain_limit_pct, unit="%", hint="give the warning limit in percent, e.g. 1.5")
+    if margin_mm is not None:
+        check_number("--margin", margin_mm, low=0.0, unit="mm", hint="give e.g. --margin 100 (0: the net outline)")
     paths = _writable(outputs, plot_path)
     job = _job(job_path) if job_path else None
-    cloud = read_points(design, units=units, scale=scale)
+    cloud = read_input(design, units=units, scale=scale)
+    check_design_size(design, cloud.n_points)
+    reporter = RichReporter(enabled=not as_json)
+    reporter.info(f"unfolding {cloud.n_points} points of {design}")
     result = unfold(cloud.points, cloud.faces, strain_limit_pct=strain_limit_pct)
+    reporter.close()
     drawing = _drawing(result, design, cloud, margin_mm, job) if any(_is_dxf(p) for p in paths) else None
     if plot_path is not None:  # the picture first: the flat files exist only when everything succeeded
         from mppf.report.strain import plot_strain
@@ -111,9 +119,16 @@ def _write_flat(out: Path, result, design: str, drawing) -> None:
 
 
 def _job(job_path: str):
-    from mppf.planning.job import load_job
+    """The job file, through the one job validator (a job the press would refuse marks no punches)."""
+    from mppf.core.errors import ConfigError, LimitError
+    from mppf.planning.validate import load_checked_job, validate_job
 
-    return load_job(job_path)
+    job = load_checked_job(job_path)
+    try:
+        validate_job(job)
+    except (ConfigError, LimitError) as exc:
+        raise type(exc)(f"job {job_path}: {exc.message}", hint=exc.hint) from None
+    return job
 
 
 def _drawing(result, design: str, cloud, margin_mm: float | None, job):
@@ -167,7 +182,7 @@ def _drawing_report(drawing) -> dict:
 def _print_report(report: dict) -> None:
     from rich.table import Table
 
-    table = Table(title=f"unfolding of {report['design']}", show_header=False, title_justify="left")
+    table = Table(title=f"unfolding of {esc(report['design'])}", show_header=False, title_justify="left")
     table.add_column(style="bold")
     table.add_column()
     width, height = report["flat_size_mm"]
@@ -181,7 +196,7 @@ def _print_report(report: dict) -> None:
     table.add_row("area change", f"{report['area_change_pct']:+.4f} %")
     table.add_row("outline length change", f"{report['outline_length_change_pct']:+.4f} %")
     table.add_row("developable", "yes (max strain below 0.1 %)" if report["developable"] else "no")
-    table.add_row("flat file" if len(report["outputs"]) == 1 else "flat files", ", ".join(report["outputs"]))
+    table.add_row("flat file" if len(report["outputs"]) == 1 else "flat files", esc(", ".join(report["outputs"])))
     if "dxf" in report:
         dxf = report["dxf"]
         x, y = dxf["reference_corner_mm"]
@@ -190,10 +205,10 @@ def _print_report(report: dict) -> None:
                                         f"(margin {dxf['margin_mm']:g} mm), reference mark at x {x:.0f}, "
                                         f"y {y:.0f} mm{punches}")
     if report["plot"]:
-        table.add_row("strain picture", report["plot"])
+        table.add_row("strain picture", esc(report["plot"]))
     console.print(table)
     for warning in report["warnings"]:
-        console.print(f"[bold yellow]warning:[/] {warning}")
+        console.print(f"[bold yellow]warning:[/] {esc(warning)}", soft_wrap=True)
 
 
 COMMANDS = [unfold_command]

@@ -57,3 +57,65 @@ def open_sqlite(path, what: str, schema: str, version: int, *, hint: str, thread
     except (OSError, sqlite3.Error) as exc:
         raise InputError(f"cannot open {what} {path}: {exc}", hint=hint) from None
     return db
+
+
+class Transaction:
+    """``BEGIN IMMEDIATE ... COMMIT`` on an autocommit connection (ROLLBACK on error); nests.
+
+    Inner blocks join the outer transaction. A failed write (disk full, read-only file, a
+    database locked past :data:`BUSY_TIMEOUT_S`) is rolled back, so the file holds what it
+    held before the block, and reported as an :class:`~mppf.core.errors.InputError` (exit 2)
+    naming the file, instead of an internal error.
+
+    Parameters
+    ----------
+    db : sqlite3.Connection
+        Opened by :func:`open_sqlite`.
+    what : str
+        The file, for messages ("the plate history /data/history.sqlite").
+    hint : str
+        What to do when a write fails.
+    """
+
+    def __init__(self, db: sqlite3.Connection, what: str = "the database", hint: str = ""):
+        self._db = db
+        self._what = what
+        self._hint = hint
+        self._outer = False
+
+    def __enter__(self):
+        self._outer = not self._db.in_transaction
+        if self._outer:
+            try:
+                self._db.execute("BEGIN IMMEDIATE")
+            except sqlite3.OperationalError as exc:
+                raise self._error(exc) from None
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        if not self._outer:
+            return False
+        failed_commit = None
+        if exc_type is None:
+            try:
+                self._db.execute("COMMIT")
+                return False
+            except sqlite3.Error as error:
+                exc_type, exc, failed_commit = type(error), error, error
+        if self._db.in_transaction:
+            try:
+                self._db.execute("ROLLBACK")
+            except sqlite3.Error:
+                pass
+        if issubclass(exc_type, sqlite3.OperationalError):
+            raise self._error(exc) from None
+        if failed_commit is not None:
+            raise failed_commit
+        return False
+
+    def _error(self, exc: Exception) -> InputError:
+        text = str(exc)
+        cause = ("the disk is full" if "full" in text else "the file is read-only" if "readonly" in text
+                 else "another program holds it locked" if "locked" in text else text)
+        return InputError(f"cannot write {self._what}: {cause} ({text}); nothing of this step was recorded",
+                          hint=self._hint or "free disk space or make the file writable, then run again")

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import re
 
 from mppf.core.errors import InputError
 
@@ -90,3 +91,36 @@ def check_number(
 def check_positive(name: str, value, *, unit: str = "", hint: str | None = None, error=InputError) -> float:
     """``value`` as a finite float > 0 (see :func:`check_number`)."""
     return check_number(name, value, low=0.0, low_open=True, unit=unit, hint=hint, error=error)
+
+
+SAFE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
+"""A name that may become a file or folder name: letters, digits, ``. _ -``, at most 64, no leading dot."""
+
+
+def check_name(name: str, value, *, hint: str = "", error=InputError) -> str:
+    """``value`` if it is a safe file or folder name (:data:`SAFE_NAME`, no ``..``), else a clear error.
+
+    Parameters
+    ----------
+    name : str
+        What the value is ("plate id").
+    value : object
+    hint : str
+        An example, added to the standard hint.
+
+    Raises
+    ------
+    InputError (or ``error``)
+        Another character (a path separator, markup, a space...), too long, or empty.
+    """
+    if not isinstance(value, str) or not SAFE_NAME.fullmatch(value) or ".." in value:
+        raise error(f"{name} {value!r} is not allowed: it names a folder, so it may hold only letters, digits, "
+                    "'.', '_' and '-'", hint=f"give at most 64 of those, no '..', starting with a letter or digit"
+                    + (f" ({hint})" if hint else ""))
+    return value
+
+
+def safe_name(text: str, fallback: str = "plate") -> str:
+    """``text`` made safe for :func:`check_name`: other characters become ``_`` (``P3[rev2]`` -> ``P3_rev2_``)."""
+    name = re.sub(r"[^A-Za-z0-9._-]", "_", str(text)).replace("..", "_").lstrip("._-")[:64]
+    return name or fallback

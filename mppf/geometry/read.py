@@ -37,6 +37,8 @@ from mppf.core.errors import FileFormatError, InputError
 from mppf.core.validate import check_positive
 from mppf.geometry.exchange import CHORD_TOLERANCE_MM, EXCHANGE_SUFFIXES
 from mppf.geometry.files import check_fits
+from mppf.geometry.mesh_checks import check_mesh_bytes
+from mppf.geometry.text_points import parse_text
 
 TEXT_SUFFIXES = (".csv", ".txt", ".xyz")
 PLY_SUFFIXES = (".ply",)
@@ -65,12 +67,15 @@ class PointCloud:
         The file read, or None for clouds built in memory.
     sha256 : str
         Hex SHA-256 of the file's bytes ("" for clouds built in memory).
+    warnings : tuple of str
+        What looks wrong but is read (a plate a few millimetres across: metres read as mm?).
     """
 
     points: np.ndarray
     faces: np.ndarray | None = None
     path: Path | None = None
     sha256: str = ""
+    warnings: tuple = ()
 
     @property
     def n_points(self) -> int:
@@ -142,10 +147,11 @@ def read_points(path, units: str = "mm", scale: float = 1.0, *,
         raise FileFormatError(path, "file is empty", hint="the file holds no points; check the export")
 
     if suffix in TEXT_SUFFIXES:
-        points, faces = _parse_text(path, data), None
+        points, faces = parse_text(path, data), None
     elif suffix in PLY_SUFFIXES:
         points, faces = _read_ply(path, data)
     else:
+        check_mesh_bytes(path, suffix, data)
         points, faces = _read_mesh(path, suffix)
 
     if points.shape[0] == 0:
@@ -158,133 +164,29 @@ def read_points(path, units: str = "mm", scale: float = 1.0, *,
             hint="remove or repair invalid points in the source program",
         )
     points = points * scale if scale != 1.0 else points
-    return PointCloud(points=points, faces=faces, path=path, sha256=hashlib.sha256(data).hexdigest())
+    return PointCloud(points=points, faces=faces, path=path, sha256=hashlib.sha256(data).hexdigest(),
+                      warnings=size_warnings(path, points, units))
 
 
-# --------------------------------------------------------------------- text files
+PLATE_MIN_MM = 50.0
+PLATE_MAX_MM = 100_000.0
+"""A plate smaller or larger across than these (mm) is most likely in another unit than the one read."""
+PLATE_MIN_POINTS = 50
+"""Fewer points are a sketch or a test, not a plate's design or scan: their size is not judged."""
 
 
-def _decode_text(path: Path, data: bytes) -> str:
-    """Decode a text point file, refusing binary content."""
-    if b"\x00" in data:
-        raise FileFormatError(
-            path, "is binary, not a text point file (it contains NUL bytes)",
-            hint=f"is it really a {path.suffix} file? a binary PLY/STL needs that suffix",
-        )
-    try:
-        return data.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        text = data.decode("latin-1")
-    control = sum(1 for ch in text if ord(ch) < 32 and ch not in "\t\r\n\f" or 0x7F <= ord(ch) < 0xA0)
-    if control > 0.01 * len(text):
-        raise FileFormatError(
-            path, "is binary, not a text point file (it contains control bytes)",
-            hint=f"is it really a {path.suffix} file?",
-        )
-    return text
-
-
-def _split_fields(line: str) -> list[str]:
-    if "," in line:
-        return [field.strip() for field in line.split(",")]
-    return line.split()
-
-
-def _is_number(field: str) -> bool:
-    try:
-        float(field)
-    except ValueError:
-        return False
-    return True
-
-
-def _parse_text(path: Path, data: bytes) -> np.ndarray:
-    """Parse a CSV/TXT/XYZ point file into an (n, 3) array (line-exact errors)."""
-    lines = _decode_text(path, data).splitlines()
-    # Header lines (all fields non-numeric) may precede the first data line.
-    first = None
-    for index, raw in enumerate(lines):
-        content = raw.split("#", 1)[0].strip()
-        if not content:
-            continue
-        fields = _split_fields(content)
-        if any(_is_number(field) for field in fields):
-            first = index
-            break
-    if first is None:
-        raise FileFormatError(
-            path, "has no numeric data lines (only comments or header lines)",
-            hint="a point file needs lines 'x,y,z' or 'x y z' of numbers",
-        )
-    values = _fast_parse(lines[first:])
-    if values is None:
-        values = _slow_parse(path, lines, first)
-    if values.shape[1] < 3:
-        # consistent but too few columns
-        raise FileFormatError(
-            path, f"has {values.shape[1]} column(s), expected 3 (x, y, z)", line=first + 1,
-            hint="each data line needs x, y and z",
-        )
-    points = np.ascontiguousarray(values[:, :3], dtype=float)
-    bad = ~np.all(np.isfinite(points), axis=1)
-    if bad.any():
-        # locate the line of the first bad point
-        _slow_parse(path, lines, first)
-    return points
-
-
-def _fast_parse(lines: list[str]) -> np.ndarray | None:
-    """numpy's C parser on the data block; None when anything is irregular."""
-    content = next(line for line in lines if line.split("#", 1)[0].strip())
-    delimiter = "," if "," in content else None
-    try:
-        values = np.loadtxt(lines, delimiter=delimiter, comments="#", ndmin=2, dtype=float)
-    except ValueError:
-        return None
-    if not np.all(np.isfinite(values)):
-        return None
-    return values
-
-
-def _slow_parse(path: Path, lines: list[str], first: int) -> np.ndarray:
-    """Line by line parser: the reference semantics, with the line of every error."""
-    rows: list[list[float]] = []
-    n_columns = None
-    for index in range(first, len(lines)):
-        lineno = index + 1
-        content = lines[index].split("#", 1)[0].strip()
-        if not content:
-            continue
-        fields = _split_fields(content)
-        if n_columns is None:
-            n_columns = len(fields)
-            if n_columns < 3:
-                raise FileFormatError(
-                    path, f"has {n_columns} column(s) {content!r}, expected 3 (x, y, z)", line=lineno,
-                    hint="each data line needs x, y and z",
-                )
-        elif len(fields) != n_columns:
-            raise FileFormatError(
-                path, f"has {len(fields)} column(s), expected {n_columns} like the first data line: "
-                f"{content!r}", line=lineno, hint="every data line needs the same columns",
-            )
-        row = []
-        for column, field in enumerate(fields, start=1):
-            try:
-                value = float(field)
-            except ValueError:
-                raise FileFormatError(
-                    path, f"non-numeric field {field!r} in column {column}", line=lineno,
-                    hint="fix or delete the line; header lines are only allowed before the data",
-                ) from None
-            if not math.isfinite(value):
-                raise FileFormatError(
-                    path, f"{field!r} (NaN or infinite) in column {column}", line=lineno,
-                    hint="remove or repair invalid points in the source program",
-                )
-            row.append(value)
-        rows.append(row)
-    return np.asarray(rows, dtype=float)
+def size_warnings(path, points: np.ndarray, units: str) -> tuple[str, ...]:
+    """Warnings for a plate (:data:`PLATE_MIN_POINTS` or more) of implausible size: metres read as mm, or reverse."""
+    if points.shape[0] < PLATE_MIN_POINTS:
+        return ()
+    extent = float(np.ptp(points, axis=0).max())
+    if 0.0 < extent < PLATE_MIN_MM:
+        hint = "is the file in metres? then give --units m" if units == "mm" else "check the file's unit"
+        return (f"{path}: the plate is only {extent:.3g} mm across; {hint}",)
+    if extent > PLATE_MAX_MM:
+        hint = "was --units m given for a file in mm?" if units == "m" else "is it in micrometres, or a whole hull?"
+        return (f"{path}: the plate is {extent / 1000:.3g} m across; {hint}",)
+    return ()
 
 
 # --------------------------------------------------------------------- PLY

@@ -28,13 +28,24 @@ import time
 from datetime import datetime, timezone
 from pathlib import Path
 
-from mppf.core.db import open_sqlite
+from mppf.core.db import Transaction, open_sqlite
 from mppf.core.errors import InputError
 from mppf.core.paths import data_dir
+from mppf.core.validate import check_name
+from mppf.loop import lease as leases
 from mppf.loop.records import (CYCLE_COLUMNS, SCHEMA, SCHEMA_VERSION, CycleRecord, Event, PlateRecord,
                                cycle_from_row, dumps, plate_from_row, steps_to_json)
 from mppf.loop.states import CycleState, Decision, PlateStatus
 from mppf.planning.job import StepStrokes, grid_to_json
+
+_WRITE_HINT = ("free disk space or make the history writable, then continue with 'mppf loop --resume'; "
+               "the plate stays as it was before this step")
+
+
+def check_plate_id(plate_id) -> str:
+    """``plate_id`` if safe as the name of the plate's folder (:func:`mppf.core.validate.check_name`)."""
+    return check_name("plate id", plate_id, hint="e.g. B12-P3")
+
 
 def default_history_path() -> Path:
     """``$MPPF_HOME/history.sqlite``, else ``~/.local/share/mppf/history.sqlite``."""
@@ -61,24 +72,13 @@ class History:
 
     def __init__(self, path=None):
         self.path = Path(path) if path is not None else default_history_path()
-        self._db = open_sqlite(self.path, "the plate history", SCHEMA, SCHEMA_VERSION,
+        self._db = open_sqlite(self.path, "the plate history", SCHEMA + leases.LEASE_SCHEMA, SCHEMA_VERSION,
                                hint="give a writable SQLite file with --history or set MPPF_HOME")
 
     # -- plates -------------------------------------------------------------------------
 
-    def create_plate(
-        self,
-        plate_id: str,
-        *,
-        design_path,
-        design_sha256: str,
-        flat_path,
-        flat_sha256: str,
-        thickness_mm: float,
-        press: dict,
-        settings: dict,
-        note: str = "",
-    ) -> PlateRecord:
+    def create_plate(self, plate_id: str, *, design_path, design_sha256: str, flat_path, flat_sha256: str,
+                     thickness_mm: float, press: dict, settings: dict, note: str = "") -> PlateRecord:
         """Add a new plate (status "active").
 
         Raises
@@ -86,10 +86,11 @@ class History:
         InputError
             A plate with this id is already in the history.
         """
-        self.check_new_plate(plate_id)
         now = _now_utc()
         try:
             with self._transaction():
+                self.check_new_plate(plate_id)
+                self._db.execute("DELETE FROM plates WHERE plate_id = ?", (plate_id,))  # one without cycles
                 self._db.execute(
                     "INSERT INTO plates VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                     (plate_id, now, now, PlateStatus.ACTIVE, str(design_path), design_sha256, str(flat_path),
@@ -102,11 +103,15 @@ class History:
         return self.plate(plate_id)
 
     def check_new_plate(self, plate_id: str) -> None:
-        """Raise InputError when ``plate_id`` is empty or already in the history."""
-        if not plate_id or not isinstance(plate_id, str):
-            raise InputError(f"a plate id must be a non-empty text, got {plate_id!r}")
-        row = self._db.execute("SELECT status FROM plates WHERE plate_id = ?", (plate_id,)).fetchone()
-        if row is not None:
+        """Raise InputError when ``plate_id`` is not a safe id or already in the history.
+
+        A plate recorded without any cycle (by an mppf older than the one-transaction
+        recording, killed in between) does not count: it is replaced.
+        """
+        check_plate_id(plate_id)
+        row = self._db.execute("SELECT status, (SELECT COUNT(*) FROM cycles WHERE plate_id = ?) FROM plates "
+                               "WHERE plate_id = ?", (plate_id, plate_id)).fetchone()
+        if row is not None and row[1] > 0:
             raise InputError(
                 f"plate {plate_id!r} is already in the history {self.path} (status {row[0]})",
                 hint="choose another --plate-id, or continue it with 'mppf loop --resume --plate-id "
@@ -150,18 +155,9 @@ class History:
 
     # -- cycles -------------------------------------------------------------------------
 
-    def add_cycle(
-        self,
-        plate_id: str,
-        cycle: int,
-        *,
-        job_path,
-        job_sha256: str,
-        steps: list[StepStrokes],
-        gain: float | None = None,
-        correction: dict | None = None,
-        previous_decision: str | None = None,
-    ) -> CycleRecord:
+    def add_cycle(self, plate_id: str, cycle: int, *, job_path, job_sha256: str, steps: list[StepStrokes],
+                  gain: float | None = None, correction: dict | None = None,
+                  previous_decision: str | None = None) -> CycleRecord:
         """Record a new cycle in state "planned".
 
         When ``previous_decision`` is given, the previous cycle (``cycle - 1``, which
@@ -249,9 +245,14 @@ class History:
         """Move the cycle from "pressing" to "pressed".
 
         ``interrupted`` marks a cycle found in "pressing" after a crash: it is not pressed
-        again but measured as it is.
+        again but measured as it is. It is recorded only when a step was really cut short
+        (a step started and not recorded done, or steps left): a crash after the last step
+        was recorded done leaves a cycle that is simply pressed.
         """
         with self._transaction():
+            record = self.cycle(plate_id, cycle)
+            interrupted = interrupted and (record.step_started > record.steps_done
+                                           or record.steps_done < len(record.steps))
             self._move(plate_id, cycle, (CycleState.PRESSING,), CycleState.PRESSED, interrupted=int(interrupted),
                        detail=detail)
 
@@ -275,18 +276,8 @@ class History:
                        scan_path=None, scan_sha256=None,
                        rejected_json=dumps(rejected), detail=f"scan {scan_path} rejected: {reason}")
 
-    def mark_compared(
-        self,
-        plate_id: str,
-        cycle: int,
-        *,
-        rms_mm: float,
-        max_abs_mm: float,
-        within_pct: float,
-        punch_deviation_mm,
-        comparison: dict,
-        decision: Decision,
-    ) -> None:
+    def mark_compared(self, plate_id: str, cycle: int, *, rms_mm: float, max_abs_mm: float, within_pct: float,
+                      punch_deviation_mm, comparison: dict, decision: Decision) -> None:
         """Move the cycle from "scanned" to "compared" with its deviations and decision."""
         decision = Decision(decision)
         with self._transaction():
@@ -331,6 +322,27 @@ class History:
             rows = self._db.execute("SELECT * FROM events WHERE plate_id = ? ORDER BY id", (plate_id,)).fetchall()
         return [Event(*r) for r in rows]
 
+    # -- one loop per plate -------------------------------------------------------------
+
+    def lease(self, plate_id: str):
+        """Hold the plate's lease during a ``with`` block (:func:`mppf.loop.lease.hold`).
+
+        Yields why a stale lease was taken over (None: it was free); InputError naming the
+        owner when another live process holds it.
+        """
+        return leases.hold(self._db, self._transaction, self._connect, plate_id)
+
+    def current_lease(self, plate_id: str):
+        """Who holds the plate now (:class:`mppf.loop.lease.Lease`), or None."""
+        return leases.current_lease(self._db, plate_id)
+
+    def transaction(self):
+        """One transaction around several changes (e.g. a plate and its first cycle); nests."""
+        return self._transaction()
+
+    def _connect(self) -> sqlite3.Connection:
+        return open_sqlite(self.path, "the plate history", SCHEMA + leases.LEASE_SCHEMA, SCHEMA_VERSION, hint="")
+
     def close(self) -> None:
         """Close the database."""
         self._db.close()
@@ -344,7 +356,7 @@ class History:
     # -- internals ----------------------------------------------------------------------
 
     def _transaction(self):
-        return _Transaction(self._db)
+        return Transaction(self._db, f"the plate history {self.path}", hint=_WRITE_HINT)
 
     def _event(self, plate_id, cycle, state, detail=""):
         self._db.execute(
@@ -373,26 +385,3 @@ class History:
             hint="another 'mppf loop' may be running this plate; check 'mppf history --plate-id "
             f"{plate_id}'",
         )
-
-
-class _Transaction:
-    """BEGIN IMMEDIATE ... COMMIT (ROLLBACK on error) on an autocommit connection."""
-
-    def __init__(self, db: sqlite3.Connection):
-        self._db = db
-        self._outer = False
-
-    def __enter__(self):
-        self._outer = not self._db.in_transaction
-        if self._outer:
-            self._db.execute("BEGIN IMMEDIATE")
-        return self
-
-    def __exit__(self, exc_type, exc, tb):
-        if not self._outer:
-            return False
-        if exc_type is None:
-            self._db.execute("COMMIT")
-        else:
-            self._db.execute("ROLLBACK")
-        return False

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from mppf.core.errors import InputError
 from mppf.core.progress import NULL_REPORTER, Reporter
+from mppf.core.validate import safe_name
 from mppf.forming.material import Material
 from mppf.geometry.read import PointCloud
 from mppf.loop.history import History
@@ -18,8 +19,8 @@ from mppf.planning.press import PressConfig
 
 
 def new_plate_id(design_path) -> str:
-    """A readable, unique-enough plate id: design file stem and the local time."""
-    return f"{Path(design_path).stem}-{datetime.now().strftime('%Y%m%d-%H%M%S')}"
+    """A readable, unique-enough plate id: design file stem (made safe) and the local time."""
+    return f"{safe_name(Path(design_path).stem)[:48]}-{datetime.now().strftime('%Y%m%d-%H%M%S')}"
 
 
 def plan_first_cycle(design: PointCloud, flat: PointCloud, press: PressConfig, thickness_mm: float, *,
@@ -85,14 +86,16 @@ def record_plate(history: History, design: PointCloud, flat: PointCloud, press: 
         raise InputError(f"cannot create the work folder {work_dir}: {exc.strerror}",
                          hint="give a writable folder with --work-dir") from None
     job_path = save_job(job, work_dir / "cycle-01.job.json")
-    history.create_plate(
-        plate_id,
-        design_path=design.path.resolve(), design_sha256=design.sha256,
-        flat_path=flat.path.resolve(), flat_sha256=flat.sha256,
-        thickness_mm=thickness_mm, press=press.to_dict(),
-        settings={"loop": settings.to_dict(), "work_dir": str(work_dir.resolve()), **(setup or {})},
-    )
-    history.add_cycle(plate_id, 1, job_path=job_path.resolve(), job_sha256=job.sha256(), steps=job.steps)
+    # the plate and its first cycle in one transaction: a crash leaves both or neither
+    with history.transaction():
+        history.create_plate(
+            plate_id,
+            design_path=design.path.resolve(), design_sha256=design.sha256,
+            flat_path=flat.path.resolve(), flat_sha256=flat.sha256,
+            thickness_mm=thickness_mm, press=press.to_dict(),
+            settings={"loop": settings.to_dict(), "work_dir": str(work_dir.resolve()), **(setup or {})},
+        )
+        history.add_cycle(plate_id, 1, job_path=job_path.resolve(), job_sha256=job.sha256(), steps=job.steps)
     return history.plate(plate_id)
 
 

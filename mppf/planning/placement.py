@@ -65,6 +65,33 @@ def place_flat(flat_points, press: PressConfig, thickness_mm: float) -> FlatPlac
     LimitError
         The plate does not fit between the outermost punch axes.
     """
+    placement = lay_flat(flat_points, press, thickness_mm)
+    bed = np.array(press.bed_size_mm)
+    if not fits_bed(placement, press):
+        extent = placement.size_mm
+        raise LimitError(
+            f"the plate ({extent[0]:.0f} x {extent[1]:.0f} mm) does not fit on the bed of "
+            f"{press.name} ({bed[0]:.0f} x {bed[1]:.0f} mm between the outermost punch axes)",
+            hint="plan it in sections (docs/sections.md: 'mppf batch' does) or use a larger press",
+        )
+    return placement
+
+
+def fits_bed(placement: FlatPlacement, press: PressConfig) -> bool:
+    """Does the (net) flat plate fit between the outermost punch axes?"""
+    return bool(np.all(placement.size_mm <= np.array(press.bed_size_mm) + 1e-6))
+
+
+def lay_flat(flat_points, press: PressConfig, thickness_mm: float) -> FlatPlacement:
+    """Lay the flat plate as :func:`place_flat` does, on a bed of any size (no size check).
+
+    The plate coordinates of sectional forming (:mod:`mppf.planning.sections`).
+
+    Raises
+    ------
+    GeometryError
+        The "flat" plate is not flat.
+    """
     frame = fit_frame(flat_points)
     local = frame.to_local(flat_points)
     size = float(np.ptp(local[:, :2], axis=0).max())
@@ -85,18 +112,15 @@ def place_flat(flat_points, press: PressConfig, thickness_mm: float) -> FlatPlac
     tf_press_flat = make_tf(translation=[-centre[0], -centre[1], 0.0]) @ tf_press_flat
     flat_press = apply_tf(tf_press_flat, flat_points)
     extent = np.ptp(flat_press[:, :2], axis=0)
-    bed = np.array(press.bed_size_mm)
-    if np.any(extent > bed + 1e-6):
-        raise LimitError(
-            f"the plate ({extent[0]:.0f} x {extent[1]:.0f} mm) does not fit on the bed of "
-            f"{press.name} ({bed[0]:.0f} x {bed[1]:.0f} mm between the outermost punch axes)",
-            hint="split the plate or use a larger press",
-        )
+    return FlatPlacement(tf_press_flat, flat_press, extent, _corners(flat_press, extent))
+
+
+def _corners(flat_press, extent) -> np.ndarray:
+    """(4, 3): the flat's points nearest the corners of its bounding box, on the lower tips (z = 0)."""
     half = extent / 2.0
     box = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * half
     _, nearest = cKDTree(flat_press[:, :2]).query(box)
-    corners = np.column_stack([flat_press[nearest, :2], np.zeros(4)])
-    return FlatPlacement(tf_press_flat, flat_press, extent, corners)
+    return np.column_stack([flat_press[nearest, :2], np.zeros(4)])
 
 
 def register_design(design_points, flat_press_mm, reporter=NULL_REPORTER) -> Registration:

@@ -85,22 +85,26 @@ def check_job_document(doc, source: str = "job") -> None:
     if "thickness_mm" in doc and not _is_number(doc["thickness_mm"]):
         problems.add([f"thickness_mm is {json.dumps(doc['thickness_mm'])}, not a finite number of mm"])
     parks = _parks(doc)
-    for k, step in enumerate(doc["steps"], start=1):
+    sections = doc.get("sections") if isinstance(doc.get("sections"), list) else []
+    stepped = [("", doc["steps"])] + [(f"section {i} ", sec.get("steps")) for i, sec in enumerate(sections, start=1)
+                                      if isinstance(sec, dict) and isinstance(sec.get("steps"), list)]
+    for where, k, step in ((w, k, st) for w, steps in stepped for k, st in enumerate(steps, start=1)):
         if not isinstance(step, dict):
             continue
         active = {(r, c): value for r, c, value in _cells(step.get("active"))}
         for (r, c), value in active.items():
             if not isinstance(value, bool):
-                problems.add([f"step {k} punch ({label(r, c)}): active is {json.dumps(value)}, not true or false"])
+                problems.add([f"{where}step {k} punch ({label(r, c)}): active is {json.dumps(value)}, "
+                              "not true or false"])
         for key in ("upper_mm", "lower_mm"):
             side = key[:5]
             for r, c, value in _cells(step.get(key)):
                 if value is not None and not _is_number(value):
-                    problems.add([f"step {k} {side} punch ({label(r, c)}): stroke {json.dumps(value)} is not a "
+                    problems.add([f"{where}step {k} {side} punch ({label(r, c)}): stroke {json.dumps(value)} is not a "
                                   "finite number of mm (a stroke is a number, or null for a parked punch)"])
                 elif value is not None and active.get((r, c)) is False:
-                    problems.add([f"step {k} {side} punch ({label(r, c)}) is parked (not active) but has a stroke "
-                                  f"{value:.2f} mm; parked punches stand at park {parks.get(side, '?')} mm"])
+                    problems.add([f"{where}step {k} {side} punch ({label(r, c)}) is parked (not active) but has a "
+                                  f"stroke {value:.2f} mm; parked punches stand at park {parks.get(side, '?')} mm"])
     problems.raise_if_any(f"{source}: the job holds values that cannot be pressed",
                           "re-plan the plate with 'mppf plan'; never edit strokes by hand", ConfigError)
 
@@ -370,4 +374,10 @@ def validate_job(job: Job, *, press_file: PressConfig | None = None, plc_shape: 
                                   f"{limit:g} mm"])
         problems.raise_if_any("the job's press reaches beyond the PLC's stroke limits",
                               "plan the plate with the press description of this press (its limits are the PLC's)")
-    return validate_steps(job.steps, press, job.thickness_mm, plc_limits)
+    report = validate_steps(job.steps, press, job.thickness_mm, plc_limits)
+    for section in job.sections or []:  # a plate in sections: every section's steps too
+        try:
+            report[f"section {section.index}"] = validate_steps(section.steps, press, job.thickness_mm, plc_limits)
+        except LimitError as exc:
+            raise LimitError(f"section {section.index}: {exc.message}", hint=exc.hint) from None
+    return report

@@ -109,7 +109,7 @@ def _set(doc, path, value):
     "path, value, message",
     [
         (("format",), "something", "not an mppf job file (format 'something')"),
-        (("version",), 3, "job file version 3 is not supported"),
+        (("version",), 4, "job file version 4 is not supported"),
         (("press",), KeyError, "missing key 'press'"),
         (("thickness_mm",), KeyError, "missing key 'thickness_mm'"),
         (("steps",), KeyError, "missing key 'steps'"),

@@ -1,0 +1,370 @@
+"""Sectional planning: a plate larger than the bed, planned section by section.
+
+:func:`plan_plate` plans a plate in one piece when it fits the bed (:func:`mppf.planning.plan.plan_job`)
+and in sections otherwise (:func:`plan_sectional`). The split, the order, the marks and the blend
+weights are :mod:`mppf.planning.sections`; the job's sections :mod:`mppf.planning.job_sections`.
+See ``docs/sections.md``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from mppf.core.polygon import convex_outline, offset_convex
+from mppf.core.progress import NULL_REPORTER
+from mppf.core.rigid import fit_rigid
+from mppf.core.transform import apply_tf, invert_tf, make_tf
+from mppf.geometry.surface import fit_plate
+from mppf.planning.belongs import check_flat_belongs, design_area_mm2
+from mppf.planning.contact import PlacedSurface, tip_heights
+from mppf.planning.job import Job, PlateLayout
+from mppf.planning.job_sections import Section
+from mppf.planning.placement import FlatPlacement, fits_bed, lay_flat, register_design
+from mppf.planning.plan import (SURFACE_DEGREE, SURFACE_KIND, _active_punches, _check_inputs, _check_trim,
+                                _on_grid, _optimise_pose, _refine, _reports, _split,
+                                _surface_to_press, plan_job)
+from mppf.planning.press import PressConfig
+from mppf.planning.sections import (TRANSITION_PITCHES, earlier_weight, index_offset, mark_punches, shifted,
+                                    split_plate)
+from mppf.planning.steps import steps_needed
+from mppf.planning.validate import validate_steps
+
+
+def plan_plate(design_points, flat_points, press: PressConfig, thickness_mm: float, *,
+               transition_mm: float | None = None, **options) -> Job:
+    """Plan a plate in one piece when its net flat fits the bed, in sections otherwise.
+
+    Parameters are those of :func:`mppf.planning.plan.plan_job` (``options``), and
+    ``transition_mm``, the least width two neighbouring sections share (:func:`split_plate`).
+    """
+    design, flat, t, _ = _check_inputs(design_points, flat_points, press, thickness_mm, options.get("steps"),
+                                       options.get("material"), options.get("springback", False),
+                                       options.get("margin_mm"))
+    if fits_bed(lay_flat(flat, press, t), press):
+        return plan_job(design, flat, press, t, **options)
+    return plan_sectional(design, flat, press, t, transition_mm=transition_mm, **options)
+
+
+def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm: float, *, steps: int | None = None,
+                   material=None, springback: bool = False, design_faces=None, reporter=NULL_REPORTER,
+                   inputs: dict | None = None, margin_mm: float | None = None,
+                   transition_mm: float | None = None) -> Job:
+    """Plan the strokes of a plate larger than the bed, section by section.
+
+    Each section is the plate shifted on the bed (by whole punch pitches) with its own pose
+    (offset and tilt of least travel); its strokes are the exact ball contact of the design so
+    placed, plus its springback correction blended smoothly with the earlier sections' in the
+    transition zones. Parameters as :func:`mppf.planning.plan.plan_job`.
+
+    Returns
+    -------
+    Job
+        With ``sections`` in pressing order; the job's own steps, transforms and layout are
+        section 1's; ``extra["sectional"]`` the split and the largest step between sections of the
+        design recovered from the strokes.
+    """
+    design, flat, t, margin = _check_inputs(design_points, flat_points, press, thickness_mm, steps, material,
+                                            springback, margin_mm)
+    # 1. lay the flat on an unlimited bed: the plate coordinates
+    placement = lay_flat(flat, press, t)
+    # 2. fit the design, register it onto the flat, check the flat is its unfolding
+    fitted = fit_plate(design, degree=SURFACE_DEGREE, kind=SURFACE_KIND, faces=design_faces)
+    reporter.info("registering the design onto the flat plate")
+    registration = register_design(design, placement.flat_press_mm, reporter=reporter)
+    belongs = check_flat_belongs(design, placement.flat_press_mm, registration.method == "paired",
+                                 design_area_mm2(fitted, design, design_faces))
+    springback_report = {"enabled": bool(springback),
+                         "method": "per section: over-bent about the section's centre, refined on the plate model"}
+    # 3. split the plate into sections covering the bed, in pressing order
+    split = split_plate(placement.size_mm, press, transition_mm=transition_mm)
+    zone = TRANSITION_PITCHES * max(press.pitch_x_mm, press.pitch_y_mm) if transition_mm is None else transition_mm
+    reporter.info(f"the plate needs {split.n_sections} sections ({split.counts[0]} along x {split.counts[1]} across)")
+    # 4. each section: contact in its pose, its own correction blended with the formed plate, steps, marks
+    # one surface for every section (without springback): the sections then press the same shape where they meet
+    whole = _whole_surface(fitted, design, design_faces)
+    ctx = dict(press=press, fitted=whole, design=design, flat_file=flat, registration=registration, t=t,
+               margin=margin, material=material, springback=springback)
+    planned = []
+    for k, (cell, centre) in enumerate(zip(split.cells, split.bed_centres_mm), start=1):
+        reporter.info(f"planning section {k} of {split.n_sections}")
+        planned.append(_plan_section(k, cell, centre, planned, zone, steps, placement, ctx))
+    # 5. the design recovered from the strokes must not step where sections meet
+    border = _border_steps(press, whole, planned)
+    return _assemble(planned, border, split, zone, fitted, registration, belongs, placement, inputs,
+                     springback_report, press, t, margin, material)
+
+
+def _plan_section(index, cell, centre, earlier, zone, steps, placement, ctx) -> dict:
+    """One section: pose, contact strokes, the blended correction, the steps and the marks."""
+    press, t, margin = ctx["press"], ctx["t"], ctx["margin"]
+    tf_press_plate = make_tf(translation=[-centre[0], -centre[1], 0.0])
+    # the design's part on the bed, fitted on its own and laid level onto its part of the flat
+    flat_press = apply_tf(tf_press_plate, placement.flat_press_mm)
+    fitted, tf_reg, on_bed = _section_fit(press, ctx, flat_press, tf_press_plate @ ctx["registration"].tf)
+    surface, _ = _surface_to_press(fitted, ctx["design"][on_bed], press, t, ctx["material"], ctx["springback"], margin)
+    design_press = apply_tf(tf_reg, ctx["design"])
+    outline_xy = offset_convex(convex_outline(design_press[:, :2], "the placed design"), margin)
+    active = _active_punches(press, outline_xy)
+    # the section's pose of least travel; the exact ball contact of the design so placed
+    pose = _optimise_pose(press, PlacedSurface(surface, tf_reg @ fitted.frame.tf_world_local), active, t)
+    tf_press_design = pose.tf_adjust @ tf_reg
+    if ctx["springback"]:  # the pose was found on the over-bent surface: the design's own contact
+        upper, lower = _contact(press, fitted, tf_press_design, active, t)
+    else:
+        upper, lower = _on_grid(press, active, pose.upper_mm), _on_grid(press, active, pose.lower_mm)
+    net = convex_outline(apply_tf(pose.tf_adjust, design_press)[:, :2], "the placed design")
+    outline = offset_convex(net, margin)
+    target = 0.5 * (upper + lower)
+    trim = _check_trim(pose.contact_xy_mm, outline_xy, press)
+    # this section's own correction (over-bend and its refinement), blended with the formed plate's
+    own_up, own_lo, refinement = np.zeros(press.shape), np.zeros(press.shape), None
+    if ctx["springback"]:
+        start_up, start_lo = _on_grid(press, active, pose.upper_mm), _on_grid(press, active, pose.lower_mm)
+        ref_up, ref_lo, refinement = _refine(press, start_up, start_lo, active, target, outline, t, ctx["material"])
+        own_up, own_lo = np.nan_to_num(ref_up - upper), np.nan_to_num(ref_lo - lower)
+    weight, d_up, d_lo = _blend(press, centre, active, own_up, own_lo, earlier, zone, placement.size_mm / 2.0)
+    final_up, final_lo = np.where(active, upper + d_up, np.nan), np.where(active, lower + d_lo, np.nan)
+    # press steps from flat, validated
+    n_steps = steps if steps is not None else steps_needed(final_up, final_lo, active, press, t)
+    step_list = _split(final_up, final_lo, active, press, t, n_steps)
+    validation = validate_steps(step_list, press, t)
+    validation["contact_beyond_edge_mm"] = trim
+    tf_press_flat = tf_press_plate @ placement.tf_press_flat
+    placed = PlacedSurface(fitted.surface, tf_press_design @ fitted.frame.tf_world_local)
+    marks = _marks(press, active & _active_punches(press, net), centre, tf_press_flat, placed, fitted, ctx, on_bed)
+    travel = float(max(np.abs(final_up[active] - t).max(), np.abs(final_lo[active]).max()))
+    extra = {"pose": {"tilt_x_deg": pose.tilt_x_deg, "tilt_y_deg": pose.tilt_y_deg, "offset_mm": pose.offset_mm,
+                      "max_travel_mm": travel},
+             "validation": validation, "n_steps": int(n_steps), "n_active": int(active.sum()),
+             "plate_corners_mm": (placement.corners_mm + [-centre[0], -centre[1], 0.0]).tolist(),
+             "transition": {"zone_mm": float(zone), "blended_punches": int((active & (weight < 1.0 - 1e-9)).sum())}}
+    if refinement is not None:
+        extra["refinement"] = refinement
+    section = Section(index=index, cell=tuple(cell), plate_centre_mm=-np.asarray(centre, dtype=float),
+                      marks_plate_mm=marks[0], marks_flat_mm=marks[1], marks_press_mm=marks[2],
+                      mark_punches=marks[3], steps=step_list, tf_press_design=tf_press_design,
+                      tf_press_flat=tf_press_flat,
+                      layout=PlateLayout(outline_mm=outline, net_outline_mm=net, margin_mm=margin,
+                                         design_mid_mm=target, material=ctx["material"]),
+                      own_weight=np.where(active, weight, np.nan), extra=extra)
+    return {"section": section, "centre": np.asarray(centre, dtype=float), "active": active, "pose": pose,
+            "delta": (d_up, d_lo), "contact": (upper, lower)}
+
+
+def _whole_surface(fitted, design, design_faces):
+    """The surface every section presses: the degree-4 polynomial, or the B-spline where the polynomial misses.
+
+    The polynomial extends smoothly under the trim margin (where a B-spline, beyond its knots, does
+    not); over 9 m of a stern plate it misses the design by up to 3 mm, the spline by 0.7 mm.
+    """
+    if fitted.max_abs_mm <= POLY_ENOUGH_MM:
+        return fitted
+    spline = fit_plate(design, kind="spline", faces=design_faces)
+    return spline if spline.max_abs_mm < fitted.max_abs_mm else fitted
+
+
+POLY_ENOUGH_MM = 0.1
+"""Largest residual of the plate's polynomial fit still used for every section (above: the B-spline, if closer)."""
+
+
+def _section_fit(press: PressConfig, ctx: dict, flat_press, tf_whole):
+    """The design fitted over the section (bed, margin, trim allowance) and its ``tf_press_design`` before the pose.
+
+    Paired points (the unfolding's order): the design points whose flat points lie there are laid
+    onto their flat points by the rigid fit, so the section lies level over its own part of the flat
+    whatever the plate's curvature elsewhere. The surface is the whole plate's (the same in every
+    section: where sections meet they press the same shape, :func:`_whole_surface`); with springback
+    the section's own
+    fit (``fit_plate`` of those points), over-bent about its own centre. Unpaired: the whole plate's
+    surface and registration, shifted.
+    """
+    design = ctx["design"]
+    if design.shape != flat_press.shape:
+        return ctx["fitted"], tf_whole, np.ones(len(design), dtype=bool)
+    half = np.array(press.bed_size_mm) / 2.0 + ctx["margin"] + press.trim_allowance_mm
+    on_bed = np.all(np.abs(flat_press[:, :2]) <= half, axis=1)
+    if on_bed.sum() < MIN_SECTION_POINTS:
+        return ctx["fitted"], tf_whole, np.ones(len(design), dtype=bool)
+    if not ctx["springback"]:  # the whole plate's surface, laid level over this section's part of the flat
+        return ctx["fitted"], fit_rigid(design[on_bed], flat_press[on_bed]), on_bed
+    fitted = fit_plate(design[on_bed], degree=SURFACE_DEGREE, kind=SURFACE_KIND)
+    return fitted, fit_rigid(design[on_bed], flat_press[on_bed]), on_bed
+
+
+MIN_SECTION_POINTS = 30
+"""Fewest paired points over a section for its own fit of the design."""
+
+
+def _contact(press: PressConfig, fitted, tf_press_design, active, t: float):
+    """(rows, cols) upper and lower tip heights of the design's exact ball contact (NaN parked)."""
+    gx, gy = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    placed = PlacedSurface(fitted.surface, tf_press_design @ fitted.frame.tf_world_local)
+    up, lo = tip_heights(placed, gx[active], gy[active], tip_radius_mm=press.tip_radius_mm, thickness_mm=t)
+    return _on_grid(press, active, up.tip_mm), _on_grid(press, active, lo.tip_mm)
+
+
+def _blend(press, centre, active, own_up, own_lo, earlier, zone, plate_half):
+    """Weight of the own correction and the blended corrections: the formed plate's near its sections."""
+    prev_w = np.zeros(press.shape)
+    prev_up, prev_lo = np.zeros(press.shape), np.zeros(press.shape)
+    for done in earlier:
+        offset = index_offset(press, centre, done["centre"])
+        covered = shifted(done["active"], offset, False) & active
+        w = np.where(covered, earlier_weight(press, centre, done["centre"], zone, plate_half), 0.0)
+        take = w > prev_w
+        prev_w = np.where(take, w, prev_w)
+        prev_up = np.where(take, shifted(done["delta"][0], offset, 0.0), prev_up)
+        prev_lo = np.where(take, shifted(done["delta"][1], offset, 0.0), prev_lo)
+    own = 1.0 - prev_w
+    blended_up = np.where(active, own * own_up + prev_w * prev_up, 0.0)
+    return own, blended_up, np.where(active, own * own_lo + prev_w * prev_lo, 0.0)
+
+
+def _marks(press: PressConfig, active, centre, tf_press_flat, placed, fitted, ctx, on_bed):
+    """The section's two reference marks: plate x, y; flat-file x, y, z; press x, y; the punches under them.
+
+    ``active`` holds the punches under the net plate, so the marks lie inside the net outline. A mark
+    is the material point that lies over its punch **once the section is formed**: the design point
+    under the punch axis (as the section places the design), taken to the flat by the paired points
+    (linear interpolation over the design's own (u, v)). Unpaired flats: the flat point under the
+    punch with the plate lying flat.
+    """
+    punches = mark_punches(active)
+    press_xy = np.column_stack([press.punch_x_mm[punches[:, 1]], press.punch_y_mm[punches[:, 0]]])
+    flat_file = ctx["flat_file"]
+    flat = apply_tf(invert_tf(tf_press_flat), np.column_stack([press_xy, np.full(2, ctx["t"] / 2.0)]))
+    if flat_file.shape == ctx["design"].shape:
+        from scipy.interpolate import LinearNDInterpolator
+
+        uv = np.column_stack(placed.axis_foot(press_xy[:, 0], press_xy[:, 1]))
+        local = fitted.frame.to_local(ctx["design"][on_bed])[:, :2]
+        formed = LinearNDInterpolator(local, flat_file[on_bed])(uv)
+        flat = np.where(np.isfinite(formed), formed, flat)
+    plate_xy = apply_tf(tf_press_flat, flat)[:, :2] + np.asarray(centre, dtype=float)
+    return plate_xy, flat, press_xy, punches
+
+
+def recovered_residual(press: PressConfig, fitted, section: Section, thickness_mm: float) -> np.ndarray:
+    """(rows, cols): the design recovered from a section's final strokes, as its height above the design (mm).
+
+    The tips' mid height (upper + lower) / 2 at each active punch axis, taken back into the design's
+    own frame (``tf_press_design`` inverted), minus the design surface there; NaN at parked punches.
+    """
+    final = section.steps[-1]
+    gx, gy = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    act = final.active
+    mid = np.column_stack([gx[act], gy[act], 0.5 * (final.upper_mm[act] + final.lower_mm[act])])
+    local = fitted.frame.to_local(apply_tf(invert_tf(section.tf_press_design), mid))
+    residual = np.full(press.shape, np.nan)
+    residual[act] = local[:, 2] - fitted.surface.evaluate(local[:, 0], local[:, 1])
+    return residual
+
+
+def _border_steps(press, fitted, planned) -> list[float]:
+    """Per section: the largest step of the recovered design at its border with the plate formed before it.
+
+    At the section's outermost punches (first and last row and column of the bed) that an earlier
+    section also pressed, the plate just beyond stays as that section left it: its recovered design
+    (:func:`recovered_residual`) there must equal this section's. Measured against the last earlier
+    section pressing each punch.
+    """
+    residuals = [recovered_residual(press, fitted, p["section"], 0.0) for p in planned]
+    edge = np.zeros(press.shape, dtype=bool)
+    edge[[0, -1], :] = True
+    edge[:, [0, -1]] = True
+    steps = []
+    for k, p in enumerate(planned):
+        last = np.full(press.shape, np.nan)
+        for j in range(k):
+            other = shifted(residuals[j], index_offset(press, p["centre"], planned[j]["centre"]))
+            last = np.where(np.isfinite(other), other, last)
+        diff = np.abs(residuals[k] - last)[edge]
+        steps.append(float(np.nanmax(diff)) if np.isfinite(diff).any() else 0.0)
+    return steps
+
+
+def _assemble(planned, border, split, zone, fitted, registration, belongs, placement, inputs, springback_report,
+              press, t, margin, material) -> Job:
+    """The sectional job: section 1 as the job's own steps and layout, every section in ``sections``."""
+    sections = []
+    for p, step in zip(planned, border):
+        section = p["section"]
+        section.extra["transition"]["border_step_mm"] = step
+        sections.append(section)
+    first = planned[0]
+    s1 = first["section"]
+    shift = np.array([*s1.plate_centre_mm, 0.0])
+    placed1 = FlatPlacement(s1.tf_press_flat, placement.flat_press_mm + shift, placement.size_mm,
+                            placement.corners_mm + shift)
+    final = s1.steps[-1]
+    extra = _reports(fitted, registration, belongs, first["pose"], final.upper_mm, final.lower_mm, first["active"],
+                     t, s1.extra["validation"], placed1, len(s1.steps), inputs, springback_report)
+    extra["pose"]["max_travel_mm"] = s1.extra["pose"]["max_travel_mm"]
+    extra["sectional"] = {
+        "n_sections": split.n_sections, "counts": list(split.counts), "spacing_mm": split.spacing_mm.tolist(),
+        "shared_mm": split.transition_mm.tolist(), "transition_zone_mm": float(zone),
+        "order": "along x from -x to +x; across back and forth at each position along",
+        "plate_size_mm": placement.size_mm.tolist(),
+        "n_steps_total": int(sum(len(s.steps) for s in sections)),
+        "max_travel_mm": float(max(s.extra["pose"]["max_travel_mm"] for s in sections)),
+        "max_border_step_mm": float(max(border)),
+    }
+    return Job(press=press, thickness_mm=t, steps=s1.steps, tf_press_design=s1.tf_press_design,
+               tf_press_flat=s1.tf_press_flat, layout=s1.layout, extra=extra, sections=sections)
+
+
+def apply_section_corrections(job: Job, corrections, *, steps: int | None = None) -> Job:
+    """The job with each section's final strokes corrected, blended in the transition zones as planned.
+
+    The loop's per-section correction (or any other): ``corrections[k]`` = (upper, lower) (rows, cols)
+    mm to add to section k+1's final strokes. Section by section in pressing order, the correction
+    pressed is ``(1 - w) own + w earlier`` as in planning (``own_weight``: ``1 - w``), so the formed
+    plate keeps no step where sections meet; the steps go again from flat to the new strokes, validated.
+
+    Raises
+    ------
+    InputError
+        Not a sectional job, or not one correction pair of the press's shape per section;
+        LimitError for corrected strokes the press cannot take.
+    """
+    from mppf.core.errors import InputError
+
+    if job.sections is None or len(corrections) != len(job.sections):
+        raise InputError(f"need one correction per section ({0 if job.sections is None else len(job.sections)}), "
+                         f"got {len(corrections)}")
+    press, t = job.press, job.thickness_mm
+    info = job.extra["sectional"]
+    plate_half, zone = np.asarray(info["plate_size_mm"]) / 2.0, float(info["transition_zone_mm"])
+    done, sections = [], []
+    for s, (c_up, c_lo) in zip(job.sections, corrections):
+        c_up, c_lo = np.asarray(c_up, dtype=float), np.asarray(c_lo, dtype=float)
+        if c_up.shape != press.shape or c_lo.shape != press.shape:
+            raise InputError(f"section {s.index}: corrections must be {press.rows} x {press.cols} grids")
+        final, centre = s.steps[-1], -np.asarray(s.plate_centre_mm, dtype=float)
+        own_up, own_lo = np.nan_to_num(c_up), np.nan_to_num(c_lo)
+        _, d_up, d_lo = _blend(press, centre, final.active, own_up, own_lo, done, zone, plate_half)
+        up = np.where(final.active, final.upper_mm + d_up, np.nan)
+        lo = np.where(final.active, final.lower_mm + d_lo, np.nan)
+        n = steps if steps is not None else steps_needed(up, lo, final.active, press, t)
+        step_list = _split(up, lo, final.active, press, t, n)
+        validation = validate_steps(step_list, press, t)
+        done.append({"centre": centre, "active": final.active, "delta": (d_up, d_lo)})
+        sections.append(dataclasses.replace(s, steps=step_list, extra={**s.extra, "validation": validation,
+                                                                       "n_steps": int(n)}))
+    return dataclasses.replace(job, steps=sections[0].steps, sections=sections,
+                               extra={**job.extra, "validation": sections[0].extra["validation"]})
+
+
+def sections_summary(job: Job) -> list[dict]:
+    """Per section (empty for a single piece): placement, marks, steps, travel, blend and border step."""
+    out = []
+    for s in job.sections or []:
+        out.append({"index": s.index, "cell": list(s.cell), "plate_centre_mm": s.plate_centre_mm.tolist(),
+                    "marks_press_mm": s.marks_press_mm.tolist(), "marks_plate_mm": s.marks_plate_mm.tolist(),
+                    "mark_punches": (s.mark_punches + job.press.label_base).tolist(), "n_steps": len(s.steps),
+                    "max_travel_mm": s.extra.get("pose", {}).get("max_travel_mm"),
+                    "border_step_mm": s.extra.get("transition", {}).get("border_step_mm"),
+                    "blended_punches": s.extra.get("transition", {}).get("blended_punches")})
+    return out
