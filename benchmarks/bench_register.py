@@ -1,172 +1,190 @@
-"""Benchmark: mppf registration against Open3D's ``registration_icp`` on the same clouds.
+"""Benchmark: mppf registration beside Open3D point-to-point and small_gicp point-to-plane (issue 19).
 
-A doubly curved, asymmetric plate (3 x 1.5 m, about 140 mm deep) is sampled twice at
-random: the design (target, exact) and a scan (source, 0.5 mm noise) put in a known
-pose. For each size both files are written as CSV; mppf is timed on the whole job
-(``read_points`` of both files + ``register_icp``), Open3D on its ICP call alone (the
-arrays handed over in memory, so its file reading is not counted). Both start from the
-same principal-axes start (the sign candidate nearest the truth), then from the identity.
+Cases: three surfaces (an asymmetric doubly curved plate 3 x 1.5 m, a shallow saddle 4 mm
+deep, a cylinder R 3 m), each as an EXACT moved copy (the same points, 0.3 mm noise on the
+copy) and as a DIFFERENTLY SAMPLED scan (independent random points, 0.5 mm noise), at 10k,
+100k and 200k source points (the target twice as dense when sampled apart), in a known pose,
+from the principal-axes start and from the identity. Errors are against the known truth
+(rotation deg, displacement at the source's centre mm); times are whole-process CPU times of
+a fresh process for mppf (``import`` + ``register_icp``, as ``mppf register`` pays them) and the
+anchors' registration call; each row's time is also given as a ratio to the anchor's from
+alternating runs (mppf, anchor, mppf, anchor ...; the median ratio).
 
-Run:  python benchmarks/bench_register.py [--sizes 10000,50000,100000,200000]
-      [--identity-sizes 50000] [--no-open3d]
-(quick look, under a minute without load: ``--sizes 10000 --identity-sizes ""``).
-Open3D is optional (``pip install open3d``; on Debian it needs ``apt-get install
-libusb-1.0-0`` to import); without it only the mppf rows are printed.
+The anchors are optional (``pip install open3d small_gicp``): absent, only mppf's rows are
+printed, and the table says so.
+
+Run:  python benchmarks/bench_register.py [--sizes 10000,100000,200000] [--repeats 3]
+      [--surfaces plate,saddle,cylinder] [--kinds copy,sampled] [--starts principal,identity]
 """
 
 from __future__ import annotations
 
 import argparse
-import contextlib
-import os
-import re
+import json
+import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
-from rich.console import Console
-from rich.table import Table
 from scipy.spatial.transform import Rotation
 
-from mppf.geometry.frame import fit_frame
-from mppf.geometry.read import read_points
-from mppf.geometry.write import write_points
-from mppf.registration.register import register_icp
-from mppf.registration.starts import principal_candidates
 from mppf.core.transform import apply_tf, invert_tf, make_tf, rotation_angle_deg
 
-NOISE_MM = 0.5
 POSE = make_tf(Rotation.from_euler("xyz", [12.0, -8.0, 20.0], degrees=True).as_matrix(), [250.0, -150.0, 400.0])
-"""Known pose of the scanner frame relative to the design (moderate, so an identity start can work)."""
-
-O3D_MAX_ITERATIONS = 500
-O3D_MAX_DISTANCE_MM = 1000.0
-O3D_PLANE_MAX_POINTS = 50000
-"""Open3D point-to-plane slides on this plate until its iteration limit: only run on small clouds."""
+"""Known pose of the scan relative to the design (moderate, so that an identity start can work)."""
 
 
-def plate(n: int, rng: np.random.Generator) -> np.ndarray:
-    """n random points on the plate z = u^2/16000 - v^2/24000 + u^3/3e8 (mm)."""
+def surface(name: str, n: int, rng: np.random.Generator) -> np.ndarray:
+    """n random points (mm) on the named surface."""
     u, v = rng.uniform(-1500, 1500, n), rng.uniform(-750, 750, n)
-    return np.column_stack([u, v, u * u / 16000 - v * v / 24000 + u**3 / 3e8])
-
-
-def errors(tf: np.ndarray, tf_true: np.ndarray, design: np.ndarray) -> tuple[float, float]:
-    """(rotation error deg, displacement error at the design's centre mm)."""
-    diff = tf @ invert_tf(tf_true)
-    centre = design.mean(axis=0)
-    return rotation_angle_deg(diff), float(np.linalg.norm(apply_tf(diff, centre[None])[0] - centre))
-
-
-def principal_start(scan: np.ndarray, design: np.ndarray, tf_true: np.ndarray) -> np.ndarray:
-    """The principal-axes candidate nearest the truth (the same start for both tools)."""
-    candidates = principal_candidates(fit_frame(scan), fit_frame(design))
-    return min(candidates, key=lambda tf: errors(tf, tf_true, design)[0])
-
-
-@contextlib.contextmanager
-def captured_stdout_fd(path: Path):
-    """Redirect the C-level stdout (Open3D's debug log) into a file."""
-    sys.stdout.flush()
-    saved = os.dup(1)
-    with open(path, "w") as sink:
-        os.dup2(sink.fileno(), 1)
-        try:
-            yield
-        finally:
-            sys.stdout.flush()
-            os.dup2(saved, 1)
-            os.close(saved)
-
-
-def run_open3d(o3d, scan, design, init, method, tmp: Path):
-    reg = o3d.pipelines.registration
-    src = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(scan))
-    tgt = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(design))
-    if method == "plane":
-        tgt.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(knn=10))
-        estimation = reg.TransformationEstimationPointToPlane()
+    if name == "plate":
+        w = u * u / 16000 - v * v / 24000 + u**3 / 3e8
+    elif name == "saddle":
+        w = u * u / 2.8e5 - v * v / 7e4 * 0.5
+    elif name == "cylinder":
+        w = 3000.0 - np.sqrt(3000.0**2 - v * v)
     else:
-        estimation = reg.TransformationEstimationPointToPoint()
-    criteria = reg.ICPConvergenceCriteria(relative_fitness=1e-6, relative_rmse=1e-6,
-                                          max_iteration=O3D_MAX_ITERATIONS)
-    log = tmp / "o3d.log"
-    o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Debug)
-    t0 = time.perf_counter()
-    with captured_stdout_fd(log):
-        result = reg.registration_icp(src, tgt, O3D_MAX_DISTANCE_MM, init, estimation, criteria)
-    seconds = time.perf_counter() - t0
-    o3d.utility.set_verbosity_level(o3d.utility.VerbosityLevel.Warning)
-    iterations = len(re.findall(r"ICP Iteration #", log.read_text(errors="replace")))
-    converged = iterations < O3D_MAX_ITERATIONS
-    return np.asarray(result.transformation), seconds, iterations, float(result.inlier_rmse), converged
+        raise ValueError(name)
+    return np.column_stack([u, v, w])
 
 
-def run_mppf(scan_path, design_path, init, method):
-    t0 = time.perf_counter()
-    scan = read_points(scan_path).points
-    design = read_points(design_path).points
-    result = register_icp(scan, design, method=method, init=init, max_iterations=O3D_MAX_ITERATIONS)
-    return result.tf, time.perf_counter() - t0, result.iterations, result.rms_mm, result.converged
+def case(name: str, kind: str, n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """(source = scan in its own frame, target = design); target = POSE @ source ideally."""
+    rng = np.random.default_rng(seed)
+    if kind == "copy":
+        design = surface(name, n, rng)
+        scan = apply_tf(invert_tf(POSE), design) + rng.normal(scale=0.3, size=design.shape)
+    else:
+        design = surface(name, 2 * n, rng)
+        scan = apply_tf(invert_tf(POSE), surface(name, n, rng) + rng.normal(scale=0.5, size=(n, 3)))
+    return scan, design
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sizes", default="10000,50000,100000,200000")
-    parser.add_argument("--identity-sizes", default="50000")
-    parser.add_argument("--no-open3d", action="store_true")
-    args = parser.parse_args(argv)
-    sizes = [int(s) for s in args.sizes.split(",") if s]
-    identity_sizes = [int(s) for s in args.identity_sizes.split(",") if s]
-    console = Console(width=170)
-    o3d = None
-    if not args.no_open3d:
+def errors(tf: np.ndarray, source: np.ndarray) -> tuple[float, float]:
+    """(rotation error deg, displacement error at the source's centre mm) against :data:`POSE`."""
+    centre = source.mean(axis=0)
+    return rotation_angle_deg(tf @ invert_tf(POSE)), float(np.linalg.norm(apply_tf(tf, centre[None])[0]
+                                                                            - apply_tf(POSE, centre[None])[0]))
+
+
+def run_one(tool: str, path: Path, start: str) -> dict:
+    """One registration in this process (the child of :func:`timed`)."""
+    cpu = time.process_time()
+    data = np.load(path)
+    source, target = data["source"], data["target"]
+    if tool == "mppf":
+        from mppf.registration.register import register_icp
+
+        result = register_icp(source, target, method="plane", init=start)
+        tf, note = result.tf, result.verdict + (" (ambiguous start: symmetric)" if result.ambiguous_start else "")
+    elif tool == "open3d":
+        import open3d as o3d
+
+        src, tgt = (o3d.geometry.PointCloud(o3d.utility.Vector3dVector(a)) for a in (source, target))
+        init = np.eye(4) if start == "identity" else _principal(source, target)
+        reg = o3d.pipelines.registration.registration_icp(
+            src, tgt, 1000.0, init, o3d.pipelines.registration.TransformationEstimationPointToPoint(),
+            o3d.pipelines.registration.ICPConvergenceCriteria(max_iteration=500))
+        tf, note = np.asarray(reg.transformation), f"fitness {reg.fitness:.2f}"
+    else:
+        import small_gicp
+
+        init = np.eye(4) if start == "identity" else _principal(source, target)
+        reg = small_gicp.align(target, source, init, registration_type="PLANE", max_correspondence_distance=1000.0)
+        tf, note = np.asarray(reg.T_target_source), f"converged {reg.converged}"
+    rot, shift = errors(tf, source)
+    return {"cpu_s": time.process_time() - cpu, "rot_deg": rot, "shift_mm": shift, "note": note}
+
+
+def _principal(source, target) -> np.ndarray:
+    """The principal-axes start nearest the truth (the anchors get the right one of the four)."""
+    from mppf.geometry.frame import fit_frame
+    from mppf.registration.starts import principal_candidates
+
+    starts = principal_candidates(fit_frame(source), fit_frame(target))
+    return min(starts, key=lambda tf: rotation_angle_deg(tf @ invert_tf(POSE)))
+
+
+def timed(tool: str, path: Path, start: str) -> dict:
+    """One registration in a fresh process: its errors and note (its CPU time: :func:`_child_cpu`)."""
+    out = subprocess.run([sys.executable, __file__, "--child", tool, str(path), start], check=True, text=True,
+                         stdout=subprocess.PIPE).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def available() -> list[str]:
+    tools = []
+    for tool, module in (("open3d", "open3d"), ("small_gicp", "small_gicp")):
         try:
-            import open3d as o3d
-        except Exception as exc:  # noqa: BLE001 - optional dependency, any import failure
-            console.print(f"open3d not available ({type(exc).__name__}: {exc}); mppf rows only")
-    table = Table(title="registration benchmark (0.5 mm noise, known pose)")
-    for col in ("points", "start", "tool / metric", "time s", "iter", "conv", "RMS mm",
-                "rot err deg", "shift err mm", "time / O3D p2p"):
-        table.add_column(col, justify="right" if col not in ("start", "tool / metric") else "left")
-    rng = np.random.default_rng(0)
-    with tempfile.TemporaryDirectory() as tmpdir:
-        tmp = Path(tmpdir)
-        for n in sorted(set(sizes) | set(identity_sizes)):
-            design = plate(n, rng)
-            scan = apply_tf(invert_tf(POSE), plate(n, rng) + rng.normal(scale=NOISE_MM, size=(n, 3)))
-            scan_path = write_points(tmp / f"scan_{n}.csv", scan)
-            design_path = write_points(tmp / f"design_{n}.csv", design)
-            starts = []
-            if n in sizes:
-                starts.append(("principal", principal_start(scan, design, POSE)))
-            if n in identity_sizes:
-                starts.append(("identity", np.eye(4)))
-            for start_name, start_tf in starts:
-                rows = []
-                if o3d is not None:
-                    rows.append(("Open3D point", *run_open3d(o3d, scan, design, start_tf, "point", tmp)))
-                    if start_name == "principal" and n <= O3D_PLANE_MAX_POINTS:
-                        rows.append(("Open3D plane", *run_open3d(o3d, scan, design, start_tf, "plane", tmp)))
-                for metric in ("point", "plane"):
-                    init = "principal" if start_name == "principal" else "identity"
-                    rows.append((f"mppf {metric} (+read)", *run_mppf(scan_path, design_path, init, metric)))
-                ref = rows[0][2] if o3d is not None else None
-                for name, tf, seconds, iterations, rms, converged in rows:
-                    rot, shift = errors(tf, POSE, design)
-                    ratio = "" if ref is None else f"{seconds / ref:.2f}"
-                    table.add_row(f"{n:,}", start_name, name, f"{seconds:.2f}", str(iterations),
-                                  "yes" if converged else "no", f"{rms:.3f}", f"{rot:.4f}", f"{shift:.2f}", ratio)
-                console.print(f"done: {n:,} points, {start_name} start", style="dim")
-    console.print(table)
-    console.print("mppf times include reading both CSV files; Open3D times are the ICP call only. "
-                  "'conv' for Open3D: stopped before its iteration limit "
-                  f"({O3D_MAX_ITERATIONS}). RMS: mppf the residual of its metric on the registered "
-                  "subsample; Open3D inlier_rmse.")
-    return 0
+            __import__(module)
+            tools.append(tool)
+        except ImportError:
+            pass
+    return tools
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", default="10000,100000,200000")
+    parser.add_argument("--surfaces", default="plate,saddle,cylinder")
+    parser.add_argument("--kinds", default="copy,sampled")
+    parser.add_argument("--starts", default="principal,identity")
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--child", nargs=3, default=None, help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.child:
+        print(json.dumps(run_one(args.child[0], Path(args.child[1]), args.child[2])))
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    anchors = available()
+    table = Table(title="registration: mppf (point-to-plane, its pin where free) beside the anchors")
+    for column in ("surface", "kind", "points", "start", "tool", "CPU s", "time / anchor", "rot err deg",
+                   "shift err mm", "verdict / note"):
+        table.add_column(column, justify="right")
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in args.surfaces.split(","):
+            for kind in args.kinds.split(","):
+                for n in (int(s) for s in args.sizes.split(",") if s):
+                    path = Path(tmp) / f"{name}-{kind}-{n}.npz"
+                    source, target = case(name, kind, n)
+                    np.savez(path, source=source, target=target)
+                    for start in args.starts.split(","):
+                        _rows(table, name, kind, n, start, path, anchors, args.repeats)
+    Console(width=200).print(table)
+    if not anchors:
+        Console(width=200).print("Open3D and small_gicp are not importable here: only mppf's rows (pip install open3d "
+                        "small_gicp to compare).")
+
+
+def _rows(table, name, kind, n, start, path, anchors, repeats) -> None:
+    """mppf's row and the anchors' rows of one case; times from alternating runs."""
+    runs = {tool: [] for tool in ["mppf", *anchors]}
+    for _ in range(repeats):
+        for tool in runs:  # alternating: mppf, anchor, anchor, mppf, ...
+            runs[tool].append(_child_cpu(tool, path, start))
+    base = min(anchors, key=lambda t: np.median([r["cpu_s"] for r in runs[t]])) if anchors else None
+    for tool, rows in runs.items():
+        cpu = float(np.median([r["cpu_s"] for r in rows]))
+        ratio = "-" if base is None else f"{cpu / float(np.median([r['cpu_s'] for r in runs[base]])):.2f}"
+        last = rows[-1]
+        table.add_row(name, kind, f"{n:,}", start, tool, f"{cpu:.2f}", ratio, f"{last['rot_deg']:.4f}",
+                      f"{last['shift_mm']:.3f}", str(last["note"])[:60])
+
+
+def _child_cpu(tool: str, path: Path, start: str) -> dict:
+    """One fresh-process run; its whole CPU time (user + system of the child, imports included)."""
+    import resource
+
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    row = timed(tool, path, start)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    row["cpu_s"] = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return row
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    main()

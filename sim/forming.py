@@ -342,3 +342,4 @@ def _outline(press: PressConfig, act: np.ndarray, outline_xy_mm) -> np.ndarray:
     if abs(polygon.area(outline)) <= 0:
         raise GeometryError("the plate outline has no area", hint="give the corners of the flat plate in press x, y")
     return outline
+

@@ -1,33 +1,53 @@
-"""The dry-run shop floor: a simulated plate measured by a simulated scanner.
+"""The dry-run shop floor: a simulated plate, pressed step by step, measured by a simulated scanner.
 
-:class:`SimulatedPlateScanner` implements :class:`mppf.core.scanner.Scanner` for dry runs:
-for each cycle it forms the simulated plate (:func:`mppf.sim.forming.form_plate`) from
-the tip positions the press reported for the cycle's last step (the PLC's actual
-positions, read back by the driver), lets it spring back with the plate's true,
-seeded material (:func:`mppf.sim.forming.sample_plate`), and scans its top skin with
-noise, occlusion, outliers and an arbitrary pose (:class:`mppf.sim.scanner.SimulatedScanner`)
-into the plate's work folder. The press side of a dry run is the simulated PLC
-(:func:`mppf.sim.plc.run_simulated_plc`) driven over loopback Modbus by the real driver
-(``mppf loop`` without ``--plc``, ``mppf demo``), or the in-process press
-(:class:`mppf.sim.plc.link.InProcessPress`: the same driver on the PLC program itself, instant).
+:class:`SimulatedPlateScanner` implements :class:`mppf.core.scanner.Scanner` for dry runs.
+For each cycle it presses the simulated plate with EVERY step the press did in that cycle,
+in order, from the tip positions the press read back (:attr:`mppf.core.scanner.ScanContext.steps`;
+a step interrupted during its motion part of the way, :data:`INTERRUPTED_SHARE`), then scans
+its top skin with noise, occlusion, outliers and an arbitrary pose
+(:class:`mppf.sim.scanner.SimulatedScanner`) into the plate's work folder.
 
+The plate is, by default, the simulated steel plate (:class:`mppf.sim.plate.plate.SteelPlate`:
+an elastic-plastic plate in equilibrium between the balls, plastic memory from step to
+step and cycle to cycle, press compliance, seeded scatter), written independently of the
+planner's plate model. ``plate_model="planner"`` gives the old simple plate instead
+(:class:`mppf.sim.planner_plate.PlannerModelPlate`: the planner's own model with a scattered yield
+stress and thickness; no memory). The plate's state is saved in the work folder after every
+cycle (:data:`STATE_FILE`, with the steps it has been pressed with), so a dry run resumed in
+another process (``mppf loop --resume``) continues on the same plate and never presses a
+step on it twice.
+
+The press side of a dry run is the simulated PLC (:func:`mppf.sim.plc.run_simulated_plc`)
+driven over loopback Modbus by the real driver (``mppf loop`` without ``--plc``,
+``mppf demo``), or the in-process press (:class:`mppf.sim.plc.link.InProcessPress`).
 Each cycle's scan uses its own seed (``seed * 1000 + cycle``), so a scan repeated after a
 resume is the same scan.
 """
 
 from __future__ import annotations
 
+import json
+import os
 from pathlib import Path
 
 import numpy as np
 
+from mppf.core.errors import InputError
 from mppf.core.polygon import convex_outline
-from mppf.planning.job import Job, reference_corner_xy
-from mppf.core.scanner import ScanContext
-from mppf.sim.forming import form_plate, sample_plate
-from mppf.sim.scanner import SimulatedScanner
-from mppf.forming.material import Material
+from mppf.core.scanner import PressedStep, ScanContext
 from mppf.core.transform import apply_tf
+from mppf.forming.material import Material
+from mppf.planning.job import Job, reference_corner_xy
+from mppf.sim.scanner import SimulatedScanner
+
+PLATE_MODELS = ("steel", "planner")
+"""The simulated plates: the steel plate of :mod:`mppf.sim.plate`, or the planner's own model."""
+
+STATE_FILE = "sim-plate.npz"
+"""The simulated plate's state in the plate's work folder."""
+
+INTERRUPTED_SHARE = 0.5
+"""Share of its way a step interrupted during its motion took the tips (the PLC halted them)."""
 
 
 def plate_outline_xy(job: Job, flat_points) -> np.ndarray:
@@ -55,7 +75,7 @@ def plate_outline_xy(job: Job, flat_points) -> np.ndarray:
 
 
 class SimulatedPlateScanner:
-    """A :class:`mppf.core.scanner.Scanner` that forms and scans a simulated plate.
+    """A :class:`mppf.core.scanner.Scanner` that presses and scans a simulated plate.
 
     Parameters
     ----------
@@ -65,9 +85,18 @@ class SimulatedPlateScanner:
     outline_xy_mm : (k, 2) float
         The plate's outline on the press (:func:`plate_outline_xy`).
     seed : int
-        Seeds the plate's true material and every scan.
+        Seeds the plate's true properties and every scan.
     material : Material
-        Nominal material.
+        Nominal material (the steel plate's nominal steel unless ``steel`` is given).
+    plate_model : str
+        "steel" (default) or "planner" (:data:`PLATE_MODELS`).
+    steel : PlateSteel, optional
+        The steel plate's nominal steel (default ``PlateSteel.from_material(material)``):
+        a mill's steel differs from the nominal material the planner assumes.
+    plate_options : dict, optional
+        More keyword arguments of :class:`mppf.sim.plate.plate.SteelPlate` (``scatter``,
+        ``compliance``, ``grid_spacing_mm``...), or of :class:`mppf.sim.planner_plate.PlannerModelPlate`
+        (``yield_scatter``, ``thickness_scatter``).
     noise_mm, occlusion_fraction, outlier_fraction : float
         Scanner imperfections (see :class:`mppf.sim.scanner.SimulatedScanner`).
     suffix : str
@@ -82,19 +111,28 @@ class SimulatedPlateScanner:
     """
 
     def __init__(self, press, thickness_mm: float, outline_xy_mm, *, seed: int = 0,
-                 material: Material = Material(), noise_mm: float = 0.3, occlusion_fraction: float = 0.2,
+                 material: Material = Material(), plate_model: str = "steel", steel=None,
+                 plate_options: dict | None = None, noise_mm: float = 0.3, occlusion_fraction: float = 0.2,
                  outlier_fraction: float = 0.01, suffix: str = ".ply", reference_mark: bool = True,
                  net_outline_xy_mm=None):
+        if plate_model not in PLATE_MODELS:
+            raise InputError(f"unknown simulated plate model {plate_model!r}", hint=f"use {' or '.join(PLATE_MODELS)}")
         self.press = press
-        self.plate = sample_plate(thickness_mm, material, seed)
+        self.thickness_mm = float(thickness_mm)
         self.outline_xy_mm = np.asarray(outline_xy_mm, dtype=float)
         self.seed = int(seed)
+        self.material = material
+        self.plate_model = plate_model
+        self.steel = steel
+        self.plate_options = dict(plate_options or {})
         self.noise_mm = noise_mm
         self.occlusion_fraction = occlusion_fraction
         self.outlier_fraction = outlier_fraction
         self.suffix = suffix
         net = self.outline_xy_mm if net_outline_xy_mm is None else np.asarray(net_outline_xy_mm, dtype=float)
         self.mark_xy_mm = reference_corner_xy(net) if reference_mark else None
+        self.plate = self.new_plate()
+        self.pressed: list[list[int]] = []  # (cycle, step) pressed on self.plate, in order
         self.last_formed = None
 
     @classmethod
@@ -116,13 +154,62 @@ class SimulatedPlateScanner:
         net = None if job.layout is None else job.layout.net_outline_mm
         return cls(press, thickness_mm, plate_outline_xy(job, flat_points), net_outline_xy_mm=net, **options)
 
+    def new_plate(self):
+        """The flat plate before its first step (its true properties drawn from the seed)."""
+        if self.plate_model == "planner":
+            from mppf.sim.planner_plate import PlannerModelPlate
+
+            return PlannerModelPlate(self.press, self.outline_xy_mm, self.thickness_mm, self.material, seed=self.seed,
+                                     **self.plate_options)
+        from mppf.sim.plate.material import PlateSteel
+        from mppf.sim.plate.plate import SteelPlate
+
+        steel = PlateSteel.from_material(self.material) if self.steel is None else self.steel
+        return SteelPlate(self.press, self.outline_xy_mm, self.thickness_mm, steel, seed=self.seed,
+                          **self.plate_options)
+
     def acquire(self, cycle: int, context: ScanContext) -> Path:
-        """Form the plate from the cycle's last tip positions and scan it into the work folder."""
+        """Press the plate with the cycle's steps (each once, in order) and scan it into the work folder."""
         context.reporter.info(f"cycle {cycle}: simulated forming and scan")
-        formed = form_plate(self.press, context.upper_mm, context.lower_mm, context.active, self.plate,
-                            self.outline_xy_mm)
+        context.work_dir.mkdir(parents=True, exist_ok=True)
+        state_path = context.work_dir / STATE_FILE
+        # 1. the plate as the last run left it (another process, after a crash)
+        self._restore(state_path)
+        # 2. press every step of the cycle not yet pressed on it, in order
+        steps = context.steps or (PressedStep(cycle, 1, context.upper_mm, context.lower_mm, context.active),)
+        for step in steps:
+            if [step.cycle, step.step] not in self.pressed:
+                self._press(step)
+        self._save(state_path)
+        # 3. scan it
+        formed = self.plate.formed
         self.last_formed = formed
         scanner = SimulatedScanner(noise_mm=self.noise_mm, occlusion_fraction=self.occlusion_fraction,
                                    outlier_fraction=self.outlier_fraction, seed=self.seed * 1000 + cycle)
-        context.work_dir.mkdir(parents=True, exist_ok=True)
         return scanner.scan(formed, context.work_dir / f"scan-cycle-{cycle:02d}{self.suffix}", self.mark_xy_mm)
+
+    def _press(self, step: PressedStep) -> None:
+        """One step on the plate; an interrupted one takes the tips :data:`INTERRUPTED_SHARE` of the way."""
+        share = 1.0 if step.complete else INTERRUPTED_SHARE
+        self.plate.press_step(step.upper_mm, step.lower_mm, step.active, share=share)
+        self.pressed.append([int(step.cycle), int(step.step)])
+
+    def _save(self, path: Path) -> None:
+        """The plate's state and the steps pressed on it, written atomically."""
+        state = self.plate.state_dict()
+        state["pressed_json"] = json.dumps(self.pressed)
+        partial = path.with_name(path.name + ".part.npz")
+        np.savez(partial, **state)
+        os.replace(partial, path)
+
+    def _restore(self, path: Path) -> None:
+        """Take the saved plate when it has been pressed with more than the plate in memory."""
+        if not path.exists():
+            return
+        with np.load(path) as saved:
+            pressed = json.loads(str(saved["pressed_json"]))
+            if pressed == self.pressed:
+                return
+            state = {name: saved[name] for name in saved.files if name != "pressed_json"}
+        self.plate = type(self.plate).from_state(state)
+        self.pressed = pressed

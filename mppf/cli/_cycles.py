@@ -6,11 +6,17 @@ from mppf.cli._common import err_console
 
 
 def cycle_table(cycles, title: str):
-    """One row per cycle: state, steps, deviations, share within tolerance, gain, decision (a rich Table)."""
-    from rich.table import Table
+    """One row per cycle: state, steps, deviations, share within tolerance, gain, decision.
 
-    table = Table(title=title, title_justify="left", caption="deviations in mm; within% = share of the scan "
-                  "within the tolerance; gain = mean correction gain of the strokes", caption_justify="left")
+    A rich renderable: the title line (rich markup, user text escaped), the table, the legend line. Title and legend are
+    plain lines of their own (a table's title and caption would be wrapped to the table's
+    width, in logs too).
+    """
+    from rich.console import Group
+    from rich.table import Table
+    from rich.text import Text
+
+    table = Table()
     for name, justify in (("cycle", "right"), ("state", "left"), ("steps", "right"), ("max|dev|", "right"),
                           ("RMS", "right"), ("within%", "right"), ("gain", "right"), ("decision", "left")):
         table.add_column(name, justify=justify, no_wrap=True)
@@ -24,7 +30,8 @@ def cycle_table(cycles, title: str):
             "-" if c.gain is None else f"{c.gain:.2f}",
             c.decision or "-",
         )
-    return table
+    legend = "deviations in mm; within% = share of the scan within the tolerance; gain = mean correction gain of the strokes"
+    return Group(Text.from_markup(title), table, Text(legend))
 
 
 def print_cycle(record, comparison) -> None:

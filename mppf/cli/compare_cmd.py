@@ -8,6 +8,7 @@ import click
 import numpy as np
 
 from mppf.cli._common import PICTURE_SUFFIXES, check_output_path, console, err_console, print_json, units_option
+from mppf.core.defaults import RMS_TOLERANCE_MM, TOLERANCE_MM
 from mppf.core.errors import InputError
 from mppf.core.validate import check_number, check_positive
 
@@ -28,55 +29,139 @@ def skin_offset_mm(skin: str, thickness_mm: float | None) -> float:
     return SKIN_SIDE[skin] * 0.5 * check_positive("--thickness", thickness_mm, unit="mm")
 
 
+def parse_mark(text: str | None):
+    """``--mark X,Y,Z`` as a (3,) float array (mm, the scan's coordinates), or None."""
+    if text is None:
+        return None
+    try:
+        values = np.array([float(v) for v in text.split(",")], dtype=float)
+    except ValueError:
+        values = np.array([])
+    if values.shape != (3,) or not np.all(np.isfinite(values)):
+        raise InputError(f"--mark must be three numbers X,Y,Z (mm, scan coordinates), got {text!r}",
+                         hint="e.g. --mark 1204.5,-311.0,87.2: where the reference-corner mark is in the scan")
+    return values
+
+
 @click.command("compare")
 @click.argument("design", type=click.Path(dir_okay=False, path_type=str))
 @click.argument("measured", type=click.Path(dir_okay=False, path_type=str))
-@click.option("--tolerance", type=float, default=2.5, show_default=True,
-              help="Allowed absolute deviation (mm).")
+@click.option("--tolerance", type=float, default=TOLERANCE_MM, show_default=True,
+              help="Allowed absolute form deviation (mm).")
+@click.option("--rms-tolerance", type=float, default=RMS_TOLERANCE_MM, show_default=True,
+              help="Allowed RMS of the measured points' deviations (mm).")
+@click.option("--job", "job_path", type=click.Path(dir_okay=False, path_type=str), default=None,
+              help="The plate's job file: gives the trim margin, the thickness (the scan is the top skin), the "
+                   "punch grid and press pose (punch deviations) and the reference corner of the mark.")
 @click.option("--thickness", type=float, default=None, help="Plate thickness (mm), for --skin top/bottom.")
-@click.option("--skin", type=click.Choice(["top", "mid", "bottom"]), default="mid", show_default=True,
+@click.option("--skin", type=click.Choice(["top", "mid", "bottom"]), default=None,
               help="Which skin the scan measured: the design is the mid-surface; top = its +normal side "
-                   "(the concave side of a curved plate), offset by half the thickness.")
-@click.option("--margin", type=float, default=0.0, show_default=True,
+                   "(the concave side of a curved plate), offset by half the thickness. Default: top with --job, "
+                   "else mid.")
+@click.option("--margin", type=float, default=None,
               help="Width of the trim margin (excess) the scanned plate still carries around the design outline "
-                   "(mm); statistics cover the net plate only.")
+                   "(mm); statistics cover the net plate only. Default: the job's, else 0.")
+@click.option("--mark", "mark", default=None, metavar="X,Y,Z",
+              help="Where the plate's reference-corner mark is in the scan (mm, scan coordinates); default: "
+                   "<scan>.mark.json when present. It settles which way round a nearly symmetric plate lies.")
 @units_option
+@click.option("--scan-units", type=click.Choice(["mm", "m"]), default=None,
+              help="Length unit of the scan file when it differs from --units (scanners often write metres).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
 @click.option("--plot", type=click.Path(dir_okay=False, path_type=str), default=None,
               help="Save a colour deviation map (.png, .pdf, .svg).")
+@click.option("--scale", "scale_mm", type=float, default=None,
+              help="Half range of the colour scale of the pictures (mm); default 2 x the tolerance (fixed, the same "
+                   "for every cycle of a plate).")
 @click.option("--report", type=click.Path(dir_okay=False, path_type=str), default=None,
               help="Write an HTML report with the pictures and tables.")
-def compare_command(design: str, measured: str, tolerance: float, thickness: float | None, skin: str,
-                    margin: float, units: str, as_json: bool, plot: str | None, report: str | None) -> None:
+@click.option("--export", "export_path", type=click.Path(dir_okay=False, path_type=str), default=None,
+              help="Write every point (design coordinates) with its deviation, form deviation and flags: .ply "
+                   "(CloudCompare scalar fields scalar_<name>) or .csv.")
+def compare_command(design: str, measured: str, tolerance: float, rms_tolerance: float, job_path: str | None,
+                    thickness: float | None, skin: str | None, margin: float | None, mark: str | None, units: str,
+                    scan_units: str | None, as_json: bool, plot: str | None, scale_mm: float | None,
+                    report: str | None, export_path: str | None) -> None:
     """Compare the scan MEASURED with the design plate DESIGN.
 
     Registers the scan onto the design (ICP from the principal axes: point-to-point,
-    then robust point-to-plane), measures the signed normal deviation of every scanned point (positive =
-    on the design's +normal side) and prints the statistics: RMS, largest absolute
-    deviation, percent within the tolerance, and a histogram. Outliers are flagged and
-    left out. With --margin, the scan may still carry its trim margin (excess band) of that
-    width around the design outline: it is measured but left out of the statistics.
-    Both files are point or mesh files (.csv .txt .xyz .ply .stl .obj).
-    Exit code 2 for unreadable files or a scan that does not match the design.
+    then robust point-to-plane, pinned by the outline only where the surface leaves the pose
+    free), measures the signed normal deviation of every scanned point (positive = on the
+    design's +normal side) and decides by one rule: form max <= tolerance, RMS <= RMS
+    tolerance, and no point set aside as a scanner artefact beyond the tolerance (else
+    "needs review"). Only certain scanner artefacts of dense scans are set aside, and
+    each is reported. With --job, the job's trim margin, thickness, punch grid and
+    reference corner are used, as the loop does. Both files are point or mesh files (.csv
+    .txt .xyz .ply .stl .obj). Exit code 2 for unreadable files or a scan that does not
+    match the design; 4 when a nearly symmetric plate fits two ways round and no
+    reference mark says which (both candidates shown).
     """
     from mppf.geometry.read import read_points
     from mppf.measure.compare import compare
 
+    # 1. options and output paths checked before the work
     check_positive("--tolerance", tolerance, unit="mm")
-    check_number("--margin", margin, low=0.0, unit="mm", hint="")  # one line: the range says what to give
-    offset = skin_offset_mm(skin, thickness)
-    if plot:
-        check_output_path(plot, "the deviation map (--plot)", PICTURE_SUFFIXES, kind="picture")
-    if report:
-        check_output_path(report, "the report (--report)")
+    check_positive("--rms-tolerance", rms_tolerance, unit="mm")
+    if scale_mm is not None:
+        check_positive("--scale", scale_mm, unit="mm")
+    mark_mm = parse_mark(mark)
+    for path, what, suffixes, kind in ((plot, "the deviation map (--plot)", PICTURE_SUFFIXES, "picture"),
+                                       (report, "the report (--report)", None, "file"),
+                                       (export_path, "the export (--export)", (".ply", ".csv"), "point file")):
+        if path:
+            check_output_path(path, what, suffixes, kind=kind)
+    # 2. the files: design, scan (its own units), job
     design_cloud = read_points(design, units=units)
-    measured_cloud = read_points(measured, units=units)
-    result = compare(design_cloud.points, measured_cloud.points, tolerance_mm=tolerance, offset_mm=offset,
-                     design_faces=design_cloud.faces, margin_mm=margin)
+    measured_cloud = read_points(measured, units=scan_units or units)
+    options = _options(job_path, design_cloud.points, measured, skin, thickness, margin, mark_mm)
+    # 3. compare and decide
+    result = compare(design_cloud.points, measured_cloud.points, tolerance_mm=tolerance,
+                     rms_tolerance_mm=rms_tolerance, design_faces=design_cloud.faces, **options)
+    # 4. pictures, report, export, the result
+    _outputs(result, plot, report, export_path, scale_mm, design, measured, design_cloud, measured_cloud)
+    if as_json:
+        doc = result.to_dict()
+        doc.update({"design": design, "measured": measured, "design_sha256": design_cloud.sha256,
+                    "measured_sha256": measured_cloud.sha256, "skin": skin or ("top" if job_path else "mid"),
+                    "job": job_path})
+        print_json(doc)
+        return
+    _print_result(result, design, measured)
+    for name, path in (("deviation map", plot), ("report", report), ("export", export_path)):
+        if path:
+            err_console.print(f"{name} written to {path}")
+
+
+def _options(job_path, design_points, scan_path, skin, thickness, margin, mark_mm) -> dict:
+    """The compare keywords from the job (as the loop judges) and the explicit options (which win)."""
+    if job_path is None:
+        options = {"offset_mm": skin_offset_mm(skin or "mid", thickness), "margin_mm": 0.0,
+                   "reference_mark": _mark_without_job(design_points, scan_path, mark_mm)}
+    else:
+        from mppf.measure.job_options import job_compare_options
+        from mppf.planning.job import load_job
+
+        job = load_job(job_path)
+        offset = None if skin is None else skin_offset_mm(skin, job.thickness_mm if thickness is None else thickness)
+        options = job_compare_options(job, design_points, scan_path, offset_mm=offset, mark_mm=mark_mm)
+    if margin is not None:
+        options["margin_mm"] = check_number("--margin", margin, low=0.0, unit="mm", hint="")
+    return options
+
+
+def _mark_without_job(design_points, scan_path, mark_mm):
+    """The reference mark without a job: the design side at the corner of the design's own frame."""
+    from mppf.measure.mark import reference_mark
+
+    return reference_mark(scan_path, design_points, None, mark_mm)
+
+
+def _outputs(result, plot, report, export_path, scale_mm, design, measured, design_cloud, measured_cloud) -> None:
+    """Write the deviation map, the HTML report and the per-point export that were asked for."""
     if plot:
         from mppf.report.deviation import plot_deviation
 
-        _writing(plot, lambda: plot_deviation(result, plot))
+        _writing(plot, lambda: plot_deviation(result, plot, scale_mm=scale_mm))
     if report:
         from mppf.report.html import comparison_report
 
@@ -84,18 +169,13 @@ def compare_command(design: str, measured: str, tolerance: float, thickness: flo
             result,
             design_name=f"{design} (sha256 {design_cloud.sha256[:12]})",
             measured_name=f"{measured} (sha256 {measured_cloud.sha256[:12]})",
+            scale_mm=scale_mm,
         )
         _writing(report, lambda: Path(report).write_text(page, encoding="utf-8"))
-    if as_json:
-        doc = result.to_dict()
-        doc.update({"design": design, "measured": measured, "design_sha256": design_cloud.sha256,
-                    "measured_sha256": measured_cloud.sha256, "skin": skin})
-        print_json(doc)
-        return
-    _print_result(result, design, measured)
-    for name, path in (("deviation map", plot), ("report", report)):
-        if path:
-            err_console.print(f"{name} written to {path}")
+    if export_path:
+        from mppf.report.export import export_points
+
+        _writing(export_path, lambda: export_points(result, export_path))
 
 
 def _writing(path: str, write) -> None:
@@ -117,21 +197,28 @@ def _print_result(result, design: str, measured: str) -> None:
     table = Table(title=f"{measured} against {design}", show_header=False, title_justify="left")
     table.add_column(style="bold")
     table.add_column(justify="right")
-    verdict = "[green]IN tolerance[/]" if c.in_tolerance else "[red]OUT of tolerance[/]"
-    table.add_row("result", verdict)
-    table.add_row("RMS deviation", f"{c.rms_mm:.3f} mm")
-    table.add_row("largest |deviation| (form)", f"{c.form_max_abs_mm:.3f} mm")
-    table.add_row("largest |deviation| (points)", f"{c.max_abs_mm:.3f} mm")
-    table.add_row(f"within +-{c.tolerance_mm:g} mm", f"{c.within_tolerance_pct:.1f} %")
+    colour = {"in_tolerance": "green", "out_of_tolerance": "red", "needs_review": "yellow"}[c.verdict.kind]
+    table.add_row("result", f"[{colour}]{c.verdict.label}[/]")
+    table.add_row("decided by", "; ".join(c.verdict.reasons))
+    table.add_row("form max |deviation| (decides)", f"{c.form_max_abs_mm:.3f} mm")
+    table.add_row("RMS deviation (decides)", f"{c.rms_mm:.3f} mm")
+    table.add_row("largest |deviation| of a point", f"{c.max_abs_mm:.3f} mm")
+    table.add_row(f"within +-{c.tolerance_mm:g} mm (all net points)", f"{c.within_tolerance_pct:.1f} %")
     table.add_row("mean deviation", f"{c.mean_mm:+.3f} mm")
     table.add_row("inliers", f"{c.n_inliers} of {c.n_points} ({100.0 * c.n_inliers / c.n_points:.1f} %)")
-    table.add_row("outliers / outside", f"{int(c.is_outlier.sum())} / {int(c.is_outside.sum())}")
+    table.add_row("set aside / outside", f"{int(c.is_outlier.sum())} / {int(c.is_outside.sum())}")
+    if c.set_aside is not None and c.set_aside.count:
+        table.add_row("set aside (scanner artefacts)", c.set_aside.describe(c.tolerance_mm))
+    table.add_row("form smoothing", f"point spacing {c.form.get('spacing_mm', float('nan')):.1f} mm, noise "
+                                    f"{c.form.get('noise_mm', float('nan')):.2f} mm (see the notes)")
     if c.margin_mm > 0:
         table.add_row(f"in the {c.margin_mm:g} mm trim margin", f"{int(c.in_margin.sum())} (not counted)")
     table.add_row("registration RMS", f"{reg.rms_mm:.3f} mm")
     table.add_row("registration iterations", f"{reg.iterations}" + ("" if reg.converged else " (not converged)"))
+    table.add_row("registration verdict", reg.verdict or ("converged" if reg.converged else reg.stop_reason))
+    start = reg.init.get("settled_by")
     if reg.ambiguous_start:
-        table.add_row("warning", "[yellow]symmetric plate: check the turn of the registration[/]")
+        table.add_row("warning", f"[yellow]nearly symmetric plate: two turns tie; settled by the {start}[/]")
     console.print(table)
     console.print(ascii_histogram(c.histogram_edges_mm, c.histogram_counts, c.tolerance_mm), highlight=False,
                   markup=False)

@@ -293,9 +293,11 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
                 audit.close()
     if as_json:
         print_json({"plate_id": result.plate_id, "status": result.status, "resumed_state": result.resumed_state,
-                    "cycles": [c.to_dict(grids=False) for c in result.cycles]})
+                    "verdict": result.verdict, "cycles": [c.to_dict(grids=False) for c in result.cycles]})
         return
     console.print(cycle_table(result.cycles, f"plate {esc(result.plate_id)}: {result.status}"))
+    if result.verdict:
+        console.print(f"verdict: {result.verdict}", markup=False, highlight=False)
 
 
 COMMANDS = [loop]

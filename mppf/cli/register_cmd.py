@@ -104,7 +104,14 @@ def _print_result(result, source: str, target: str, output: str | None) -> None:
     table.add_row("RMS", f"{result.rms_mm:.4f} mm")
     table.add_row("iterations", str(result.iterations))
     state = "[green]converged[/]" if result.converged else "[red]not converged[/]"
-    table.add_row("stop", f"{state}: {result.stop_reason}")
+    table.add_row("stop", f"{state}: {escape(result.stop_reason)}")
+    table.add_row("verdict", escape(result.verdict or ("converged" if result.converged else "failed")))
+    if result.method != "paired":
+        table.add_row("residual / noise floor", f"{result.residual_mm:.3g} mm / {result.noise_mm:.3g} mm")
+        names = result.init.get("candidates") or []
+        scores = result.init.get("scores_mm") or []
+        tried = ", ".join(f"{n} {s:.3g} mm" for n, s in zip(names, scores)) or str(result.init.get("kind", "-"))
+        table.add_row("starts tried", escape(tried))
     table.add_row("inlier fraction", f"{result.inlier_fraction:.3f}")
     if result.method != "paired":
         table.add_row("outline pinned", "yes" if result.outline_pinned else "no")

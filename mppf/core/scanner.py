@@ -16,6 +16,33 @@ import numpy as np
 from mppf.core.progress import NULL_REPORTER, Reporter
 
 
+@dataclass(frozen=True, eq=False)
+class PressedStep:
+    """One press step of a cycle as the press did it (what a simulated plate must be pressed with).
+
+    Attributes
+    ----------
+    cycle, step : int
+        The cycle and its step (1-based).
+    upper_mm, lower_mm : (rows, cols) float
+        Tip heights read back from the press after the step (for an interrupted step:
+        its setpoints, which the tips were moving towards when the motion stopped),
+        parking heights where inactive.
+    active : (rows, cols) bool
+        Punches acting on the plate.
+    complete : bool
+        False: the step was interrupted during its motion (the master died or was
+        stopped; the PLC halted the punches part of the way to ``upper_mm, lower_mm``).
+    """
+
+    cycle: int
+    step: int
+    upper_mm: np.ndarray
+    lower_mm: np.ndarray
+    active: np.ndarray
+    complete: bool = True
+
+
 @dataclass(frozen=True)
 class ScanContext:
     """What a scanner may want to know about the cycle to measure.
@@ -35,6 +62,9 @@ class ScanContext:
         inactive.
     active : (rows, cols) bool
         Punches acting on the plate in that step.
+    steps : tuple of PressedStep
+        Every step of the cycle the press started, in order: the completed ones with
+        their read-back tips, an interrupted one last (``complete=False``).
     reporter : Reporter
         Progress of a long wait.
     """
@@ -46,6 +76,7 @@ class ScanContext:
     lower_mm: np.ndarray
     active: np.ndarray
     used_paths: tuple[str, ...] = ()
+    steps: tuple[PressedStep, ...] = ()
     reporter: Reporter = field(default=NULL_REPORTER)
 
 

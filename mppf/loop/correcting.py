@@ -1,11 +1,17 @@
 """Correcting a compared cycle: the next cycle's strokes from the deviations measured so far.
 
-With the plate's nominal material (``model_gain``) and ``calibrate``, the plate model is
-calibrated on every measured cycle (:func:`mppf.correct.calibrated.calibrated_step`), as
-long as no cycle was interrupted and every cycle pressed the same punches; otherwise, or
-when the calibration explains too little, the model step or the displacement adjustment
-of :func:`mppf.correct.compensate.compensate`. The next cycle's job and its history record
-are written together with the move of this cycle to "corrected".
+With the plate's nominal material (``model_gain``), ``calibrate`` and ``learn`` (the
+defaults) and a job that carries the design at the punches, the correction learns from
+every step the press did and every scan (:func:`mppf.correct.learned.learned_correction`:
+the plate's plastic memory replayed, its yield stress and hardening fitted, its response
+learned by secant updates, aimed short of the design, inside a trust region); an
+interrupted cycle counts with the steps recorded as done (read-back tips) and the one
+stopped on its way. When that correction finds no way on, the loop stops with a verdict
+(:func:`mppf.correct.verdict.convergence_verdict`) instead of pressing on to the cycle
+limit. Without ``learn``: the calibrated correction
+(:func:`mppf.correct.calibrated.calibrated_step`) or :func:`mppf.correct.compensate.compensate`
+as before. The next cycle's job and its history record are written together with the move
+of this cycle to "corrected".
 """
 
 from __future__ import annotations
@@ -16,25 +22,37 @@ import numpy as np
 
 from mppf.correct.calibrated import calibrated_step
 from mppf.correct.compensate import compensate
+from mppf.correct.learned import LearnedCorrection, learned_correction, steps_towards, trust_region
+from mppf.correct.memory import PressedCycle
 from mppf.correct.result import Correction, PreviousCycle
+from mppf.correct.verdict import Verdict, convergence_verdict
 from mppf.forming.material import Material
 from mppf.loop.history import History
 from mppf.loop.measuring import load_cycle_job
-from mppf.loop.pressing import last_step
+from mppf.loop.pressing import last_step, pressed_steps
 from mppf.loop.records import CycleRecord, PlateRecord
 from mppf.loop.settings import LoopSettings
 from mppf.loop.states import Decision
 from mppf.planning.job import Job, StepStrokes, grid_to_json, save_job
 from mppf.planning.press import PressConfig
+from mppf.planning.steps import flat_heights
 
 
 def plan_next(history: History, plate: PlateRecord, record: CycleRecord, press: PressConfig,
-              settings: LoopSettings) -> None:
+              settings: LoopSettings) -> Verdict | None:
     """Correct the last strokes by the measured error and record the next cycle ("planned").
 
     The compared cycle moves to "corrected" in the same transaction.
+
+    Returns
+    -------
+    Verdict or None
+        Why the plate cannot be brought into tolerance (nothing is planned; the loop ends
+        it as "cannot_converge"), or None: the next cycle is planned.
     """
     job = load_cycle_job(record)
+    if _learns(settings, job, history, record):
+        return _plan_learned(history, plate, record, press, settings, job)
     # correct the strokes just pressed by what was measured
     correction = next_correction(history, plate, record, press, settings, job)
     # the next cycle presses them on the same punches: its job file...
@@ -52,6 +70,7 @@ def plan_next(history: History, plate: PlateRecord, record: CycleRecord, press: 
         gain=float(np.nanmean(correction.gain)), correction=correction_to_dict(correction),
         previous_decision=Decision.CONTINUE,
     )
+    return None
 
 
 def next_correction(history: History, plate: PlateRecord, record: CycleRecord, press: PressConfig,
@@ -103,4 +122,86 @@ def correction_to_dict(correction: Correction) -> dict:
         "applied_mm": grid_to_json(correction.applied_mm),
         "clipped_punches": int(np.sum(correction.clipped)),
         "notes": list(correction.notes),
+    }
+
+
+# -- the learned correction ------------------------------------------------------------------
+
+
+def _learns(settings: LoopSettings, job: Job, history: History, record: CycleRecord) -> bool:
+    """The learned correction applies: asked for, nominal material and design at the punches known, one punch set."""
+    layout = job.layout
+    if not (settings.learn and settings.model_gain and settings.calibrate) or layout is None:
+        return False
+    if layout.material is None or layout.design_mid_mm is None:
+        return False
+    active = record.steps[-1].active
+    return all(np.array_equal(s.active, active) for r in history.cycles(record.plate_id)[: record.cycle]
+               for s in r.steps)
+
+
+def _plan_learned(history: History, plate: PlateRecord, record: CycleRecord, press: PressConfig,
+                  settings: LoopSettings, job: Job) -> Verdict | None:
+    """The learned correction, its verdict, and the next cycle's job and record."""
+    records = history.cycles(plate.plate_id)[: record.cycle]
+    final = record.steps[-1]  # the strokes this cycle aimed at (all of them, even if interrupted)
+    # 1. every step the press did, cycle by cycle, and what the scanner measured after each cycle
+    cycles = [c for c in (pressed_cycle(r, press) for r in records) if c.steps_mid_mm]
+    # 2. the next strokes, learned from all of it
+    rms = [r.rms_mm for r in records]
+    predicted = [None if not r.correction else r.correction.get("predicted_rms_mm") for r in records]
+    trust = trust_region(rms, predicted, settings.rms_tolerance_mm)
+    learned = learned_correction(press, job.layout.design_mid_mm, plate.thickness_mm, job.layout.material, cycles,
+                                 final.upper_mm, final.lower_mm, final.active, trust=trust)
+    # 3. stop with a verdict when it finds no way on
+    verdict = convergence_verdict(rms, learned.predicted_rms_mm, settings.rms_tolerance_mm,
+                                  clipped=int(learned.clipped.sum()), unreached=int(learned.unreached.sum()),
+                                  max_mm=[r.max_abs_mm for r in records], tolerance_mm=settings.tolerance_mm)
+    if verdict is not None:
+        return verdict
+    # 4. the next cycle's steps, from the tips the plate last held to the new strokes
+    steps = steps_towards(press, _held(record, press, plate.thickness_mm), learned, final.active)
+    loop = {"plate_id": plate.plate_id, "cycle": record.cycle + 1, "corrects_job_sha256": record.job_sha256}
+    job = Job(press=job.press, thickness_mm=job.thickness_mm, steps=steps, tf_press_design=job.tf_press_design,
+              tf_press_flat=job.tf_press_flat, punch_x_mm=job.punch_x_mm, punch_y_mm=job.punch_y_mm, layout=job.layout,
+              extra={**job.extra, "loop": loop})
+    path = save_job(job, Path(plate.settings["work_dir"]) / f"cycle-{record.cycle + 1:02d}.job.json")
+    history.add_cycle(
+        plate.plate_id, record.cycle + 1, job_path=path.resolve(), job_sha256=job.sha256(), steps=steps,
+        gain=float(np.mean(learned.gains)) if learned.gains.size else 1.0, correction=learned_to_dict(learned),
+        previous_decision=Decision.CONTINUE,
+    )
+    return None
+
+
+def pressed_cycle(record: CycleRecord, press: PressConfig) -> PressedCycle:
+    """A cycle as the press did it (:func:`mppf.loop.pressing.pressed_steps`) and as it was measured."""
+    steps = pressed_steps(record, press)
+    mids = [np.where(s.active, 0.5 * (s.upper_mm + s.lower_mm), np.nan) for s in steps]
+    interrupted = bool(steps) and not steps[-1].complete
+    return PressedCycle(mids, record.punch_deviation_mm, interrupted=interrupted)
+
+
+def _held(record: CycleRecord, press: PressConfig, thickness_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    """The tips of the last step the press finished in this cycle (read back), else the flat plate's."""
+    done = [s for s in pressed_steps(record, press) if s.complete]
+    if done:
+        return done[-1].upper_mm, done[-1].lower_mm
+    up0, lo0 = flat_heights(thickness_mm)
+    return np.full(press.shape, up0), np.full(press.shape, lo0)
+
+
+def learned_to_dict(learned: LearnedCorrection) -> dict:
+    """The learned correction as stored with the next cycle."""
+    return {
+        "strategy": "learned",
+        "applied_mm": grid_to_json(learned.change_mm),
+        "predicted_mm": grid_to_json(learned.predicted_mm),
+        "predicted_rms_mm": round(learned.predicted_rms_mm, 4),
+        "yield_stress_mpa": round(learned.calibration.section.yield_stress_mpa, 1),
+        "hardening_mpa": round(learned.calibration.section.hardening_mpa, 1),
+        "response_gains": [round(float(g), 4) for g in learned.gains],
+        "clipped_punches": int(np.sum(learned.clipped)),
+        "unreached_punches": int(np.sum(learned.unreached)),
+        "notes": list(learned.notes),
     }

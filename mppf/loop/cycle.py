@@ -10,6 +10,7 @@ cycles run out, or the error diverges:
     pressed   -> get the scan of the formed plate              -> scanned
     scanned   -> register it to the design, deviations         -> compared (+ decision)
     compared  -> correct the strokes, plan the next cycle      -> corrected | done
+                 (or stop with a verdict: cannot converge)      -> done
 
 Each state is committed before the next action, so :func:`run_loop` called again on the
 same plate (``mppf loop --resume``) continues where the last run stopped. A cycle found in
@@ -54,7 +55,7 @@ class LoopResult:
     ----------
     plate_id : str
     status : Decision
-        IN_TOLERANCE, MAX_CYCLES or DIVERGED.
+        IN_TOLERANCE, MAX_CYCLES, DIVERGED or CANNOT_CONVERGE.
     cycles : list of CycleRecord
         Every cycle of the plate, as stored in the history.
     resumed_state : CycleState or None
@@ -66,6 +67,7 @@ class LoopResult:
     status: Decision
     cycles: list
     resumed_state: CycleState | None = None
+    verdict: str | None = None
 
     @property
     def last(self) -> CycleRecord:
@@ -86,6 +88,7 @@ class _Run:
     scanner: Scanner
     reporter: Reporter
     on_cycle: CycleCallback | None
+    verdicts: list
 
     def notify(self, record: CycleRecord, comparison) -> None:
         if self.on_cycle is not None:
@@ -141,7 +144,8 @@ def run_loop(
     while True:
         record = history.cycle(plate_id, number)
         if record.state == CycleState.DONE:
-            return LoopResult(plate_id, record.decision, history.cycles(plate_id), resumed)
+            verdict = run.verdicts[-1] if run.verdicts else None
+            return LoopResult(plate_id, record.decision, history.cycles(plate_id), resumed, verdict)
         number = _HANDLERS[record.state](run, record)
 
 
@@ -151,7 +155,7 @@ def _start_run(history, plate_id, link, scanner, reporter, on_cycle) -> _Run:
     settings = LoopSettings.from_dict(plate.settings["loop"])
     press = press_from_dict(plate.press, source=f"history of plate {plate_id}")
     design = read_checked(plate.design_path, plate.design_sha256, "design", plate.settings.get("units", "mm"))
-    return _Run(history, plate, press, settings, design, link, scanner, reporter, on_cycle)
+    return _Run(history, plate, press, settings, design, link, scanner, reporter, on_cycle, [])
 
 
 # -- one handler per state: each does what the state asks and returns the cycle to look at next --
@@ -164,10 +168,16 @@ def _on_planned(run: _Run, record: CycleRecord) -> int:
 
 
 def _on_pressing(run: _Run, record: CycleRecord) -> int:
-    # interrupted while pressing: never press again, measure the plate as it is
-    run.reporter.info(f"cycle {record.cycle} was interrupted at step {record.step_started} of {len(record.steps)}: "
-                      "it is not pressed again; measuring the plate as it is")
-    run.history.mark_pressed(record.plate_id, record.cycle, interrupted=True, detail="resumed after an interruption")
+    # stopped while pressing: never press again, measure the plate as it is; "interrupted" only when a
+    # step was really cut short (a crash after the last step was recorded done is not an interruption)
+    cut = record.step_started > record.steps_done or record.steps_done < len(record.steps)
+    if cut:
+        run.reporter.info(f"cycle {record.cycle} was interrupted at step {record.step_started} of "
+                          f"{len(record.steps)}: it is not pressed again; measuring the plate as it is")
+    else:
+        run.reporter.info(f"cycle {record.cycle}: every step was recorded done; measuring the plate")
+    run.history.mark_pressed(record.plate_id, record.cycle, interrupted=cut,
+                             detail="resumed after an interruption" if cut else "resumed after the last step")
     return record.cycle
 
 
@@ -199,8 +209,12 @@ def _on_compared(run: _Run, record: CycleRecord) -> int:
         # the loop ends here: the plate gets the decision as its status
         run.history.mark_done(record.plate_id, record.cycle, record.decision)
     else:
-        # correct the strokes and record the next cycle
-        plan_next(run.history, run.plate, record, run.press, run.settings)
+        # correct the strokes and record the next cycle, or stop with the correction's verdict
+        verdict = plan_next(run.history, run.plate, record, run.press, run.settings)
+        if verdict is not None:
+            run.reporter.info(f"plate {record.plate_id}, cycle {record.cycle}: {verdict.text}")
+            run.verdicts.append(verdict.text)
+            run.history.mark_done(record.plate_id, record.cycle, Decision.CANNOT_CONVERGE)
     run.notify(run.history.cycle(record.plate_id, record.cycle), None)
     return record.cycle
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from mppf.loop.settings import LoopSettings
 from mppf.loop.states import Decision
+from mppf.measure.decision import Limits, within_limits
 
 GROWTH_MARGIN_MM = 0.1
 """An RMS increase below this is scan noise, not growth (for the divergence rule)."""
@@ -26,15 +27,16 @@ def decide(rms_history_mm: list[float], max_abs_mm: float, cycle: int, settings:
     Returns
     -------
     Decision
-        IN_TOLERANCE when the largest absolute deviation and the RMS are both within
-        their limits; DIVERGED when the RMS (the robust measure: the largest deviation of
+        IN_TOLERANCE when the form maximum and the RMS are both within their limits
+        (the one decision rule's measured part:
+        :func:`mppf.measure.decision.within_limits`, as ``mppf compare`` decides); DIVERGED when the RMS (the robust measure: the largest deviation of
         a scan is one noisy point) grew by more than ``divergence_factor`` since the last
         cycle, or grew two cycles in a row, each time by more than
         :data:`GROWTH_MARGIN_MM` (the scan's noise floor); MAX_CYCLES when no cycles are
         left; else CONTINUE.
     """
     e = [float(v) for v in rms_history_mm]
-    if max_abs_mm <= settings.tolerance_mm and e[-1] <= settings.rms_tolerance_mm:
+    if within_limits(float(max_abs_mm), e[-1], Limits(settings.tolerance_mm, settings.rms_tolerance_mm)):
         return Decision.IN_TOLERANCE
     if len(e) >= 2 and e[-1] > settings.divergence_factor * e[-2] and e[-1] > settings.rms_tolerance_mm:
         return Decision.DIVERGED

@@ -10,8 +10,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
 from mppf.core.errors import ConfigError, GeometryError, InputError
 from mppf.core.progress import Reporter
 from mppf.core.scanner import Scanner
@@ -21,8 +19,9 @@ from mppf.loop.pressing import scan_context
 from mppf.loop.records import CycleRecord, PlateRecord
 from mppf.loop.settings import LoopSettings
 from mppf.measure.compare import compare
-from mppf.measure.mark import reference_mark
+from mppf.measure.job_options import job_compare_options
 from mppf.planning.job import Job, load_job
+from mppf.registration.scan_start import AmbiguousStart
 from mppf.planning.press import PressConfig
 
 
@@ -77,10 +76,15 @@ def compare_cycle(history: History, plate: PlateRecord, record: CycleRecord, des
     GeometryError
         The scan is not of this plate (or in other units): recorded as rejected, the cycle
         goes back to "pressed".
+    AmbiguousStart
+        The scan fits the design two ways round (a nearly symmetric plate) and carries no
+        reference mark: it is not judged; recorded as rejected ("ambiguous: give the
+        reference mark", both candidates), the cycle goes back to "pressed" for a scan with
+        its ``<scan>.mark.json`` (exit 4).
     """
     try:
         return _compare(plate, record, design, settings)
-    except GeometryError as exc:  # not this plate (or units): back to "pressed", wait for another
+    except (GeometryError, AmbiguousStart) as exc:  # not judged: back to "pressed", wait for another
         history.reject_scan(plate.plate_id, record.cycle, record.scan_path, record.scan_sha256, exc.message)
         raise
 
@@ -89,13 +93,10 @@ def _compare(plate: PlateRecord, record: CycleRecord, design: PointCloud, settin
     scan = read_checked(record.scan_path, record.scan_sha256, "scan")
     job = load_cycle_job(record)
     offset_mm = plate.thickness_mm / 2.0 if settings.offset_mm is None else settings.offset_mm
-    x, y = np.meshgrid(job.punch_x_mm, job.punch_y_mm)
-    return compare(
-        design.points, scan.points, tolerance_mm=settings.tolerance_mm, offset_mm=offset_mm,
-        punch_xy_mm=np.stack([x, y], axis=-1), tf_press_design=job.tf_press_design,
-        reference_mark=reference_mark(record.scan_path, design.points, job),
-        margin_mm=0.0 if job.layout is None else job.layout.margin_mm,
-    )
+    # the same keywords as ``mppf compare --job``: the same scan gets the same verdict
+    options = job_compare_options(job, design.points, record.scan_path, offset_mm=offset_mm)
+    return compare(design.points, scan.points, tolerance_mm=settings.tolerance_mm,
+                   rms_tolerance_mm=settings.rms_tolerance_mm, **options)
 
 
 def comparison_summary(comparison) -> dict:

@@ -14,7 +14,7 @@ from pathlib import Path
 from mppf.core.errors import InputError, PressRefused
 from mppf.core.presslink import PressLink, StepResult
 from mppf.core.progress import Reporter
-from mppf.core.scanner import ScanContext
+from mppf.core.scanner import PressedStep, ScanContext
 from mppf.loop.history import History
 from mppf.loop.records import CycleRecord, PlateRecord
 from mppf.planning.job import StepStrokes, grid_from_json, grid_to_json
@@ -68,18 +68,38 @@ def last_step(record: CycleRecord) -> StepStrokes:
 
 def scan_context(history: History, plate: PlateRecord, record: CycleRecord, press: PressConfig,
                  reporter: Reporter) -> ScanContext:
-    """What the scanner may want to know about the cycle: the tip heights the plate saw last and more."""
-    step = last_step(record)
-    if record.results and record.steps_done == record.step_started:
-        upper_mm = grid_from_json(record.results[-1]["actual_upper_mm"])
-        lower_mm = grid_from_json(record.results[-1]["actual_lower_mm"])
-    else:  # read-back lost in a crash: the setpoints of the interrupted step
-        upper_mm, lower_mm = step.setpoints_mm(press)
+    """What the scanner may want to know about the cycle: every step the press did, the last one's tips, more."""
+    steps = pressed_steps(record, press)
+    last = steps[-1] if steps else None
+    if last is None:  # nothing was pressed (cannot happen in the loop): the first step's setpoints
+        upper_mm, lower_mm = record.steps[0].setpoints_mm(press)
+        active = record.steps[0].active
+    else:
+        upper_mm, lower_mm, active = last.upper_mm, last.lower_mm, last.active
     since = datetime.fromisoformat(record.created_utc).timestamp()  # when the cycle was planned
     cycles = history.cycles(plate.plate_id)
     used = tuple([c.scan_path for c in cycles if c.scan_path and c.cycle != record.cycle]
                  + [r["path"] for c in cycles for r in c.rejected_scans])
     return ScanContext(
         plate_id=plate.plate_id, work_dir=Path(plate.settings["work_dir"]), since_s=since,
-        upper_mm=upper_mm, lower_mm=lower_mm, active=step.active, used_paths=used, reporter=reporter,
+        upper_mm=upper_mm, lower_mm=lower_mm, active=active, used_paths=used, steps=tuple(steps),
+        reporter=reporter,
     )
+
+
+def pressed_steps(record: CycleRecord, press: PressConfig) -> list[PressedStep]:
+    """The steps of a cycle the press did, in order, as it did them.
+
+    Every step recorded as done, with the tips read back after it; then the step that
+    was started but not finished (an interruption during its motion), with its setpoints
+    and ``complete=False``.
+    """
+    steps = []
+    for index, result in enumerate(record.results[: record.steps_done], start=1):
+        steps.append(PressedStep(record.cycle, index, grid_from_json(result["actual_upper_mm"]),
+                                 grid_from_json(result["actual_lower_mm"]), record.steps[index - 1].active))
+    if record.step_started > record.steps_done:  # interrupted in motion: the read-back is lost
+        step = record.steps[record.step_started - 1]
+        upper_mm, lower_mm = step.setpoints_mm(press)
+        steps.append(PressedStep(record.cycle, record.step_started, upper_mm, lower_mm, step.active, complete=False))
+    return steps

@@ -63,6 +63,7 @@ class LoopSettings:
     model_gain: bool = True
     margin_mm: float | None = None
     calibrate: bool = True
+    learn: bool = True
 
     def __post_init__(self):
         checks = {  # name: (lower bound, exclusive)

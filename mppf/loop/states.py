@@ -35,6 +35,7 @@ class Decision(StrEnum):
     IN_TOLERANCE = "in_tolerance"
     MAX_CYCLES = "max_cycles"
     DIVERGED = "diverged"
+    CANNOT_CONVERGE = "cannot_converge"  # the correction found no way on: see its verdict
 
 
 class PlateStatus(StrEnum):
@@ -44,6 +45,7 @@ class PlateStatus(StrEnum):
     IN_TOLERANCE = "in_tolerance"
     MAX_CYCLES = "max_cycles"
     DIVERGED = "diverged"
+    CANNOT_CONVERGE = "cannot_converge"
 
 
 STATES = tuple(CycleState)

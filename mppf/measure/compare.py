@@ -9,9 +9,12 @@ The steps of :func:`compare` (the math is in ``docs/compare.md``):
    (:class:`mppf.measure.deviations.DesignSkin`). The skin, sampled densely, is the
    registration target, built once (:func:`mppf.registration.target.build_target`).
 3. Register the scan onto it: the start from the principal axes, converged and settled by
-   a reference mark or a rotation hint (:mod:`mppf.registration.scan_start`); then
+   a reference mark or a rotation hint (:mod:`mppf.registration.scan_start`; a tie nothing
+   settles is not judged: :class:`~mppf.registration.scan_start.AmbiguousStart`); then
    point-to-point ICP (keeps the scan centred on the plate), then point-to-plane ICP with
-   trimmed, Huber-weighted pairs (accurate along the normal, ignores outliers); the point
+   trimmed, Huber-weighted pairs (accurate along the normal, ignores outliers), the outline
+   pinning the in-plane pose only along the directions the surface leaves free, as
+   ``mppf register`` does (:mod:`mppf.registration.pin`); the point
    result is kept if the plane stage slid part of the scan off the design's edge
    (:func:`mppf.registration.register.register_icp`). With punch positions (the loop) the
    outline then fixes the in-plane pose and the deviations' best plane the out-of-plane
@@ -19,14 +22,18 @@ The steps of :func:`compare` (the math is in ``docs/compare.md``):
 4. Signed normal deviation of EVERY measured point: its foot point on the design surface
    (:func:`mppf.geometry.localize.foot_points`), distance along the design normal minus the offset.
    Positive = the measured plate lies on the +normal side of the design ("above").
-5. Outliers: a point whose deviation differs from a robust local plane through its
-   neighbours' deviations by more than a robust threshold (6 sigma of those differences,
-   at least 0.5 mm) is flagged and left out of the statistics; so are points whose foot
-   point falls outside the design (:mod:`mppf.measure.outliers`).
-   Smooth shape errors (a bump, springback) are NOT outliers: their neighbours agree.
-6. Statistics of the inliers (RMS, largest absolute, mean, percent within tolerance,
-   histogram: :mod:`mppf.measure.statistics`) and, given the punch positions, the
-   deviation at each punch (:mod:`mppf.measure.punches`).
+5. Set aside only what is certainly a scanner artefact: a point of a dense scan that its
+   agreeing neighbours contradict (:mod:`mppf.measure.outliers`); on sparse data nothing.
+   Every set-aside point is reported (``Comparison.set_aside``); points whose foot point
+   falls outside the design are left out too.
+   Smooth shape errors (a dent, springback) are never set aside: their neighbours agree.
+6. Statistics of the inliers (RMS, largest absolute, mean, histogram:
+   :mod:`mppf.measure.statistics`; the share within the tolerance of every measured net
+   point, set-aside ones included), the form deviation with its smoothing scale from the
+   point spacing and the noise (:mod:`mppf.measure.form`) and, given the punch positions,
+   the deviation at each punch (:mod:`mppf.measure.punches`).
+7. The verdict: the one decision rule (:func:`mppf.measure.decision.verdict`): form max,
+   RMS and the set-aside points.
 
 A trim margin (``margin_mm``: the excess band the scanned plate still carries around the
 net outline) grows the registration target, the size check and the outline fit by the
@@ -40,31 +47,30 @@ side from which a curved plate looks concave, like a bowl on the press bed).
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
-from mppf.core.errors import GeometryError, InputError
-from mppf.core.transform import as_points
-from mppf.core.validate import check_number, check_positive
+from mppf.core.defaults import RMS_TOLERANCE_MM
+from mppf.core.transform import apply_tf, as_points
 from mppf.geometry.surface import fit_plate
+from mppf.measure import checks
+from mppf.measure.decision import Figures, Limits, verdict
 from mppf.measure.deviations import DesignSkin, normal_sign
-from mppf.measure.outliers import find_outliers, form_deviation
-from mppf.measure.punches import punch_deviations
+from mppf.measure.form import form_of
+from mppf.measure.outliers import SetAside, find_outliers
+from mppf.measure.punches import nearest_punch, punch_deviations
 from mppf.measure.result import Comparison
 from mppf.measure.statistics import statistics
 from mppf.registration.outline_fit import refit_outline
-from mppf.registration.register import Registration, register_icp
+from mppf.registration.register import register_icp
 from mppf.registration.scan_start import choose_start
 from mppf.registration.settings import ScanStages
 from mppf.registration.target import build_target, prepare
+from mppf.registration.verdict import sample_index
 
-MIN_POINTS = 30
+MIN_POINTS = checks.MIN_POINTS
 """Fewest measured points a comparison accepts."""
-
-SIZE_RATIO = (0.3, 1.3)
-"""Accepted range of the scan's length (largest in-plane extent) over the design's."""
-
-MATCH_FRACTION = 0.5
-"""At least this fraction of the measured points must lie near the design (else: wrong plate)."""
 
 STAGES = ScanStages()
 """The two ICP stages of the scan's registration (defaults of :class:`~mppf.registration.settings.ScanStages`)."""
@@ -75,6 +81,7 @@ def compare(
     measured_points,
     *,
     tolerance_mm: float = 2.5,
+    rms_tolerance_mm: float = RMS_TOLERANCE_MM,
     offset_mm: float = 0.0,
     design_faces=None,
     punch_xy_mm=None,
@@ -85,6 +92,7 @@ def compare(
     reference_mark=None,
     fit_outline: bool | None = None,
     margin_mm: float = 0.0,
+    punch_label_base: int = 1,
 ) -> Comparison:
     """Register a scan onto its design and measure the deviation of every point.
 
@@ -95,7 +103,10 @@ def compare(
     measured_points : (n, 3) float, mm
         The scan, in any pose.
     tolerance_mm : float
-        Allowed absolute deviation.
+        Allowed absolute form deviation.
+    rms_tolerance_mm : float
+        Allowed RMS of the measured points' deviations (the decision rule:
+        :func:`mppf.measure.decision.verdict`).
     offset_mm : float
         The skin that was measured, as a normal offset of the design: ``+t/2`` top
         skin, ``0`` mid-surface, ``-t/2`` bottom skin ("top" = +normal side, see the
@@ -111,13 +122,17 @@ def compare(
     punch_radius_mm : float, optional
         Radius around a punch axis whose points give its deviation (default: 0.45 of
         the punch pitch).
+    punch_label_base : int
+        How punches are named in notes: row and column counted from this (the press file's
+        ``label_base``, 1 by default).
     rotation_hint : (3, 3) or (4, 4) float, optional
         Rough rotation from measured into design coordinates (within about 45 deg), e.g.
         ``invert_tf(tf_press_design)`` when the scanner's axes are the press's. It picks
         which of the four principal-axes starts to use, so that a nearly symmetric plate
         is not registered turned by a half turn. Used only to break a tie: when the
-        best two of the four starts, each scored by a converged robust ICP, fit within
-        ``ScanStart.tie_ratio`` of each other. Default: the best fitting start.
+        best two different poses of the four starts, each converged by a robust ICP, fit
+        equally well within the noise (:func:`mppf.registration.scan_start.start_tie`).
+        Default: the best fitting start; a tie with neither a mark nor a hint is not judged.
     reference_mark : pair of (3,) float, optional
         ``(measured_xyz, design_xyz)``: where the plate's reference-corner mark is in the
         scan, and where that corner is on the design. Of the four starts, only those that
@@ -150,27 +165,33 @@ def compare(
     GeometryError
         Too few points, a design that is not a plate, or a scan that does not match the
         design (registration failed or most points far from it).
+    AmbiguousStart
+        The scan fits its design equally well two ways round (a nearly symmetric plate) and
+        neither a reference mark nor a rotation hint says which (exit 4; both candidates in
+        the message and in ``candidates``).
     """
     # 0. inputs
     design = as_points(design_points, name="design points")
     measured = as_points(measured_points, name="measured points")
-    margin_mm = _check_options(tolerance_mm, offset_mm, measured, punch_xy_mm, tf_press_design, margin_mm)
+    margin_mm = checks.check_options(tolerance_mm, offset_mm, measured, punch_xy_mm, tf_press_design, margin_mm)
+    limits = Limits(float(tolerance_mm), float(rms_tolerance_mm))
 
     # 1. the design surface, its normal oriented (up in press coordinates when known)
     fitted = fit_plate(design, kind="spline", faces=design_faces, source="design")
     skin = DesignSkin(fitted, design, normal_sign(fitted.frame, tf_press_design), offset_mm, margin_mm)
     scan = prepare(measured, "the scan")  # checked and framed once for every ICP run below
-    _check_size(skin.uv, scan.frame.to_local(scan.points), margin_mm)
+    checks.check_size(skin.uv, scan.frame.to_local(scan.points), margin_mm)
 
     # 2. the registration target: the skin sampled densely over the outline grown by the margin,
     #    with its k-d tree, frame and normals built once for every ICP run below
     target = build_target(skin.dense_points(), "the design skin")
 
     # 3. the start (principal axes, converged; the reference mark or the hint settle the turn),
-    #    point-to-point then point-to-plane ICP, the signed deviation of every point
-    init, start_note = choose_start(scan, target, rotation_hint, reference_mark, skin.length_mm)
-    reg, dev, reg_note = _register(scan, target, skin, init)
-    notes = [f"{start_note}; {reg_note}"]
+    #    point-to-point then point-to-plane ICP (pinned where free), the signed deviation of every point
+    start = choose_start(scan, target, rotation_hint, reference_mark, skin.length_mm)
+    reg, dev, reg_note = _register(scan, target, skin, start.tf)
+    reg = replace(reg, ambiguous_start=start.ambiguous, init={**reg.init, **start.info()})
+    notes = [f"{start.note}; {reg_note}"]
 
     # 4. on the press the outline places the plate in the plane, the deviations out of it
     transform = reg.tf
@@ -182,35 +203,48 @@ def compare(
                                         margin_mm=margin_mm, heights=skin.heights(measured))
         notes[0] = f"{notes[0]}; {note}"
         dev = skin.deviate(measured, transform)
-    _check_match(dev.deviation_mm, dev.outside, tolerance_mm, reg, depth_mm=float(np.ptp(skin.design_local[:, 2])))
+    checks.check_match(dev.deviation_mm, dev.outside, tolerance_mm, reg,
+                       depth_mm=float(np.ptp(skin.design_local[:, 2])))
+    # a scan of this plate that fits two ways round is not judged (exit 4, both candidates shown)
+    start.require_settled()
 
-    # 5. outliers relative to their neighbours (the margin's points are neighbours too)
-    outlier = find_outliers(dev.uv, dev.deviation_mm, ~dev.outside)
-    inlier = ~dev.outside & ~outlier & ~dev.in_margin
-    measured_ok = ~dev.outside & ~outlier  # net and margin: the punch deviations
-    _check_usable(inlier, outlier, dev)
+    # 5. set aside only certain scanner artefacts (the margin's points are neighbours too)
+    artefacts = find_outliers(dev.uv, dev.deviation_mm, ~dev.outside)
+    set_aside = artefacts.mask
+    inlier = ~dev.outside & ~set_aside & ~dev.in_margin
+    measured_ok = ~dev.outside & ~set_aside  # net and margin: the punch deviations
+    checks.check_usable(inlier, set_aside, dev)
 
-    # 6. statistics, form deviation and punch deviations
+    # 6. statistics (the share within the tolerance of all measured net points), form and punch deviations
     stats = statistics(dev.deviation_mm[inlier], tolerance_mm, bins)
-    form = form_deviation(dev.uv, dev.deviation_mm, inlier, measured_ok, dev.in_margin)
-    notes += _left_out(outlier, dev, margin_mm)
+    net = ~dev.outside & ~dev.in_margin
+    within_pct = float(100.0 * np.mean(np.abs(dev.deviation_mm[net]) <= tolerance_mm))
+    form, field = form_of(dev.uv, dev.deviation_mm, inlier, measured_ok, dev.in_margin)
+    aside = _set_aside(set_aside & net, dev, artefacts, tolerance_mm, tf_press_design, punch_xy_mm, punch_label_base)
+    notes += [field.describe(), aside.describe(tolerance_mm), *_left_out(set_aside, dev, margin_mm)]
     punch = punch_n = punch_interp = None
     if punch_xy_mm is not None:
         punch, punch_n, punch_interp = punch_deviations(punch_xy_mm, tf_press_design, skin, dev, measured_ok, design,
                                                         punch_radius_mm)
         notes.append(f"punch deviations: {int(np.isfinite(punch).sum())} punches on the plate, "
                      f"{int(punch_interp.sum())} interpolated across gaps in the scan")
+
+    # 7. the one decision rule: form max, RMS, set-aside points beyond the tolerance
+    form_max = float(abs(field.peak_mm))
+    decided = verdict(Figures(form_max, stats.rms_mm, aside.count, aside.beyond_tolerance, aside.max_abs_mm), limits)
     return Comparison(
         rms_mm=stats.rms_mm, max_abs_mm=stats.max_abs_mm, mean_mm=stats.mean_mm, std_mm=stats.std_mm,
-        within_tolerance_pct=stats.within_tolerance_pct, tolerance_mm=float(tolerance_mm),
+        within_tolerance_pct=within_pct, tolerance_mm=float(tolerance_mm),
         offset_mm=float(offset_mm), histogram_edges_mm=stats.histogram_edges_mm,
         histogram_counts=stats.histogram_counts, transform=transform, registration=reg,
-        deviation_mm=dev.deviation_mm, inlier=inlier, is_outlier=outlier, is_outside=dev.outside,
+        deviation_mm=dev.deviation_mm, inlier=inlier, is_outlier=set_aside, is_outside=dev.outside,
         measured_in_design=dev.moved, measured_uv_mm=dev.uv, design_frame=fitted.frame, normal_sign=skin.sign,
         design_uv_mm=skin.uv, design_fit_rms_mm=float(fitted.rms_mm),
-        form_rms_mm=float(np.sqrt(np.mean(form[inlier] ** 2))), form_max_abs_mm=float(np.max(np.abs(form[inlier]))),
+        form_rms_mm=float(np.sqrt(np.mean(form[inlier] ** 2))), form_max_abs_mm=form_max,
         form_deviation_mm=form, punch_deviation_mm=punch, punch_normal_deviation_mm=punch_n,
         punch_interpolated=punch_interp, notes=notes, margin_mm=margin_mm, in_margin=dev.in_margin,
+        rms_tolerance_mm=float(rms_tolerance_mm), verdict=decided, set_aside=aside, form=field.to_dict(),
+        punch_label_base=int(punch_label_base),
     )
 
 
@@ -221,94 +255,49 @@ def _register(scan, target, skin: DesignSkin, init, stages: ScanStages = STAGES)
        scan centred on the plate even where the surface alone cannot fix the in-plane
        position (a cylinder's axis, a nearly flat plate).
     2. Point-to-plane ICP from there, trimmed and Huber-weighted: accurate along the
-       normal, insensitive to outliers. It is kept unless it slid part of the scan off
-       the design's edge (grossly different shapes), then stage 1 is used.
+       normal, insensitive to outliers; the outline has its say in the in-plane pose only
+       along the directions the surface leaves free (as ``register_icp`` pins). It is kept
+       unless it slid part of the scan off the design's edge (grossly different shapes),
+       then stage 1 is used.
     """
     point = register_icp(scan, target, method="point", init=init, pin_outline=False,
-                         max_points=stages.point_points, max_iterations=stages.point_iterations)
-    point_dev = skin.deviate(scan.points, point.tf)
+                         max_points=stages.point_points, max_iterations=stages.point_iterations, check_starts=False)
     plane = register_icp(scan, target, method="plane", init=point.tf, trim_fraction=stages.trim_fraction,
-                         robust=stages.robust, pin_outline=False, max_points=stages.plane_points,
-                         max_iterations=stages.plane_iterations)
-    plane_dev = skin.deviate(scan.points, plane.tf)
-    if plane_dev.outside.mean() <= point_dev.outside.mean() + stages.overhang_fraction:
-        return plane, plane_dev, "registration: point-to-point, then point-to-plane (trimmed, Huber)"
-    return point, point_dev, (f"registration: point-to-point only; point-to-plane left "
-                              f"{100 * plane_dev.outside.mean():.0f} % of the scan outside the design (the shapes "
-                              "differ much)")
+                         robust=stages.robust, pin_outline="auto", max_points=stages.plane_points,
+                         max_iterations=stages.plane_iterations, check_starts=False)
+    # the overhang of each on a seeded sample of the scan; the deviations of every point once, at the one kept
+    sample = scan.points[sample_index(scan.n_points, stages.plane_points, seed=5)]
+    point_out = skin.deviate(sample, point.tf).outside.mean()
+    plane_out = skin.deviate(sample, plane.tf).outside.mean()
+    if plane_out <= point_out + stages.overhang_fraction:
+        return (plane, skin.deviate(scan.points, plane.tf),
+                "registration: point-to-point, then point-to-plane (trimmed, Huber, pinned where free)")
+    return point, skin.deviate(scan.points, point.tf), (
+        f"registration: point-to-point only; point-to-plane left {100 * plane_out:.0f} % of the scan outside the "
+        "design (the shapes differ much)")
 
 
-def _left_out(outlier, dev, margin_mm: float) -> list[str]:
+def _set_aside(mask, dev, artefacts, tolerance_mm: float, tf_press_design, punch_xy_mm, label_base: int) -> SetAside:
+    """The report of the set-aside points of the net plate: count, largest, where (press, nearest punch)."""
+    share, spacing = artefacts.dense_fraction, artefacts.spacing_mm
+    if not mask.any():
+        return SetAside(0, 0.0, 0, None, None, None, spacing, share)
+    absolute = np.abs(dev.deviation_mm[mask])
+    worst = int(np.flatnonzero(mask)[np.argmax(absolute)])
+    press_xy = punch = None
+    if tf_press_design is not None:
+        press_xy = apply_tf(np.asarray(tf_press_design, dtype=float), dev.moved[worst][None])[0, :2]
+        if punch_xy_mm is not None:
+            punch = nearest_punch(np.asarray(punch_xy_mm, dtype=float), press_xy, label_base)
+    return SetAside(int(mask.sum()), float(absolute.max()), int(np.sum(absolute > tolerance_mm)), dev.uv[worst].copy(),
+                    press_xy, punch, spacing, share)
+
+
+def _left_out(set_aside, dev, margin_mm: float) -> list[str]:
     """Notes on the points left out of the statistics."""
-    notes = [f"{int(outlier.sum())} outlier(s) and {int(dev.outside.sum())} point(s) outside the design "
-             "left out of the statistics"]
+    notes = [f"{int(set_aside.sum())} point(s) set aside and {int(dev.outside.sum())} point(s) outside the design "
+             "left out of the statistics (the share within the tolerance counts the set-aside ones)"]
     if margin_mm > 0:
         notes.append(f"{int(dev.in_margin.sum())} point(s) in the trim margin ({margin_mm:g} mm) left out of the "
                      "statistics")
     return notes
-
-
-def _check_options(tolerance_mm, offset_mm, measured, punch_xy_mm, tf_press_design, margin_mm) -> float:
-    """Check the options; return the trim margin as a float."""
-    check_positive("tolerance", tolerance_mm, unit="mm")
-    check_number("skin offset", offset_mm, unit="mm")
-    if measured.shape[0] < MIN_POINTS:
-        raise GeometryError(f"the scan has {measured.shape[0]} point(s), a comparison needs at least {MIN_POINTS}",
-                            hint="check the scan export")
-    if punch_xy_mm is not None:
-        grid = np.asarray(punch_xy_mm, dtype=float)
-        if grid.ndim != 3 or grid.shape[2] != 2:
-            raise InputError(f"punch positions must have shape (rows, cols, 2), got {grid.shape}")
-        if tf_press_design is None:
-            raise InputError("punch deviations need tf_press_design (design -> press)",
-                             hint="pass the job's tf_press_design")
-    if tf_press_design is not None and np.asarray(tf_press_design, dtype=float).shape != (4, 4):
-        raise InputError(f"tf_press_design must be 4x4, got {np.asarray(tf_press_design).shape}")
-    return float(check_number("trim margin", margin_mm, low=0.0, unit="mm",
-                              hint="give the width of the excess band around the design outline, 0 for a net plate"))
-
-
-def _check_usable(inlier, outlier, dev) -> None:
-    """Raise GeometryError when too few measured points are left for the statistics."""
-    if inlier.sum() < MIN_POINTS:
-        raise GeometryError(f"only {int(inlier.sum())} of {len(inlier)} measured points are usable "
-                            f"({int(outlier.sum())} outliers, {int(dev.outside.sum())} outside the design, "
-                            f"{int(dev.in_margin.sum())} in the trim margin)",
-                            hint="check the scan: it should cover most of the plate")
-
-
-def _check_size(uv_design: np.ndarray, measured_local: np.ndarray, margin_mm: float = 0.0) -> None:
-    """Raise GeometryError when the scan's length is out of proportion with the design's.
-
-    ``measured_local`` are the scan's points in its own frame. A scan that still carries
-    its trim margin may be up to ``SIZE_RATIO[1]`` times the design's length plus twice the
-    margin.
-    """
-    design_mm = float(np.ptp(uv_design[:, 0]))
-    scan_mm = float(np.ptp(measured_local[:, 0]))
-    if not SIZE_RATIO[0] * design_mm <= scan_mm <= SIZE_RATIO[1] * (design_mm + 2.0 * margin_mm):
-        raise GeometryError(
-            f"the scan is {scan_mm:.0f} mm long, the design {design_mm:.0f} mm: not the same plate",
-            hint="check the files and the --units (a scan in metres read as millimetres is 1000 times too small)")
-
-
-def _check_match(deviation, outside, tolerance_mm: float, reg: Registration, depth_mm: float) -> None:
-    """Raise GeometryError when the scan is evidently of another plate (or did not register).
-
-    Another plate: more than half of the scan lies beyond the design's edge, or more than
-    half lies farther from the design than ``max(10 tolerance, 25 mm, depth / 4)`` (a
-    badly formed but right plate stays within a quarter of its design depth).
-    """
-    n = deviation.shape[0]
-    if outside.mean() > 1.0 - MATCH_FRACTION:
-        raise GeometryError(
-            f"the scan does not match the design: {100 * outside.mean():.0f} % of the measured points lie "
-            "outside the design plate after registration",
-            hint="check that the scan and the design are of the same plate (and the --units)")
-    gross_mm = max(10.0 * tolerance_mm, 25.0, 0.25 * depth_mm)
-    near = np.abs(np.where(outside, np.inf, deviation)) <= gross_mm
-    if near.sum() < MATCH_FRACTION * n:
-        raise GeometryError(
-            f"the scan does not match the design: only {100 * near.mean():.0f} % of the measured points lie "
-            f"within {gross_mm:g} mm of it after registration (registration RMS {reg.rms_mm:.1f} mm)",
-            hint="check that the scan and the design are of the same plate (and the --units)")

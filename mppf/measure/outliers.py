@@ -1,113 +1,189 @@
-"""Outliers and the form deviation: both judged against local planes through neighbouring deviations.
+"""Set-aside points: only where a scanner artefact is certain, and every one of them reported.
 
-A point whose deviation differs from a robust local plane through its neighbours'
-deviations by more than a robust threshold is an outlier (a stray return, dust); smooth
-shape errors (a bump, springback) are not: their neighbours agree. The form deviation is
-the plate's deviation with the scanner's point noise averaged out by a local plane
-through each point's nearest neighbours. Positions in the design plane, mm.
+A scanner's stray returns (dust, reflections, mixed pixels) are single points that disagree
+with a dense neighbourhood which agrees with itself. A dent is not: its points agree with
+their neighbours, and on sparse data (a total station's few hundred points, 50 mm or more
+apart) one point IS the dent. So a point is set aside only when all of these hold
+(``docs/compare.md``, "Set-aside points"):
+
+1. the scan is dense around it: at least :data:`MIN_NEIGHBOURS` other points within
+   :data:`RADIUS_SPACINGS` local point spacings (of the points around it) beyond its nearest
+   neighbour, and that spacing at most
+   :data:`DENSE_SPACING_MM` (on sparser data nothing is ever set aside);
+2. a robust local quadric (a plane at an edge, where a quadric would extrapolate) through
+   those neighbours (the point left out) misses the point by
+   more than :data:`SIGMAS` times the larger of the scan's noise and the neighbours' own
+   scatter about that quadric (a smooth feature the quadric cannot follow scatters its
+   neighbours as much as it misses the point: not set aside);
+3. and by more than :data:`FLOOR_MM`.
+
+Positions in the design plane, mm.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.spatial import cKDTree
 
-OUTLIER_NEIGHBOURS = 16
-"""Neighbours (in the design plane) whose median deviation a point is compared with."""
+MIN_NEIGHBOURS = 12
+"""Fewest neighbours within :data:`RADIUS_SPACINGS` local spacings of a point that may be set aside."""
 
-OUTLIER_SIGMAS = 6.0
-"""A point is an outlier when it differs from its neighbours by more than this many robust sigmas."""
+RADIUS_SPACINGS = 4.0
+"""The neighbourhood of the artefact test, in local point spacings (small against a plate's features)."""
 
-OUTLIER_FLOOR_MM = 0.5
-"""... and by more than this (so that a noise-free scan has no outliers)."""
+DENSE_SPACING_MM = 35.0
+"""Largest local point spacing at which a point may be set aside: sparser data are measurements, not scans."""
 
-FORM_NEIGHBOURS = 12
-"""Neighbours (the point included) of the local plane that gives the form deviation: the
-plate's own deviation with the scanner's point noise averaged out (``Comparison.form_deviation_mm``)."""
+NEIGHBOURS = 24
+"""Most neighbours of the local quadric of the artefact test."""
 
+SIGMAS = 6.0
+"""A point is an artefact when its quadric misses it by more than this many noise sigmas ..."""
 
-def find_outliers(uv: np.ndarray, deviation: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """Points whose deviation differs from a robust local plane through their neighbours'.
+FLOOR_MM = 1.0
+"""... and by more than this."""
 
-    For each point, a plane d = a + b u + c v is fitted to the deviations of its
-    ``OUTLIER_NEIGHBOURS`` nearest neighbours (in the design plane, the point itself left
-    out), reweighted twice to ignore neighbours that are outliers themselves. The
-    differences from those planes have a robust sigma (1.4826 MAD); a point is an outlier
-    beyond ``OUTLIER_SIGMAS`` sigma (and ``OUTLIER_FLOOR_MM``). The local plane follows
-    smooth shape errors, even steep ones, so those are never flagged.
-    """
-    idx = np.flatnonzero(valid)
-    out = np.zeros(deviation.shape[0], dtype=bool)
-    if min(OUTLIER_NEIGHBOURS + 1, idx.size) < 8:
-        return out
-    dev = deviation[idx]
-    diff = dev - local_plane(uv[idx], dev, OUTLIER_NEIGHBOURS, leave_out=True, robust_passes=3)
-    sigma = 1.4826 * np.median(np.abs(diff - np.median(diff)))
-    out[idx] = np.abs(diff) > max(OUTLIER_SIGMAS * sigma, OUTLIER_FLOOR_MM)
-    return out
+MAD_SCALE = 1.4826
 
 
-def local_plane(pts: np.ndarray, values: np.ndarray, k: int, *, leave_out: bool, robust_passes: int) -> np.ndarray:
-    """Value at each point of a plane d = a + b u + c v fitted to its ``k`` nearest neighbours.
+@dataclass(frozen=True, eq=False)
+class SetAside:
+    """The set-aside points of a comparison, as reported (``Comparison.set_aside``).
 
-    Parameters
+    Attributes
     ----------
-    pts : (m, 2) float
-        Positions (mm, design plane).
-    values : (m,) float
-        Deviations there.
-    k : int
-        Neighbours in each fit (the point itself not counted when ``leave_out``).
-    leave_out : bool
-        Leave the point itself out of its own fit (for outlier tests).
-    robust_passes : int
-        Passes of reweighting that drop neighbours beyond 3 local median deviations
-        (1: plain least squares).
-
-    Returns
-    -------
-    (m,) float
+    count : int
+    max_abs_mm : float
+        Their largest absolute deviation (0 when none).
+    beyond_tolerance : int
+        How many lie beyond the tolerance (any: the verdict is "needs review").
+    worst_uv_mm : (2,) float or None
+        Where the largest one is (design plane).
+    worst_press_xy_mm : (2,) float or None
+        The same in press coordinates (when the press pose is known).
+    worst_punch : str or None
+        The punch nearest to it (``mppf.measure.punches.punch_name``).
+    spacing_mm : float
+        The scan's median local point spacing.
+    dense_fraction : float
+        Share of the points dense enough to be tested at all.
     """
-    k = min(k + int(leave_out), pts.shape[0])
-    _, nb = cKDTree(pts).query(pts, k=k)
-    if leave_out:
-        nb = nb[:, 1:]
-    rel = pts[nb] - pts[:, None, :]                                   # (m, k, 2)
-    scale = np.maximum(np.abs(rel).max(axis=(1, 2)), 1e-9)[:, None, None]
-    design = np.concatenate([np.ones(rel.shape[:2] + (1,)), rel / scale], axis=2)  # (m, k, 3)
-    near = values[nb]
-    weight = np.ones_like(near)
-    for _ in range(robust_passes):
-        a = np.einsum("mki,mk,mkj->mij", design, weight, design) + 1e-9 * np.eye(3)
-        b = np.einsum("mki,mk,mk->mi", design, weight, near)
-        coef = np.linalg.solve(a, b[..., None])[..., 0]
-        resid = near - np.einsum("mki,mi->mk", design, coef)
-        spread = np.maximum(np.median(np.abs(resid), axis=1, keepdims=True), 1e-6)
-        weight = (np.abs(resid) <= 3.0 * spread).astype(float)
-    return coef[:, 0]
+
+    count: int
+    max_abs_mm: float
+    beyond_tolerance: int
+    worst_uv_mm: np.ndarray | None
+    worst_press_xy_mm: np.ndarray | None
+    worst_punch: str | None
+    spacing_mm: float
+    dense_fraction: float
+
+    def to_dict(self) -> dict:
+        """JSON-able summary."""
+        as_list = lambda a: None if a is None else [float(v) for v in a]  # noqa: E731
+        return {"count": self.count, "max_abs_mm": self.max_abs_mm, "beyond_tolerance": self.beyond_tolerance,
+                "worst_uv_mm": as_list(self.worst_uv_mm), "worst_press_xy_mm": as_list(self.worst_press_xy_mm),
+                "worst_punch": self.worst_punch, "spacing_mm": self.spacing_mm,
+                "dense_fraction": self.dense_fraction}
+
+    def describe(self, tolerance_mm: float) -> str:
+        """One line for the notes and the headline."""
+        if not self.count:
+            return (f"set aside: none (point spacing {self.spacing_mm:.0f} mm; "
+                    f"{100 * self.dense_fraction:.0f} % of the points dense enough to test for scanner artefacts)")
+        where = f"at u, v = {self.worst_uv_mm[0]:.0f}, {self.worst_uv_mm[1]:.0f} mm"
+        if self.worst_press_xy_mm is not None:
+            where += f" (press x, y = {self.worst_press_xy_mm[0]:.0f}, {self.worst_press_xy_mm[1]:.0f} mm"
+            where += f", near punch {self.worst_punch})" if self.worst_punch else ")"
+        return (f"set aside as scanner artefacts: {self.count} point(s), largest |deviation| {self.max_abs_mm:.2f} mm "
+                f"{where}; {self.beyond_tolerance} beyond the tolerance +-{tolerance_mm:g} mm")
 
 
-def form_deviation(uv: np.ndarray, deviation: np.ndarray, inlier: np.ndarray, measured_ok: np.ndarray,
-                   in_margin: np.ndarray) -> np.ndarray:
-    """The form deviation (n,) of the inliers and of the trim margin's usable points, NaN elsewhere.
+def local_spacing_mm(dist: np.ndarray) -> np.ndarray:
+    """Local point spacing (m,) mm from the sorted neighbour distances (m, k >= 13), the point first:
+    the square root of the area per point within the 8th neighbour."""
+    return dist[:, 8] * np.sqrt(np.pi / 8.0)
 
-    The inliers' values come from the inliers alone (the net plate: the form statistics);
-    the margin points' from all usable points, net and margin (for maps only).
+
+@dataclass(frozen=True, eq=False)
+class ArtefactTest:
+    """The result of :func:`find_outliers`: which points are artefacts, and how dense the scan was for the test."""
+
+    mask: np.ndarray          # (n,) bool: certainly scanner artefacts
+    dense_fraction: float     # share of the tested points dense enough to be tested at all
+    spacing_mm: float         # median local point spacing
+
+
+def find_outliers(uv: np.ndarray, deviation: np.ndarray, valid: np.ndarray) -> ArtefactTest:
+    """The points (``ArtefactTest.mask``) that are certainly scanner artefacts (see the module docstring).
 
     Parameters
     ----------
     uv : (n, 2) float, mm
         Foot points in the design plane.
     deviation : (n,) float, mm
-    inlier, measured_ok, in_margin : (n,) bool
-        The statistics' points; every point that is neither outside nor an outlier; the
-        points in the trim margin.
+    valid : (n,) bool
+        Points that may be tested (foot point on the design).
     """
-    form = np.full(deviation.shape[0], np.nan)
-    form[inlier] = local_plane(uv[inlier], deviation[inlier], FORM_NEIGHBOURS, leave_out=False, robust_passes=1)
-    margin_ok = measured_ok & in_margin
-    if margin_ok.any():  # for maps only: the net plate's form values above do not see the margin
-        form_all = local_plane(uv[measured_ok], deviation[measured_ok], FORM_NEIGHBOURS, leave_out=False,
-                               robust_passes=1)
-        form[margin_ok] = form_all[in_margin[measured_ok]]
-    return form
+    idx = np.flatnonzero(valid)
+    out = np.zeros(deviation.shape[0], dtype=bool)
+    if idx.size <= NEIGHBOURS:
+        return ArtefactTest(out, 0.0, float("nan"))
+    pts, dev = uv[idx], deviation[idx]
+    tree = cKDTree(pts)
+    dist, nb = tree.query(pts, k=MIN_NEIGHBOURS + 1, workers=-1)
+    dense = _dense(dist, nb)
+    # a cheap screen: far from the median of the nearest neighbours (most points end here)
+    jump = dev - np.median(dev[nb[:, 1:MIN_NEIGHBOURS + 1]], axis=1)
+    noise = MAD_SCALE * float(np.median(np.abs(jump - np.median(jump))))
+    rows = np.flatnonzero(dense & (np.abs(jump) > max(SIGMAS * noise, FLOOR_MM)))
+    if rows.size:
+        near, nb = tree.query(pts[rows], k=NEIGHBOURS + 1)
+        miss, scatter = _quadric_miss(pts, dev, rows, nb[:, 1:], near[:, 1:])
+        artefact = np.abs(miss) > np.maximum(SIGMAS * np.maximum(scatter, noise), FLOOR_MM)
+        out[idx[rows[artefact]]] = True
+    return ArtefactTest(out, float(dense.mean()), float(np.median(local_spacing_mm(dist))))
+
+
+def _dense(dist: np.ndarray, nb: np.ndarray) -> np.ndarray:
+    """Points dense enough to be tested: enough neighbours within the radius, the spacing small.
+
+    The spacing at a point is the median of its own and its neighbours' estimates, so that
+    a point at an edge or a corner (whose own estimate reaches round the corner) takes the
+    spacing of the scan around it.
+    """
+    spacing = np.median(local_spacing_mm(dist)[nb], axis=1)
+    # the radius reaches past the nearest neighbour: a stray point thrown off the plate's edge is still tested
+    reach = RADIUS_SPACINGS * spacing + dist[:, 1]
+    return (dist[:, MIN_NEIGHBOURS] <= reach) & (spacing <= DENSE_SPACING_MM)
+
+
+def _quadric_miss(pts, dev, rows, nb, dist) -> tuple[np.ndarray, np.ndarray]:
+    """(miss, scatter) of the points ``rows``: the deviation minus a robust quadric through their neighbours
+    (within :data:`RADIUS_SPACINGS` spacings, the point left out), and the neighbours' robust scatter about it."""
+    spacing = local_spacing_mm(np.column_stack([np.zeros(rows.size), dist]))
+    use = (dist <= RADIUS_SPACINGS * spacing[:, None]).astype(float)
+    rel = (pts[nb] - pts[rows][:, None, :]) / np.maximum(dist[:, -1], 1e-9)[:, None, None]
+    x, y = rel[..., 0], rel[..., 1]
+    # a quadric where the neighbours surround the point, a plane where it would be extrapolated (an edge)
+    surrounded = (np.hypot(x.mean(axis=1), y.mean(axis=1)) < 1.0 / 3.0)[:, None].astype(float)
+    design = np.stack([np.ones_like(x), x, y, surrounded * x * x, surrounded * x * y, surrounded * y * y], axis=-1)
+    near = dev[nb]
+    weight = use
+    for _ in range(3):  # reweighted: neighbours that are artefacts themselves drop out
+        a = np.einsum("mki,mk,mkj->mij", design, weight, design) + 1e-9 * np.eye(6)
+        b = np.einsum("mki,mk,mk->mi", design, weight, near)
+        coef = np.linalg.solve(a, b[..., None])[..., 0]
+        resid = near - np.einsum("mki,mi->mk", design, coef)
+        spread = np.maximum(_weighted_median_abs(resid, use), 1e-6)
+        weight = use * (np.abs(resid) <= 4.0 * MAD_SCALE * spread[:, None])
+    scatter = MAD_SCALE * _weighted_median_abs(resid, use)
+    return dev[rows] - coef[:, 0], scatter
+
+
+def _weighted_median_abs(resid: np.ndarray, use: np.ndarray) -> np.ndarray:
+    """Median (m,) of ``|resid|`` over the entries with ``use`` 1 (each row has some)."""
+    masked = np.where(use > 0, np.abs(resid), np.nan)
+    return np.nanmedian(masked, axis=1)

@@ -104,3 +104,21 @@ def punch_values(punch_xy, xy, deviation, n_z, design_xy, radius_mm, margin_mm: 
         for values in (normal, vertical):
             values[gap] = tps_fill(flat[measured], values[measured], flat[gap], smoothing=FILL_SMOOTHING)
     return vertical.reshape(rows, cols), normal.reshape(rows, cols), gap.reshape(rows, cols)
+
+
+def punch_label(row: int, col: int, label_base: int = 1) -> str:
+    """How a punch is named in messages, reports and pictures: ``"row 3, col 4"`` counted from ``label_base``
+    (the press file's; :meth:`mppf.planning.press.PressConfig.punch_label` says the same)."""
+    return f"row {int(row) + label_base}, col {int(col) + label_base}"
+
+
+def short_label(row: int, col: int, label_base: int = 1) -> str:
+    """The compact name of a punch in picture cells: ``"3,4"`` (row, col from ``label_base``)."""
+    return f"{int(row) + label_base},{int(col) + label_base}"
+
+
+def nearest_punch(punch_xy_mm: np.ndarray, xy_mm: np.ndarray, label_base: int = 1) -> str:
+    """The name (:func:`punch_label`) of the punch of the grid (rows, cols, 2) nearest to press ``xy_mm`` (2,)."""
+    distance = np.linalg.norm(punch_xy_mm - np.asarray(xy_mm, dtype=float)[None, None, :], axis=2)
+    row, col = np.unravel_index(int(np.argmin(distance)), distance.shape)
+    return punch_label(row, col, label_base)

@@ -8,6 +8,8 @@ import numpy as np
 
 from mppf.core.transform import tf_to_list
 from mppf.geometry.frame import LocalFrame
+from mppf.measure.decision import Verdict
+from mppf.measure.outliers import SetAside
 from mppf.registration.register import Registration
 
 
@@ -20,13 +22,15 @@ class Comparison:
     rms_mm, max_abs_mm, mean_mm, std_mm : float
         Statistics of the inlier deviations, point by point (scanner noise included).
     form_rms_mm, form_max_abs_mm : float
-        The same of the form deviation: the plate's deviation with the scanner's point
-        noise averaged out by a local plane through each point's
-        :data:`mppf.measure.outliers.FORM_NEIGHBOURS` nearest inliers. The tolerance decision (:attr:`in_tolerance`) uses
-        ``form_max_abs_mm``: a smooth steel plate has no 1 mm bumps 20 mm wide, its scan
-        has (0.3 mm noise gives about +-1.2 mm extremes over 15 000 points).
+        The same of the form deviation ("form max"): the plate's deviation with the
+        scanner's point noise averaged out by local fits whose scale follows the point
+        spacing and the noise (:mod:`mppf.measure.form`); the form max includes extremes
+        between points. The decision (:attr:`verdict`) uses the form max: a smooth steel
+        plate has no 1 mm bumps 20 mm wide, its scan has (0.3 mm noise gives about +-1.2 mm
+        extremes over 15 000 points).
     within_tolerance_pct : float
-        Percent of the inliers with ``|deviation| <= tolerance_mm``.
+        Percent of ALL measured points of the net plate (set-aside ones included, outside
+        and margin points not) with ``|deviation| <= tolerance_mm``.
     tolerance_mm, offset_mm : float
         As given.
     histogram_edges_mm : (b + 1,) float
@@ -42,7 +46,7 @@ class Comparison:
     inlier : (n,) bool
         Points used in the statistics.
     is_outlier : (n,) bool
-        Points flagged as outliers (off the surface relative to their neighbours).
+        Points set aside as certain scanner artefacts (:mod:`mppf.measure.outliers`).
     is_outside : (n,) bool
         Points whose foot point is outside the design plate (or did not converge).
     measured_in_design : (n, 3) float
@@ -76,6 +80,16 @@ class Comparison:
         outline, within the outline grown by ``margin_mm``. Measured, used for the punch
         deviations, not in the statistics (nor in ``inlier`` or ``is_outside``). All False
         when ``margin_mm`` is 0; default (None given): all False.
+    rms_tolerance_mm : float
+        The RMS limit of the decision.
+    verdict : Verdict or None
+        The decision (:func:`mppf.measure.decision.verdict`): kind, headline, figures.
+    set_aside : SetAside or None
+        The set-aside points as reported (count, largest, where, nearest punch).
+    form : dict
+        The form deviation's smoothing as used (:meth:`mppf.measure.form.FormField.to_dict`).
+    punch_label_base : int
+        Punch rows and columns are named from this (1 by default).
     """
 
     rms_mm: float
@@ -108,6 +122,11 @@ class Comparison:
     notes: list[str] = field(default_factory=list)
     margin_mm: float = 0.0
     in_margin: np.ndarray | None = None
+    rms_tolerance_mm: float = float("nan")
+    verdict: Verdict | None = None
+    set_aside: SetAside | None = None
+    form: dict = field(default_factory=dict)
+    punch_label_base: int = 1
 
     def __post_init__(self):
         if self.in_margin is None:
@@ -125,8 +144,17 @@ class Comparison:
 
     @property
     def in_tolerance(self) -> bool:
-        """Largest absolute form deviation within the tolerance (see ``form_max_abs_mm``)."""
-        return bool(self.form_max_abs_mm <= self.tolerance_mm)
+        """The verdict is "in tolerance" (form max, RMS and set-aside points: :attr:`verdict`)."""
+        if self.verdict is None:
+            return bool(self.form_max_abs_mm <= self.tolerance_mm)
+        return self.verdict.in_tolerance
+
+    @property
+    def headline(self) -> str:
+        """The verdict and the figures that decided it."""
+        if self.verdict is None:
+            return f"form max {self.form_max_abs_mm:.2f} mm (tolerance {self.tolerance_mm:g} mm)"
+        return self.verdict.headline
 
     def to_dict(self) -> dict:
         """JSON-able summary: statistics, transform (4x4 lists), histogram, registration, punches."""
@@ -141,6 +169,12 @@ class Comparison:
             "tolerance_mm": self.tolerance_mm,
             "offset_mm": self.offset_mm,
             "in_tolerance": self.in_tolerance,
+            "verdict": None if self.verdict is None else self.verdict.to_dict(),
+            "headline": self.headline,
+            "rms_tolerance_mm": self.rms_tolerance_mm,
+            "set_aside": None if self.set_aside is None else self.set_aside.to_dict(),
+            "form": self.form,
+            "punch_label_base": self.punch_label_base,
             "n_points": self.n_points,
             "n_inliers": self.n_inliers,
             "n_outliers": int(self.is_outlier.sum()),

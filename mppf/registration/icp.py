@@ -2,8 +2,8 @@
 
 :func:`run` iterates "match closest points of the fixed :class:`~mppf.registration.target.RegistrationTarget`,
 weight the pairs, solve one step (quaternion or linearised point-to-plane), pin the
-outline, test the stop criteria"; :func:`evaluate` and :func:`uncertainty` describe the
-result. How pairs are formed and weighted is a :class:`~mppf.registration.settings.Matching`.
+outline, test the stop criteria"; :func:`evaluate` and
+:func:`mppf.registration.uncertainty.uncertainty` describe the result. How pairs are formed and weighted is a :class:`~mppf.registration.settings.Matching`.
 All lengths in mm, angles in radians unless a name says ``_deg``.
 """
 
@@ -132,19 +132,19 @@ class Nearest:
 
 
 def match(target: RegistrationTarget, source: np.ndarray, tf: np.ndarray, matching: Matching,
-          nearest: Nearest | None = None) -> Pairs:
+          nearest: Nearest | None = None, normals: bool = False) -> Pairs:
     """Closest target points of the moved source, residuals and weights.
 
     ``nearest`` (one per source, kept across the iterations of a loop) spares the k-d tree
-    queries of points that cannot have changed their closest target point.
+    queries of points that cannot have changed their closest target point. The pairs carry
+    the target normals with the plane metric, or when ``normals`` is asked for.
     """
     metric = matching.metric
     moved = apply_tf(tf, source)
     dist, idx = query(target.tree, moved) if nearest is None else nearest(moved)
     matched = target.points[idx]
-    normal = None
+    normal = target.normals(idx) if metric == "plane" or normals else None
     if metric == "plane":
-        normal = target.normals(idx)
         residual = np.einsum("ij,ij->i", moved - matched, normal)
     else:
         residual = dist
@@ -161,27 +161,31 @@ def match(target: RegistrationTarget, source: np.ndarray, tf: np.ndarray, matchi
 
 def _plane_step(pairs: Pairs) -> np.ndarray:
     """One linearised point-to-plane step (small rotation about the weighted centroid)."""
-    return _linear_step(pairs, "plane", np.eye(3), np.ones(6, bool))
+    centre = np.average(pairs.moved, axis=0, weights=pairs.weight)
+    scale = _scale(pairs, centre)
+    hess, grad = normal_equations(pairs, "plane", np.eye(3), centre, scale)
+    return _as_tf(_solve(hess, grad), np.eye(3), centre, scale)
 
 
-def _linear_step(pairs: Pairs, metric: str, axes: np.ndarray, free: np.ndarray) -> np.ndarray:
-    """One linearised step (point or plane metric) with some degrees of freedom held.
+def _scale(pairs: Pairs, centre: np.ndarray) -> float:
+    """RMS distance (mm) of the moved pairs from ``centre``: the length that puts turns in mm."""
+    arm = pairs.moved - centre
+    return max(float(np.sqrt(np.average((arm**2).sum(axis=1), weights=pairs.weight))), 1e-9)
 
-    Parameters
-    ----------
-    axes : (3, 3) float
-        Rows are the axes in which ``free`` is expressed (the target's u, v, n).
-    free : (6,) bool
-        Which of (turn about u, v, n; shift along u, v, n) may change.
+
+def normal_equations(pairs: Pairs, metric: str, axes: np.ndarray, centre: np.ndarray,
+                     scale: float) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss-Newton normal equations (6, 6) and gradient (6,) of one linearised step.
+
+    The unknowns are (turn about u, v, n times ``scale``; shift along u, v, n) in the
+    frame whose rows are ``axes``, the turns about ``centre`` (world, mm).
     """
     w = pairs.weight
-    centre = np.average(pairs.moved, axis=0, weights=w)
     arm = (pairs.moved - centre) @ axes.T
-    scale = max(float(np.sqrt(np.average((arm**2).sum(axis=1), weights=w))), 1e-9)
     if metric == "plane":
         normal = pairs.normal @ axes.T
         jac = np.hstack([np.cross(arm, normal) / scale, normal])  # (n, 6)
-        res = pairs.residual
+        res = np.einsum("ij,ij->i", pairs.moved - pairs.matched, pairs.normal)  # also for point-metric pairs
     else:
         # d(omega x arm)/d omega = -[arm]x ; three rows per pair
         jac = np.zeros((arm.shape[0], 3, 6))
@@ -193,25 +197,67 @@ def _linear_step(pairs: Pairs, metric: str, axes: np.ndarray, free: np.ndarray) 
         res = ((pairs.moved - pairs.matched) @ axes.T).reshape(-1)
         jac = jac.reshape(-1, 6)
         w = np.repeat(w, 3)
-    jac = jac[:, free]
-    hess = (jac * w[:, None]).T @ jac
-    grad = (jac * w[:, None]).T @ res
+    weighted = jac * w[:, None]
+    return weighted.T @ jac, weighted.T @ res
+
+
+def _solve(hess: np.ndarray, grad: np.ndarray) -> np.ndarray:
+    """The step (6,) of the normal equations; nearly free directions (a cylinder's slide) stay put."""
     eigval, eigvec = np.linalg.eigh(hess)
-    keep = eigval > UNOBSERVABLE * eigval[-1]  # nearly free directions (a cylinder's slide) stay put
-    x = np.zeros(6)
-    x[free] = -(eigvec[:, keep] @ ((eigvec[:, keep].T @ grad) / eigval[keep]))
+    keep = eigval > UNOBSERVABLE * eigval[-1]
+    return -(eigvec[:, keep] @ ((eigvec[:, keep].T @ grad) / eigval[keep]))
+
+
+def _as_tf(x: np.ndarray, axes: np.ndarray, centre: np.ndarray, scale: float) -> np.ndarray:
+    """The (4, 4) motion of a step ``x`` (see :func:`normal_equations`)."""
     rotation = axes.T @ Rotation.from_rotvec(x[:3] / scale).as_matrix() @ axes
     return make_tf(np.eye(3), centre + axes.T @ x[3:]) @ make_tf(rotation) @ make_tf(np.eye(3), -centre)
 
 
-def step(pairs: Pairs, metric: str, pin=None) -> np.ndarray:
+def _pinned_step(pairs: Pairs, metric: str, pin, tf: np.ndarray) -> np.ndarray:
+    """One linearised step with the outline's say in the in-plane pose (:mod:`mppf.registration.pin`).
+
+    The in-plane move (the pin's rows) is the surface's wish mixed with the outline's by the
+    pin's share ``S``; the surface's wish comes from the point-to-plane equations (with the
+    point metric too: its closest-point offsets in the plane follow the sampling pattern,
+    not the shape). The other degrees of freedom then take the metric's best values given
+    that move.
+    """
+    axes, centre = pin.frame.axes, pin.centre
+    scale = _scale(pairs, centre)
+    hess, grad = normal_equations(pairs, metric, axes, centre, scale)
+    x_metric = _solve(hess, grad)
+    rows = list(pin.rows)
+    units = np.where(np.array(rows) < 3, scale, 1.0)  # turns in rad <-> scaled unknowns
+    if pin.hard:
+        wanted = pin.wish(tf) * units
+    else:
+        own = metric == "plane" or pin.tangential
+        x_surface = x_metric if own else _solve(*normal_equations(pairs, "plane", axes, centre, scale))
+        surface = x_surface[rows] / units
+        wanted = (surface + pin.share @ (pin.wish(tf) - surface)) * units
+    # the metric's best step with the pinned rows held at their wanted values
+    regular = hess + 1e-9 * max(float(np.trace(hess)), 1e-300) * np.eye(6)
+    inverse = np.linalg.inv(regular)
+    gain = inverse[:, rows] @ np.linalg.inv(inverse[np.ix_(rows, rows)])
+    x = x_metric + gain @ (wanted - x_metric[rows])
+    return _as_tf(x, axes, centre, scale)
+
+
+def plane_information(pairs: Pairs, axes: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """Point-to-plane information (6, 6) in (turn rad about u, v, n; shift mm) about ``centre``."""
+    hess, _ = normal_equations(pairs, "plane", axes, centre, 1.0)
+    return hess
+
+
+def step(pairs: Pairs, metric: str, pin=None, tf=None) -> np.ndarray:
     """Incremental transform of one ICP iteration for the given metric.
 
     Unpinned point-to-point is the paper's closed-form quaternion step; with an
-    outline pin the held in-plane degrees of freedom need the linearised step.
+    outline pin the step is linearised (:func:`_pinned_step`, ``tf`` the current transform).
     """
     if pin is not None:
-        return _linear_step(pairs, metric, pin.frame.axes, pin.free)
+        return _pinned_step(pairs, metric, pin, tf)
     if metric == "plane":
         return _plane_step(pairs)
     keep = pairs.weight > 0
@@ -262,13 +308,17 @@ def run(target: RegistrationTarget, source: np.ndarray, tf0: np.ndarray, matchin
     max_iterations : int
     tol : (translation mm, rotation rad, relative MSE change)
         Also: when the MSE has not fallen below its lowest value by more than the relative
-        tolerance for ``STALL_ITERATIONS`` iterations, the lowest-MSE transform is returned.
+        tolerance for ``STALL_ITERATIONS`` iterations, the lowest-MSE transform is returned
+        (with a soft pin: the last one).
     pin : mppf.registration.pin.OutlinePin, optional
-        Applied after every step (and to the start).
+        The outline's say in every step; a hard pin is also applied to the start and
+        after every step.
     accelerate : bool
         When successive increments keep their direction and shrink (slow, linear
         convergence), jump ahead by the geometric remainder of the series (at most
-        ``MAX_EXTRAPOLATION`` steps); the jump is undone if it raises the MSE.
+        ``MAX_EXTRAPOLATION`` steps); the jump is undone if it raises the MSE. Not with a
+        soft pin (its steps do not descend the metric's MSE alone; it removes the slow
+        in-plane crawl anyway).
     nearest : Nearest, optional
         The closest points of ``source`` kept from an earlier loop on the same points
         (default: a new one).
@@ -277,7 +327,9 @@ def run(target: RegistrationTarget, source: np.ndarray, tf0: np.ndarray, matchin
     tol_t, tol_r, tol_mse = tol
     centre = source.mean(axis=0)
     radius = max(float(np.sqrt(((source - centre) ** 2).sum(axis=1).mean())), 1e-9)
-    tf = pin.apply(tf0) if pin is not None else tf0.copy()
+    hard = pin is not None and pin.hard
+    soft = pin is not None and not pin.hard
+    tf = pin.apply(tf0) if hard else tf0.copy()
     history: list[float] = []
     prev_mse = None
     last = None  # previous increment as a scaled 6-vector
@@ -285,13 +337,14 @@ def run(target: RegistrationTarget, source: np.ndarray, tf0: np.ndarray, matchin
     cooldown = 0
     best_mse, best_tf, stalled = np.inf, tf, 0
     nearest = Nearest(target) if nearest is None else nearest
+    normals = pin is not None and not hard and metric == "point" and not pin.tangential  # the step asks the surface
     for it in range(max_iterations):
-        pairs = match(target, source, tf, matching, nearest)  # closest points and weights
+        pairs = match(target, source, tf, matching, nearest, normals)  # closest points and weights
         mse = pairs.mse
         if fallback is not None:
             if mse > fallback[1]:  # the jump made it worse: undo it
                 tf, cooldown, last = fallback[0], 5, None
-                pairs = match(target, source, tf, matching, nearest)
+                pairs = match(target, source, tf, matching, nearest, normals)
                 mse = pairs.mse
             fallback = None
         history.append(float(np.sqrt(mse)))
@@ -302,11 +355,12 @@ def run(target: RegistrationTarget, source: np.ndarray, tf0: np.ndarray, matchin
         else:
             stalled += 1
             if stalled >= STALL_ITERATIONS:
-                return Stage(best_tf, it, history, True,
+                # a soft pin's steps do not descend the metric's MSE alone: its last transform is the answer
+                return Stage(tf if soft else best_tf, it, history, True,
                              f"no lower MSE in {STALL_ITERATIONS} iterations (the closest points cycle)")
-        tf_new = step(pairs, metric, pin) @ tf  # quaternion or linearised step
-        if pin is not None:
-            tf_new = pin.apply(tf_new)  # outline and centroid fix the in-plane position
+        tf_new = step(pairs, metric, pin, tf) @ tf  # quaternion or linearised step
+        if hard:
+            tf_new = pin.apply(tf_new)  # flat against curved: the outline alone fixes the in-plane pose
         rotvec, shift_vec = increment(tf, tf_new, centre)
         reporter.advance(1)
         if np.linalg.norm(shift_vec) < tol_t and np.linalg.norm(rotvec) < tol_r:
@@ -314,14 +368,14 @@ def run(target: RegistrationTarget, source: np.ndarray, tf0: np.ndarray, matchin
         vec = np.concatenate([rotvec * radius, shift_vec])
         tf = tf_new
         cooldown = max(cooldown - 1, 0)
-        if accelerate and last is not None and cooldown == 0:
+        if accelerate and not soft and last is not None and cooldown == 0:
             ratio = np.linalg.norm(vec) / max(np.linalg.norm(last), 1e-300)
             cos = vec @ last / max(np.linalg.norm(vec) * np.linalg.norm(last), 1e-300)
             if cos > 0.99 and ratio < 0.999:
                 factor = min(ratio / (1.0 - ratio), MAX_EXTRAPOLATION)
                 fallback = (tf, mse)
                 tf = _extrapolate(tf, centre, rotvec, shift_vec, factor)
-                if pin is not None:
+                if hard:
                     tf = pin.apply(tf)
                 vec = None
         last = vec
@@ -337,42 +391,3 @@ def evaluate(target: RegistrationTarget, source: np.ndarray, tf: np.ndarray, mat
         pairs = Pairs(pairs.moved, pairs.matched, pairs.index, pairs.distance, pairs.residual,
                       pairs.weight, target.normals(pairs.index))
     return pairs
-
-
-def uncertainty(target: RegistrationTarget, pairs: Pairs, sigma_mm: float | None = None) -> dict:
-    """One-sigma uncertainty per degree of freedom from the point-to-plane information.
-
-    In the target's plate frame (u, v in-plane, n normal): translations in mm, turns
-    about the axes in degrees; None where the surface shape does not fix the
-    degree of freedom (e.g. sliding along a cylinder). ``observability`` lists the
-    normalised eigenvalues of the information matrix (turns scaled by the plate's
-    RMS radius), ascending: values near 0 are nearly free directions. Directions below
-    ``UNOBSERVABLE`` are held at their start by the ICP step: a degree of freedom lying
-    mostly in them is reported as None, the others conditional on them. The noise is
-    estimated from the normal residuals unless ``sigma_mm`` is given.
-    """
-    axes = target.frame.axes
-    w = pairs.weight
-    local = (pairs.moved - target.frame.origin) @ axes.T
-    normal = pairs.normal @ axes.T
-    centre = np.average(local, axis=0, weights=w)
-    arm = local - centre
-    radius = max(float(np.sqrt(np.average((arm[:, :2] ** 2).sum(axis=1), weights=w))), 1e-9)
-    jac = np.hstack([normal, np.cross(arm, normal) / radius])
-    hess = (jac * w[:, None]).T @ jac
-    residual = np.einsum("ij,ij->i", pairs.moved - pairs.matched, pairs.normal)
-    dof = max(float(w.sum()) - 6.0, 1.0)
-    sigma2 = float((w * residual**2).sum() / dof) if sigma_mm is None else sigma_mm**2
-    eigval, eigvec = np.linalg.eigh(hess)
-    held = eigval <= UNOBSERVABLE * eigval[-1]  # directions the ICP step holds at their start
-    # covariance of what is estimated (conditional on the held directions); a degree of
-    # freedom that lies mostly in the held directions is not estimated at all
-    inv_diag = (eigvec[:, ~held] ** 2 / eigval[~held]) @ np.ones((~held).sum())
-    fixed = (eigvec[:, held] ** 2).sum(axis=1) < 0.5
-    std = np.sqrt(sigma2 * inv_diag)
-    std[3:] = np.degrees(std[3:] / radius)
-    names = ("t_u_mm", "t_v_mm", "t_n_mm", "r_u_deg", "r_v_deg", "r_n_deg")
-    out = {name: (float(s) if ok else None) for name, s, ok in zip(names, std, fixed)}
-    out["noise_sigma_mm"] = float(np.sqrt(sigma2))
-    out["observability"] = [float(v) for v in np.clip(eigval / eigval[-1], 0.0, None)]
-    return out

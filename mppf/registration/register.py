@@ -27,10 +27,8 @@ from mppf.core.errors import InputError
 from mppf.core.progress import NULL_REPORTER, Reporter
 from mppf.core.rigid import fit_rigid
 from mppf.core.transform import apply_tf, as_points, tf_to_list
-from mppf.registration import icp
-from mppf.registration.pin import PIN_TURN_DEG, outline_candidates, outline_pin
-from mppf.registration.settings import IcpSettings, Matching, PrincipalStart
-from mppf.registration.starts import principal_start
+from mppf.registration import icp, stages
+from mppf.registration.settings import IcpSettings, PrincipalStart
 from mppf.registration.target import (
     NORMAL_NEIGHBOURS,
     Cloud,
@@ -40,10 +38,12 @@ from mppf.registration.target import (
     check_min_points,
     prepare,
 )
+from mppf.registration.uncertainty import uncertainty as dof_uncertainty
+from mppf.registration.verdict import judge, plane_residuals, robust_scale_mm
 
 
 PRINCIPAL = PrincipalStart()
-"""Scoring of the principal-axes candidates (defaults of :class:`~mppf.registration.settings.PrincipalStart`)."""
+"""The principal-axes candidates (defaults of :class:`~mppf.registration.settings.PrincipalStart`)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -62,7 +62,9 @@ class Registration:
     rms_history : list of float
         RMS (mm) at the start of each iteration, then at the final transform.
     converged : bool
-        True when a stop test was met (not the iteration limit).
+        The verdict is "converged": a stop test was met (not the iteration limit) AND the
+        residual is near the noise floor AND no other start fits clearly better (see
+        ``verdict``). A pose that merely stopped moving is not converged.
     stop_reason : str
         Why the iterations stopped.
     method : str
@@ -70,24 +72,36 @@ class Registration:
     inlier_fraction : float
         Fraction of the source pairs with a non-zero weight in the last iteration.
     init : dict
-        How the start was chosen: ``kind`` ("principal", "identity", "given",
-        "closed form"), and for "principal" the candidate sign flips, their scores
-        (trimmed RMS, mm) and the chosen one.
+        How the start was chosen: ``kind`` ("principal", "identity", "given", "closed
+        form"), and the starts tried (``candidates``: their names, ``scores_mm``: RMS of
+        their clipped normal residuals on one common sample once converged, ``chosen``,
+        ``runner_up``: the best start that reached another pose).
     ambiguous_start : bool
-        The best two principal-axes candidates scored nearly the same (a symmetric
-        plate): the turn of the result should be checked by the operator.
+        The best start and the best one that reached a different pose fit equally well
+        within the noise (:func:`mppf.registration.verdict.tie`; a symmetric plate): the
+        turn of the result should be checked by the operator.
     uncertainty : dict
         One-sigma uncertainty per degree of freedom in the target's plate frame
         (u, v in-plane, n normal): ``t_u_mm``, ``t_v_mm``, ``t_n_mm``, ``r_u_deg``,
         ``r_v_deg``, ``r_n_deg`` from the point-to-plane information matrix (None =
         not observable from the surface shape), and ``observability`` (its
-        normalised eigenvalues, ascending). With ``outline_pinned`` the in-plane
-        values describe the surface alone; ``in_plane`` says whether the outline pinned them.
+        normalised eigenvalues, ascending). These describe the surface alone;
+        ``in_plane`` says what fixed the in-plane pose, ``outline_share`` how much the
+        outline decided of each in-plane degree of freedom (0: the surface, 1: the outline).
     outline_pinned : bool
-        The in-plane position (and, for elongated plates, the turn about the normal)
-        was pinned by the outline and the centroid of the outline.
+        The outline had its say in the in-plane pose (each direction weighted by how weakly
+        the surface fixes it: ``uncertainty["outline_share"]``).
     notes : tuple of str
         Decisions the operator should know (metric overridden, pinning skipped, ...).
+    verdict : str
+        "converged", or "failed: ..." with the figures (iteration limit, or a residual far
+        above the noise floor at the best start tried).
+    residual_mm : float
+        Robust scale (1.4826 x median) of the normal residuals of a sample of the source at
+        the result.
+    noise_mm : float
+        The noise floor: the residual the right pose leaves
+        (:func:`mppf.registration.verdict.noise_floor_mm`).
     """
 
     tf: np.ndarray
@@ -103,6 +117,9 @@ class Registration:
     uncertainty: dict = field(default_factory=dict)
     outline_pinned: bool = False
     notes: tuple = ()
+    verdict: str = ""
+    residual_mm: float = float("nan")
+    noise_mm: float = float("nan")
 
     def to_dict(self) -> dict:
         """A JSON-able dict: rms_mm, iterations, transform (4x4 row-major lists), method, ..."""
@@ -120,7 +137,14 @@ class Registration:
             "uncertainty": self.uncertainty,
             "outline_pinned": bool(self.outline_pinned),
             "notes": list(self.notes),
+            "verdict": self.verdict or ("converged" if self.converged else f"failed: {self.stop_reason}"),
+            "residual_mm": _finite_or_none(self.residual_mm),
+            "noise_mm": _finite_or_none(self.noise_mm),
         }
+
+
+def _finite_or_none(value: float):
+    return float(value) if np.isfinite(value) else None
 
 
 # ------------------------------------------------------------------ paired closed form
@@ -171,14 +195,8 @@ def register_paired(source, target, weights=None) -> Registration:
         tf=tf, rms_mm=rms, iterations=1, rms_history=[rms], converged=True,
         stop_reason="closed form (paired points)", method="paired",
         inlier_fraction=1.0 if w is None else float(np.count_nonzero(w) / w.size),
-        init={"kind": "closed form"},
+        init={"kind": "closed form"}, verdict="converged", residual_mm=rms,
     )
-
-
-def _subsample(n: int, count: int, rng: np.random.Generator) -> np.ndarray:
-    if count >= n:
-        return np.arange(n)
-    return np.sort(rng.choice(n, size=count, replace=False))
 
 
 def _check_init(init) -> None:
@@ -220,6 +238,7 @@ def register_icp(
     tol_rotation_rad: float = 1e-5,
     tol_relative_mse: float = 1e-9,
     seed: int = 0,
+    check_starts: bool = True,
     reporter: Reporter = NULL_REPORTER,
 ) -> Registration:
     """Register a source cloud onto a target cloud by iterative closest points.
@@ -240,9 +259,9 @@ def register_icp(
         Point-to-point (the paper) or point-to-plane. A plane metric is never used
         between a flat and a curved plate: it is overridden by "point" (noted).
     init : {"principal", "identity"} or (4, 4) float
-        Start: principal axes and centroids (the four proper sign flips are each
-        run a few iterations and scored, the best is kept), the identity, or a given
-        source-to-target transform.
+        Start: principal axes and centroids (the four proper sign flips are each run to
+        convergence on a subsample and scored on one common sample, the best is kept), the
+        identity, or a given source-to-target transform.
     max_iterations : int
         Iteration limit of each stage (coarse and fine).
     trim_fraction : float, optional
@@ -254,11 +273,11 @@ def register_icp(
         subsample); a coarse stage (unpinned, tolerances x 10) runs first, on
         ``IcpSettings.coarse_points`` of clouds above twice that. The target is always used whole.
     pin_outline : {"auto", True, False}
-        Pin the in-plane position (and the turn about the normal for elongated
-        plates: always with ``method="point"``, with "plane" where the surface fixes
-        it worse than ``mppf.registration.pin.PIN_TURN_DEG``) with the outline: the area centroid
-        and principal axes of the convex outline in the target's plate plane. "auto"
-        pins when both clouds cover the same plate (outline areas and extents within 12 %).
+        Let the outline (area centroid and, for elongated plates, principal axes of the
+        convex outline in the target's plate plane) have its say in the in-plane pose,
+        direction by direction as much as the surface leaves it free
+        (:mod:`mppf.registration.pin`). "auto": when both clouds cover the same plate
+        (outline areas and extents within 12 %).
     tol_translation_mm, tol_rotation_rad : float
         Converged when one iteration moves the source centroid less than this and
         turns it less than this.
@@ -267,12 +286,18 @@ def register_icp(
         fraction between iterations.
     seed : int
         Seed of the subsampling (results are reproducible).
+    check_starts : bool
+        From the identity or a given start, also converge the four principal-axes starts
+        and continue from the best when it fits clearly better (a wrong start settles as
+        readily as the right one); off when the caller compares starts itself.
     reporter : Reporter
         Progress (iterations). Decisions are returned in ``Registration.notes``.
 
     Returns
     -------
     Registration
+        With its ``verdict``: "converged" only when the residual is near the noise floor and
+        no start tried fits clearly better.
 
     Raises
     ------
@@ -281,100 +306,63 @@ def register_icp(
     GeometryError
         Fewer than 3 points or points that do not span a plane (either cloud).
     """
+    from threadpoolctl import threadpool_limits
+
     settings = IcpSettings(method=method, max_iterations=max_iterations, trim_fraction=trim_fraction, robust=robust,
                            max_points=max_points, pin_outline=pin_outline, tol_translation_mm=tol_translation_mm,
-                           tol_rotation_rad=tol_rotation_rad, tol_relative_mse=tol_relative_mse, seed=seed)
+                           tol_rotation_rad=tol_rotation_rad, tol_relative_mse=tol_relative_mse, seed=seed,
+                           check_starts=check_starts)
     _check_init(init)
     cloud = source if isinstance(source, Cloud) else prepare(source, "source")
     tgt = _as_target(target, method)
-    src, frame_s = cloud.points, cloud.frame
-    rng = np.random.default_rng(seed)
+    # many (n, 3) @ (3, 3) products: one BLAS thread is faster than a pool that spins
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _register(cloud, tgt, init, settings, reporter)
+
+
+def _register(cloud: Cloud, target: RegistrationTarget, init, settings: IcpSettings, reporter: Reporter):
+    """The steps of :func:`register_icp` on checked inputs."""
     notes: list[str] = []
-
     # 1. never a plane metric between a flat and a curved plate
-    flat_vs_curved = cloud.flat != tgt.flat
-    if flat_vs_curved and method == "plane":
-        method = "point"
-        notes.append("point-to-plane overridden by point-to-point: one plate is flat and the other "
-                     "curved, and a plane metric slides the flat plate off the curved one")
-    matching = Matching(method, trim_fraction, robust)
-
-    # 2. the source points of the fine stage, and of the coarse stage of large clouds
-    fine_idx = _subsample(src.shape[0], settings.max_points, rng)
-    coarse_idx = (fine_idx[_subsample(fine_idx.size, settings.coarse_points, rng)]
-                  if fine_idx.size > 2 * settings.coarse_points else None)
-    fine_src = src[fine_idx]
-    coarse_src = fine_src if coarse_idx is None else src[coarse_idx]
-
-    # 3. start: the best principal-axes candidate, the identity or the given transform
-    tf0, init_info = _start(init, tgt, src, fine_idx, frame_s, matching, rng)
-
-    # 4. coarse stage, unpinned (on a subsample of large clouds)
-    tol = settings.tolerances
-    nearest = icp.Nearest(tgt)  # the fine points' closest target points, kept from loop to loop
-    reporter.start("registering", total=None)
-    coarse = icp.run(tgt, coarse_src, tf0, matching, max_iterations=settings.max_iterations,
-                     tol=(10 * tol[0], 10 * tol[1], 10 * tol[2]), nearest=nearest if coarse_idx is None else None,
-                     reporter=reporter)
-
-    # 5. outline pin: when both clouds cover the same plate, the outline fixes the in-plane
-    #    position (and the turn about the normal where the metric leaves it loose)
-    pin = _outline_pin(tgt, src, fine_src, frame_s, coarse.tf, matching, settings.pin_outline, flat_vs_curved, notes,
-                       nearest)
-
-    # 6. fine stage, pinned when the outline allows
-    fine = icp.run(tgt, fine_src, coarse.tf, matching, max_iterations=settings.max_iterations, tol=tol, pin=pin,
-                   nearest=nearest, reporter=reporter)
-    reporter.finish()
-
-    # 7. final residuals and uncertainty at the result
-    return _result(tgt, fine_src, coarse, fine, matching, pin, init_info, notes, nearest)
+    matching, flat_vs_curved = stages.matching(cloud, target, settings, notes)
+    # 2. the source points of the fine and coarse stages, and the sample every pose is judged on
+    points = stages.subsamples(cloud, settings)
+    # 3. the noise floor: the residual the right pose leaves
+    floor = stages.floor(cloud, target, points)
+    # 4. the start: the best converged principal-axes candidate, the identity or the given transform
+    tf0, init_info = stages.start(init, target, cloud, points, matching, flat_vs_curved, floor, PRINCIPAL)
+    # 5. coarse stage, then the fine stage with the outline's say where the surface leaves the pose free
+    fit = stages.fit(target, cloud, points, tf0, matching, settings, flat_vs_curved, floor, notes, reporter)
+    # 6. from a given start that settled: converge the principal-axes starts too, go on from a clearly better one
+    if not (isinstance(init, str) and init == "principal") and settings.check_starts and fit.fine.converged:
+        fit, init_info = stages.check_starts(target, cloud, points, fit, init_info, matching, settings,
+                                             flat_vs_curved, floor, notes, PRINCIPAL)
+    # 7. the verdict, final residuals and uncertainty
+    return _result(target, points, fit, matching, init_info, floor, flat_vs_curved, notes)
 
 
-def _start(init, target, src, fine_idx, frame_s, matching, rng) -> tuple[np.ndarray, dict]:
-    """The start transform and how it was chosen (``Registration.init``)."""
-    if isinstance(init, str) and init == "principal":
-        score_idx = fine_idx[_subsample(fine_idx.size, PRINCIPAL.points, rng)]
-        return principal_start(target, src[score_idx], frame_s, matching, PRINCIPAL)
-    if isinstance(init, str):
-        return np.eye(4), {"kind": "identity"}
-    return np.asarray(init, dtype=float).copy(), {"kind": "given"}
-
-
-def _outline_pin(target, src, fine_src, frame_s, tf, matching, pin_outline, flat_vs_curved, notes, nearest):
-    """The outline pin at ``tf``, or None (the reason added to ``notes``)."""
-    if pin_outline is False:
-        return None
-    # point-to-point sees the turn about the normal only through the in-plane offsets to the
-    # closest target points: on a differently sampled target these follow the sampling
-    # pattern (about the point spacing) rather than the shape, so the outline fixes the turn
-    # better; point-to-plane fixes it from the normals where the surface is curved enough
-    pin_turn = flat_vs_curved or matching.metric == "point"
-    if not pin_turn:
-        pairs = icp.evaluate(target, fine_src, tf, matching, nearest)
-        turn_sigma = icp.uncertainty(target, pairs, sigma_mm=1.0)["r_n_deg"]
-        pin_turn = turn_sigma is None or turn_sigma > PIN_TURN_DEG
-    candidates = outline_candidates(frame_s, src, fine_src)
-    pin, coverage = outline_pin(target, candidates, tf, require_coverage=pin_outline == "auto", pin_turn=pin_turn)
-    if pin is None:
-        notes.append(f"outline not pinned: {coverage}")
-    return pin
-
-
-def _result(target, fine_src, coarse, fine, matching, pin, init_info, notes, nearest) -> Registration:
-    """The Registration of the fine stage's transform: residuals, uncertainty, notes."""
-    final = icp.evaluate(target, fine_src, fine.tf, matching, nearest)
-    uncertainty = icp.uncertainty(target, final)
-    uncertainty["in_plane"] = "pinned by the outline" if pin is not None else "from the surface shape"
+def _result(target, points, fit, matching, init_info, floor, flat_vs_curved, notes) -> Registration:
+    """The Registration of the fine stage's transform: residuals, verdict, uncertainty, notes."""
+    final = icp.evaluate(target, points.fine, fit.fine.tf, matching, fit.nearest)
+    uncertainty = dof_uncertainty(target, final)
+    uncertainty["in_plane"] = stages.in_plane(fit.pin)
+    if fit.pin is not None:
+        uncertainty["outline_share"] = fit.pin.weights
     free = [axis for axis in ("u", "v") if uncertainty.get(f"t_{axis}_mm") is None]
-    if pin is None and free:
+    if fit.pin is None and free:
         notes.append(f"the in-plane shift along {' and '.join(free)} is not fixed by the surface shape "
                      "(too shallow) and the outline was not used: it stays where the start put it; "
                      "scan the whole plate so the outline pins it, or check it against marks")
+    residual = robust_scale_mm(plane_residuals(target, points.judge, fit.fine.tf))
+    verdict = judge(fit.fine.converged, fit.fine.stop_reason, residual, floor, len(init_info.get("scores_mm", [0])),
+                    compared=not flat_vs_curved)
+    if flat_vs_curved:
+        notes.append("flat against curved: the residual measures their difference in shape, not the fit")
     return Registration(
-        tf=fine.tf, rms_mm=final.rms_mm, iterations=coarse.iterations + fine.iterations,
-        rms_history=[*coarse.rms_history, *fine.rms_history, final.rms_mm], converged=fine.converged,
-        stop_reason=fine.stop_reason, method=matching.metric, inlier_fraction=final.inlier_fraction,
-        init=init_info, ambiguous_start=bool(init_info.get("ambiguous", False)), uncertainty=uncertainty,
-        outline_pinned=pin is not None, notes=tuple(notes),
+        tf=fit.fine.tf, rms_mm=final.rms_mm, iterations=fit.coarse.iterations + fit.fine.iterations,
+        rms_history=[*fit.coarse.rms_history, *fit.fine.rms_history, final.rms_mm],
+        converged=verdict == "converged", stop_reason=fit.fine.stop_reason, method=matching.metric,
+        inlier_fraction=final.inlier_fraction, init=init_info, ambiguous_start=bool(init_info.get("ambiguous", False)),
+        uncertainty=uncertainty, outline_pinned=fit.pin is not None, notes=tuple(notes), verdict=verdict,
+        residual_mm=residual, noise_mm=floor,
     )

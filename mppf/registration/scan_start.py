@@ -1,32 +1,118 @@
-"""The start of a scan's registration onto its design: converged starts, a rotation hint, the reference mark.
+"""The start of a scan's registration onto its design: converged starts, a tie, a rotation hint, the reference mark.
 
 A few ICP iterations do not tell a nearly symmetric plate from its half turn when the
 plate is still some mm off its design; converged fits usually do. So each of the four
 principal-axes starts (:func:`mppf.registration.starts.principal_candidates`) is run to
-convergence by a trimmed, Huber-weighted point-to-plane ICP on a subsample of the scan
-and scored by its RMS; a rotation hint breaks a tie, a reference mark picks among them
-(or, when all of them slid off it, starts held at the mark are fitted). See
-``docs/compare.md``, "Which way round". Lengths in mm.
+convergence by a trimmed, Huber-weighted point-to-plane ICP on a subsample of the scan and
+its normal residuals on one common sample are kept. The best two different poses TIE
+(:func:`start_tie`) when the scan cannot tell them apart: their residuals are equal within
+the noise, or the design is nearly as symmetric under the turn between them as the scan
+is off the design (then the plate's own shape errors could favour either). A tie is
+settled by the reference mark, else by a rotation hint; with neither the start is
+ambiguous and the caller must not judge (:class:`AmbiguousStart`). See ``docs/compare.md``,
+"Which way round". Lengths in mm.
 """
 
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from mppf.core.errors import InputError
+from mppf.core.errors import EXIT_PRESS, InputError, MppfError
 from mppf.core.transform import apply_tf, make_tf, rotation_angle_deg
 from mppf.registration.register import register_icp
 from mppf.registration.settings import ScanStart
-from mppf.registration.starts import principal_candidates
+from mppf.registration.starts import evaluate, principal_candidates, rank
 from mppf.registration.target import Cloud, RegistrationTarget
+from mppf.registration.verdict import noise_floor_mm, plane_residuals, robust_scale_mm, sample_index, tie
+
+SYMMETRY_FACTOR = 2.0
+"""The scan tells two turns apart only when the design's own misfit under the turn between them
+exceeds this many times the scan's residual at the best one (shape errors shift the two alike)."""
+
+
+class AmbiguousStart(MppfError, ValueError):
+    """The scan fits its design equally well two ways round and no mark or hint says which (exit 4).
+
+    Attributes
+    ----------
+    candidates : list of dict
+        The two poses: ``name``, ``residual_mm``, ``turn_deg`` (from the best one).
+    """
+
+    exit_code = EXIT_PRESS
+
+    def __init__(self, message: str, *, candidates: list, hint: str | None = None):
+        super().__init__(message, hint=hint)
+        self.candidates = candidates
+
+
+@dataclass(frozen=True, eq=False)
+class StartChoice:
+    """The start of a scan's registration and how it was chosen.
+
+    Attributes
+    ----------
+    tf : (4, 4) float
+        Measured -> design.
+    note : str
+    ambiguous : bool
+        The best two different poses tie (:func:`start_tie`), however it was then settled.
+    settled_by : str
+        "fit" (the best fit, no tie), "mark", "held mark", "fit (mark not found)", "hint", or
+        "none" (a tie nothing settled: :meth:`require_settled` raises).
+    candidates : list of dict
+        The four converged starts: ``name``, ``residual_mm`` (robust normal residual of the
+        common sample), ``turn_deg`` from the chosen one.
+    floor_mm : float
+        The scan's noise floor against the design.
+    design_asymmetry_mm : float or None
+        RMS misfit of the design onto itself under the turn between the best two poses.
+    tied_pair : (int, int) or None
+        Indices in ``candidates`` of the two tied poses (when nothing settled the tie).
+    """
+
+    tf: np.ndarray
+    note: str
+    ambiguous: bool
+    settled_by: str
+    candidates: list = field(default_factory=list)
+    floor_mm: float = float("nan")
+    design_asymmetry_mm: float | None = None
+    tied_pair: tuple | None = None
+
+    @property
+    def settled(self) -> bool:
+        """Whether the turn is known: no tie, or a tie settled by the mark or the hint."""
+        return self.settled_by != "none"
+
+    def require_settled(self) -> None:
+        """Raise :class:`AmbiguousStart` (exit 4, both candidates shown) when the turn is not known."""
+        if self.settled:
+            return
+        pair = [self.candidates[i] for i in self.tied_pair]
+        raise AmbiguousStart(
+            f"ambiguous: give the reference mark. The scan fits its design equally well two ways round: start "
+            f"{pair[0]['name']} (residual {pair[0]['residual_mm']:.2f} mm) and start {pair[1]['name']} (residual "
+            f"{pair[1]['residual_mm']:.2f} mm), turned {pair[1]['turn_deg']:.0f} deg from each other (noise floor "
+            f"{self.floor_mm:.2f} mm, design asymmetry under that turn {self.design_asymmetry_mm:.2f} mm)",
+            candidates=pair,
+            hint="pick the reference-corner mark in the scan and give it (compare --mark X,Y,Z, or a "
+                 "<scan>.mark.json file beside the scan), or give a rotation hint")
+
+    def info(self) -> dict:
+        """JSON-able summary (``Registration.init`` of a comparison)."""
+        return {"kind": "scan start", "settled_by": self.settled_by, "ambiguous": self.ambiguous,
+                "candidates": self.candidates, "floor_mm": self.floor_mm,
+                "design_asymmetry_mm": self.design_asymmetry_mm}
 
 
 def choose_start(scan: Cloud, target: RegistrationTarget, rotation_hint, reference_mark,
-                 length_mm: float, settings: ScanStart = ScanStart()) -> tuple[np.ndarray, str]:
-    """The start of the registration (measured -> design) and a note saying how it was chosen.
+                 length_mm: float, settings: ScanStart = ScanStart()) -> StartChoice:
+    """The start of the registration (measured -> design) and how it was chosen.
 
     Parameters
     ----------
@@ -44,30 +130,73 @@ def choose_start(scan: Cloud, target: RegistrationTarget, rotation_hint, referen
 
     Returns
     -------
-    tf : (4, 4) float
-    note : str
+    StartChoice
 
     Raises
     ------
     InputError
         A malformed hint or mark.
+
+    A tie with neither a mark nor a hint is returned unsettled (``settled_by="none"``, the
+    best fit as ``tf``): the caller checks that the scan is of this plate at all, then calls
+    :meth:`StartChoice.require_settled` (:class:`AmbiguousStart`).
     """
     hint = None if rotation_hint is None else _as_rotation(rotation_hint)
     mark = None if reference_mark is None else _as_mark(reference_mark)
-    candidates = principal_candidates(scan.frame, target.frame)
-    fits, scores = zip(*_map(lambda start: _start_fit(scan, target, start, settings), candidates, settings))
-    order = [int(i) for i in np.argsort(scores)]
-    best, second = order[0], order[1]
-    scored = ", ".join(f"{s:.2f}" for s in scores)
+    # 1. the four principal-axes starts, converged; their residuals on one common sample
+    judge = scan.points[sample_index(scan.n_points, settings.points, seed=1)]
+    starts = principal_candidates(scan.frame, target.frame)
+    fits = _map(lambda start: _start_fit(scan, target, start, settings), starts, settings)
+    candidates = [evaluate(name, target, judge, tf) for name, tf in zip(("+++", "--+", "-+-", "+--"), fits)]
+    # 2. the best, the best different pose, and whether the scan tells them apart
+    floor = noise_floor_mm(scan, target)
+    order, second, _ = rank(candidates, floor, judge.mean(axis=0), length_mm)
+    tied, asymmetry = start_tie(target, candidates[order[0]], None if second is None else candidates[second], floor)
+    best = order[0]
+    summary = lambda chosen: _summary(candidates, chosen)  # noqa: E731
+    scored = ", ".join(f"{robust_scale_mm(c.normal):.2f}" for c in candidates)
+    # 3. the mark settles the turn; a hint breaks a tie; a tie without either is not judged
     if mark is not None:
-        return _mark_start(scan, target, candidates, fits, scores, order, mark, length_mm, settings)
-    if hint is not None and scores[second] <= settings.tie_ratio * scores[best] + 1e-9:
+        tf, note, how = _mark_start(scan, target, starts, fits, [robust_scale_mm(c.normal) for c in candidates],
+                                    order, mark, length_mm, settings)
+        chosen = min(range(4), key=lambda i: rotation_angle_deg(fits[i][:3, :3] @ tf[:3, :3].T))
+        return StartChoice(tf, note, tied, how, summary(chosen), floor, asymmetry)
+    if tied and hint is not None:
         turns = {i: rotation_angle_deg(fits[i][:3, :3] @ hint.T) for i in (best, second)}
         chosen = min(turns, key=turns.get)
-        return fits[chosen], f"start: tie of the best two starts broken by the rotation hint; converged RMS {scored} mm"
-    tie = (" (a tie of the best two: nearly symmetric plate, no hint)"
-           if scores[second] <= settings.tie_ratio * scores[best] else "")
-    return fits[best], f"start: best converged fit{tie}; converged RMS {scored} mm"
+        return StartChoice(fits[chosen], f"start: tie of the best two starts broken by the rotation hint; converged "
+                                         f"residual {scored} mm", True, "hint", summary(chosen), floor, asymmetry)
+    if tied:  # not judged: the caller raises AmbiguousStart once the scan is known to be of this plate
+        return StartChoice(fits[best], f"start: a tie of the best two poses, settled neither by a mark nor by a "
+                                       f"hint; converged residual {scored} mm", True, "none", summary(best), floor,
+                           asymmetry, (best, second))
+    return StartChoice(fits[best], f"start: best converged fit; converged residual {scored} mm", False, "fit",
+                       summary(best), floor, asymmetry)
+
+
+def start_tie(target: RegistrationTarget, best, other, floor_mm: float) -> tuple[bool, float | None]:
+    """Whether the scan cannot tell ``best`` from ``other`` (Candidates), and the design's asymmetry (mm).
+
+    A tie: their residuals are equal within the noise (:func:`mppf.registration.verdict.tie`),
+    or the design, moved by the turn between them and fitted onto itself, misfits itself by
+    less than :data:`SYMMETRY_FACTOR` times the scan's residual at ``best``.
+    """
+    if other is None:
+        return False, None
+    relative = other.tf @ np.linalg.inv(best.tf)  # design -> design: one pose onto the other
+    sample = target.points[sample_index(target.n_points, 1500, seed=2)]
+    fit = register_icp(sample, target, method="plane", init=relative, pin_outline=False, max_points=1500,
+                       max_iterations=30, check_starts=False)
+    asymmetry = float(np.sqrt(np.mean(plane_residuals(target, sample, fit.tf) ** 2)))
+    residual = robust_scale_mm(best.normal)
+    return bool(tie(best.normal, other.normal, floor_mm) or asymmetry < SYMMETRY_FACTOR * residual), asymmetry
+
+
+def _summary(candidates, chosen: int) -> list[dict]:
+    """The converged starts as dicts: name, robust residual, turn from the chosen one."""
+    ref = candidates[chosen].tf[:3, :3]
+    return [{"name": c.name, "residual_mm": robust_scale_mm(c.normal),
+             "turn_deg": rotation_angle_deg(c.tf[:3, :3] @ ref.T)} for c in candidates]
 
 
 def _mark_start(scan, target, candidates, fits, scores, order, mark, length_mm, settings):
@@ -78,8 +207,8 @@ def _mark_start(scan, target, candidates, fits, scores, order, mark, length_mm, 
     if agree:
         chosen = agree[0]
         how = "the reference mark" + (" (it overruled the best fit)" if chosen != order[0] else "")
-        return fits[chosen], (f"start: {how}; converged RMS of the four principal-axes starts {scored} mm, "
-                              f"mark {miss[chosen]:.0f} mm from its place")
+        return fits[chosen], (f"start: {how}; converged residual of the four principal-axes starts {scored} mm, "
+                              f"mark {miss[chosen]:.0f} mm from its place"), "mark"
     # the free fits slid away (a plate still far off its design fits a shifted, turned
     # design about as well): fit again from each start with the mark held at its place
     n = scan.n_points
@@ -92,10 +221,10 @@ def _mark_start(scan, target, candidates, fits, scores, order, mark, length_mm, 
     if held_scores[chosen] <= settings.held_max_rms_fraction * length_mm:
         return held[chosen][0], (
             f"start: the reference mark held in place (the free fits slid {min(miss):.0f} mm or more off it); "
-            f"RMS of the {len(held)} best turns so held {', '.join(f'{v:.1f}' for v in held_scores)} mm")
+            f"RMS of the {len(held)} best turns so held {', '.join(f'{v:.1f}' for v in held_scores)} mm"), "held mark"
     note = (f"start: no start puts the reference mark near its place (nearest {min(miss):.0f} mm): "
             "the best fit is used; check the mark")
-    return fits[order[0]], f"{note}; converged RMS {scored} mm"
+    return fits[order[0]], f"{note}; converged residual {scored} mm", "fit (mark not found)"
 
 
 def _map(fit, starts, settings: ScanStart) -> list:
@@ -106,12 +235,12 @@ def _map(fit, starts, settings: ScanStart) -> list:
         return list(pool.map(fit, starts))
 
 
-def _start_fit(scan, target, start, settings: ScanStart) -> tuple[np.ndarray, float]:
-    """A start converged by trimmed, Huber-weighted point-to-plane ICP on a subsample: (tf, RMS)."""
+def _start_fit(scan, target, start, settings: ScanStart) -> np.ndarray:
+    """A start converged by trimmed, Huber-weighted point-to-plane ICP on a subsample (measured -> design)."""
     reg = register_icp(scan, target, method="plane", init=start, trim_fraction=settings.trim_fraction,
                        robust="huber", pin_outline=False, max_points=settings.points,
-                       max_iterations=settings.iterations)
-    return reg.tf, reg.rms_mm
+                       max_iterations=settings.iterations, check_starts=False)
+    return reg.tf
 
 
 def _held_starts(target, candidates, mark, sample, settings: ScanStart) -> list[np.ndarray]:
@@ -149,7 +278,7 @@ def _held_fit(scan, target, start, mark, sample, settings: ScanStart) -> tuple[n
         tf[:3, 3] += mark[1] - apply_tf(tf, mark[0][None])[0]
         reg = register_icp(scan, target, method="point", init=tf, trim_fraction=settings.trim_fraction,
                            pin_outline=False, max_points=settings.points,
-                           max_iterations=max(settings.iterations // settings.hold_rounds, 1))
+                           max_iterations=max(settings.iterations // settings.hold_rounds, 1), check_starts=False)
         tf = np.array(reg.tf, dtype=float)
     tf[:3, 3] += mark[1] - apply_tf(tf, mark[0][None])[0]
     return tf, _nearest_rms(target, sample, tf)

@@ -62,6 +62,8 @@ class IcpSettings:
     tol_rotation_rad: float = 1e-5      # ... and turns it less than this
     tol_relative_mse: float = 1e-9      # also converged when the MSE changes by less than this fraction
     seed: int = 0                       # seed of the subsampling (results are reproducible)
+    check_starts: bool = True           # from a given or identity start, also converge the principal-axes
+    #                                     starts and keep the best (a wrong start settles as readily)
 
     def __post_init__(self):
         Matching(self.method, self.trim_fraction, self.robust)  # checks those three
@@ -86,12 +88,18 @@ class IcpSettings:
 
 @dataclass(frozen=True)
 class PrincipalStart:
-    """Scoring of the four principal-axes starts (proper sign flips of the axes) of ``register_icp``."""
+    """The four principal-axes starts (proper sign flips of the axes) of ``register_icp``, converged and scored."""
 
-    points: int = 1000              # source points (a seeded subsample) each candidate is scored on
-    iterations: int = 8             # point-to-point iterations run from each candidate before scoring
-    keep_fraction: float = 0.6      # score: RMS of this best fraction of the closest-point distances
-    ambiguous_ratio: float = 1.25   # the second best within this factor of the best: an ambiguous start
+    points: int = 1000                  # source points (a seeded subsample) each candidate is fitted on
+    iterations: int = 30                # ICP iterations (point-to-plane; point-to-point flat against curved)
+    tol_translation_mm: float = 0.01    # a candidate has converged when an iteration moves it less than this ...
+    tol_rotation_rad: float = 1e-4      # ... and turns it less than this
+    tol_relative_mse: float = 1e-6      # (or its MSE changes by less than this fraction)
+
+    @property
+    def tolerances(self) -> tuple[float, float, float]:
+        """(translation mm, rotation rad, relative MSE change) of a candidate's fit."""
+        return self.tol_translation_mm, self.tol_rotation_rad, self.tol_relative_mse
 
 
 @dataclass(frozen=True)

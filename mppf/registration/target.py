@@ -128,6 +128,7 @@ class RegistrationTarget(Cloud):
     """
 
     tree: object
+    cache: dict = field(default_factory=dict, repr=False)  # figures computed once (e.g. its sampling scatter)
     _normals: np.ndarray | None = field(default=None, repr=False)
     _outline: tuple | None = field(default=None, repr=False)
 

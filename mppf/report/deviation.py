@@ -2,10 +2,13 @@
 
 The map shows the design plate in its own frame (u along its longest extent, v across,
 seen from the +normal side): the measured points coloured by their signed deviation
-with a diverging colour map centred on 0 (blue below the design, red above), the
-tolerance as black contour lines, outliers as black crosses and the design outline. With a
-trim margin, the points in the margin are grey dots (not counted) inside the grown outline
-(dashed).
+with a diverging colour map centred on 0 (blue below the design, red above) on a FIXED
+scale (default +-2 x the tolerance, :func:`colour_limit_mm`: the same for every cycle of a
+plate, so pictures compare), the tolerance as black contour lines, set-aside points as
+black crosses and the design outline; areas without scan data are hatched. With a trim
+margin, the points in the margin are grey dots (not counted) inside the grown outline
+(dashed). The punch map names rows and columns as the press does (from 1 by default) and
+writes each punch's value in its cell.
 """
 
 from __future__ import annotations
@@ -19,16 +22,23 @@ from matplotlib.figure import Figure
 from matplotlib.tri import Triangulation
 
 from mppf.core.polygon import convex_outline, offset_convex
+from mppf.measure.punches import short_label
 from mppf.measure.result import Comparison
 
 CMAP = "RdBu_r"
 """Diverging colour map: blue = below the design, red = above."""
 
 
-def _colour_limit(comparison: Comparison) -> float:
-    d = comparison.deviation_mm[comparison.inlier]
-    big = float(np.max(np.abs(d))) if d.size else 0.0
-    return max(big, 1.2 * comparison.tolerance_mm, 0.1)
+SCALE_TOLERANCES = 2.0
+"""Default half range of the colour scale, in tolerances."""
+
+HATCH = "////"
+"""Hatching of areas without data (not scanned, punches off the scan)."""
+
+
+def colour_limit_mm(comparison: Comparison, scale_mm: float | None = None) -> float:
+    """Half range (mm) of the colour scale: ``scale_mm``, default :data:`SCALE_TOLERANCES` x the tolerance."""
+    return float(scale_mm) if scale_mm is not None else SCALE_TOLERANCES * comparison.tolerance_mm
 
 
 def _triangulation(uv: np.ndarray) -> Triangulation | None:
@@ -45,17 +55,19 @@ def _triangulation(uv: np.ndarray) -> Triangulation | None:
     return tri
 
 
-def deviation_map_figure(comparison: Comparison, title: str | None = None) -> Figure:
-    """The colour deviation map as a matplotlib Figure (see the module docstring)."""
+def deviation_map_figure(comparison: Comparison, title: str | None = None, scale_mm: float | None = None) -> Figure:
+    """The colour deviation map as a matplotlib Figure (see the module docstring); ``scale_mm``: the colour
+    scale's half range (default :func:`colour_limit_mm`)."""
     c = comparison
     uv = c.measured_uv_mm
     inl = c.inlier
-    limit = _colour_limit(c)
+    limit = colour_limit_mm(c, scale_mm)
     fig = Figure(figsize=(10, 6.2), layout="constrained")
     ax = fig.subplots()
     outline = convex_outline(c.design_uv_mm, "the design")
     ring = np.vstack([outline, outline[:1]])
-    ax.fill(ring[:, 0], ring[:, 1], color="0.92", zorder=0, label="design plate")
+    ax.fill(ring[:, 0], ring[:, 1], facecolor="white", edgecolor="0.55", hatch=HATCH, linewidth=0.0, zorder=0,
+            label="no scan data")
     ax.plot(ring[:, 0], ring[:, 1], color="black", linestyle="-", linewidth=1.2, zorder=4)
     if c.margin_mm > 0:
         grown = offset_convex(outline, c.margin_mm)
@@ -77,18 +89,17 @@ def deviation_map_figure(comparison: Comparison, title: str | None = None) -> Fi
         sc = ax.scatter(uv[inl, 0], uv[inl, 1], c=d, cmap=CMAP, norm=norm, s=12, linewidths=0, zorder=2)
     if c.is_outlier.any():
         ax.plot(uv[c.is_outlier, 0], uv[c.is_outlier, 1], "x", color="black", markersize=4, zorder=4,
-                label=f"outliers ({int(c.is_outlier.sum())}, not counted)")
+                label=f"set aside as scanner artefacts ({int(c.is_outlier.sum())}, reported)")
     bar = fig.colorbar(sc, ax=ax, shrink=0.9, extend="both")
-    bar.set_label("deviation along the design normal (mm)")
+    bar.set_label(f"deviation along the design normal (mm, fixed scale +-{limit:g})")
     for level in (-c.tolerance_mm, c.tolerance_mm):
         bar.ax.axhline(level, color="black", linewidth=1.2)
     ax.set_aspect("equal")
     ax.set_xlabel("u (mm, design frame)")
     ax.set_ylabel("v (mm, design frame)")
-    verdict = "IN tolerance" if c.in_tolerance else "OUT of tolerance"
-    ax.set_title(title or f"Deviation from design: RMS {c.rms_mm:.2f} mm, max |d| {c.max_abs_mm:.2f} mm, "
-                          f"{c.within_tolerance_pct:.1f} % within +-{c.tolerance_mm:g} mm ({verdict})",
-                 fontsize=10)
+    ax.set_title(title or f"{c.headline}\nlargest point |d| {c.max_abs_mm:.2f} mm, "
+                          f"{c.within_tolerance_pct:.1f} % of the net points within +-{c.tolerance_mm:g} mm",
+                 fontsize=9)
     ax.legend(loc="upper right", fontsize=8)
     return fig
 
@@ -112,14 +123,14 @@ def histogram_figure(comparison: Comparison) -> Figure:
     return fig
 
 
-def punch_map_figure(comparison: Comparison, punch_x_mm, punch_y_mm) -> Figure:
-    """Deviation at each punch (press z) on the punch grid; interpolated punches hatched."""
+def punch_map_figure(comparison: Comparison, punch_x_mm, punch_y_mm, scale_mm: float | None = None) -> Figure:
+    """Deviation at each punch (press z) on the punch grid, the value written in each cell; rows and columns
+    named as the press names them (``Comparison.punch_label_base``); interpolated punches hatched."""
     c = comparison
     x, y = np.asarray(punch_x_mm, dtype=float), np.asarray(punch_y_mm, dtype=float)
     values = np.ma.masked_invalid(c.punch_deviation_mm)
-    limit = max(float(np.nanmax(np.abs(c.punch_deviation_mm))) if np.isfinite(c.punch_deviation_mm).any()
-                else 0.0, c.tolerance_mm, 0.1)
-    fig = Figure(figsize=(10, 5.5), layout="constrained")
+    limit = colour_limit_mm(c, scale_mm)
+    fig = Figure(figsize=(max(10, 0.55 * x.size), max(5.5, 0.45 * y.size)), layout="constrained")
     ax = fig.subplots()
     dx = np.diff(x).mean() if x.size > 1 else 1.0
     dy = np.diff(y).mean() if y.size > 1 else 1.0
@@ -127,18 +138,32 @@ def punch_map_figure(comparison: Comparison, punch_x_mm, punch_y_mm) -> Figure:
     edges_y = np.concatenate([y - dy / 2, [y[-1] + dy / 2]])
     mesh = ax.pcolormesh(edges_x, edges_y, values, cmap=CMAP, norm=TwoSlopeNorm(0.0, -limit, limit),
                          edgecolors="white", linewidth=0.3)
-    gx, gy = np.meshgrid(x, y)
+    base = c.punch_label_base
     interp = c.punch_interpolated
-    ax.plot(gx[interp], gy[interp], "o", markerfacecolor="none", markeredgecolor="black", markersize=5,
+    for i, j in zip(*np.nonzero(np.isfinite(c.punch_deviation_mm))):
+        ax.text(x[j], y[i], f"{c.punch_deviation_mm[i, j]:+.1f}", ha="center", va="center", fontsize=5.5)
+        if interp[i, j]:
+            ax.add_patch(_cell_patch(x[j], y[i], dx, dy))
+    gx, gy = np.meshgrid(x, y)
+    ax.plot(gx[interp], gy[interp], "o", markerfacecolor="none", markeredgecolor="black", markersize=9,
             label="interpolated (no scan data)")
-    fig.colorbar(mesh, ax=ax, label="plate deviation along press z (mm)")
+    ax.set_xticks(x, [str(j + base) for j in range(x.size)], fontsize=6)
+    ax.set_yticks(y, [str(i + base) for i in range(y.size)], fontsize=6)
+    fig.colorbar(mesh, ax=ax, label=f"plate deviation along press z (mm, fixed scale +-{limit:g})", extend="both")
     ax.set_aspect("equal")
-    ax.set_xlabel("press x (mm)")
-    ax.set_ylabel("press y (mm)")
-    ax.set_title("Deviation at the punches (positive = plate above the design)", fontsize=10)
+    ax.set_xlabel(f"punch column (from {base}; press x)")
+    ax.set_ylabel(f"punch row (from {base}; press y)")
+    ax.set_title(f"Deviation at the punches (positive = plate above the design; hatched = interpolated, no scan data; "
+                 f"e.g. punch {short_label(0, 0, base)} = row {base}, col {base})", fontsize=9)
     if interp.any():
         ax.legend(fontsize=8, loc="upper right")
     return fig
+
+
+def _cell_patch(x: float, y: float, dx: float, dy: float):
+    from matplotlib.patches import Rectangle
+
+    return Rectangle((x - dx / 2, y - dy / 2), dx, dy, fill=False, hatch=HATCH, edgecolor="0.3", linewidth=0.0)
 
 
 def figure_png(fig: Figure, dpi: int = 110) -> bytes:
@@ -148,10 +173,10 @@ def figure_png(fig: Figure, dpi: int = 110) -> bytes:
     return buffer.getvalue()
 
 
-def plot_deviation(comparison: Comparison, path, title: str | None = None) -> Path:
+def plot_deviation(comparison: Comparison, path, title: str | None = None, scale_mm: float | None = None) -> Path:
     """Draw the colour deviation map and save it (.png, .pdf or .svg); return the path."""
     path = Path(path)
-    deviation_map_figure(comparison, title).savefig(path, dpi=120)
+    deviation_map_figure(comparison, title, scale_mm).savefig(path, dpi=120)
     return path
 
 

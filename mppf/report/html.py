@@ -73,20 +73,28 @@ def render_page(title: str, sections: Sequence[tuple[str, str]], intro: str = ""
 
 def statistics_rows(c: Comparison) -> list[tuple]:
     """The statistics of a comparison as (name, value, unit) rows."""
-    return [
+    rows = [
         ("RMS deviation", c.rms_mm, "mm"),
-        ("largest absolute deviation of the form (decides the tolerance)", c.form_max_abs_mm, "mm"),
+        (f"form max: largest absolute form deviation (decides with the RMS; limits {c.tolerance_mm:g} mm, "
+         f"RMS {c.rms_tolerance_mm:g} mm)", c.form_max_abs_mm, "mm"),
         ("largest absolute deviation of a single point", c.max_abs_mm, "mm"),
         ("mean deviation", c.mean_mm, "mm"),
         ("standard deviation", c.std_mm, "mm"),
-        (f"within tolerance +-{c.tolerance_mm:g} mm", c.within_tolerance_pct, "%"),
+        (f"within tolerance +-{c.tolerance_mm:g} mm (all measured net points)", c.within_tolerance_pct, "%"),
         ("points measured", c.n_points, ""),
         ("points used (inliers)", c.n_inliers, ""),
-        ("outliers left out", int(c.is_outlier.sum()), ""),
+        ("points set aside as scanner artefacts (decide when beyond the tolerance)", int(c.is_outlier.sum()), ""),
         ("points outside the design left out", int(c.is_outside.sum()), ""),
         ("skin offset from the design mid-surface", c.offset_mm, "mm"),
         ("design surface fit RMS", c.design_fit_rms_mm, "mm"),
     ]
+    if c.set_aside is not None:
+        rows.append(("set aside", c.set_aside.describe(c.tolerance_mm), ""))
+    if c.form:
+        rows += [("form smoothing: point spacing", c.form["spacing_mm"], "mm"),
+                 ("form smoothing: noise of the deviations", c.form["noise_mm"], "mm"),
+                 ("form smoothing: fit radii", ", ".join(f"{r:.0f}" for r in c.form["radius_mm"]), "mm")]
+    return rows
 
 
 def registration_rows(c: Comparison) -> list[tuple]:
@@ -98,6 +106,9 @@ def registration_rows(c: Comparison) -> list[tuple]:
         ("RMS of the matched pairs (mm)", r.rms_mm),
         ("iterations", r.iterations),
         ("converged", "yes" if r.converged else f"no ({r.stop_reason})"),
+        ("verdict", r.verdict or "-"),
+        ("residual against the noise floor (mm)", f"{r.residual_mm:.3f} / {r.noise_mm:.3f}"),
+        ("start settled by", str(r.init.get("settled_by", "-"))),
         ("inlier fraction", r.inlier_fraction),
         ("ambiguous start (symmetric plate)", "yes - check the turn" if r.ambiguous_start else "no"),
     ]
@@ -114,6 +125,7 @@ def comparison_report(
     punch_x_mm=None,
     punch_y_mm=None,
     extra_rows: Sequence[tuple] = (),
+    scale_mm: float | None = None,
 ) -> str:
     """The HTML report of one comparison: verdict, statistics, pictures, registration, punches.
 
@@ -127,6 +139,8 @@ def comparison_report(
         Punch axes, for the punch deviation map (when the comparison has punch values).
     extra_rows : sequence of (name, value)
         More lines for the summary table (plate id, cycle, operator...).
+    scale_mm : float, optional
+        Half range of the pictures' fixed colour scale (default 2 x the tolerance).
 
     Returns
     -------
@@ -134,14 +148,12 @@ def comparison_report(
         The HTML document.
     """
     c = comparison
-    verdict = ('<p class="ok">IN TOLERANCE</p>' if c.in_tolerance
-               else f'<p class="bad">OUT OF TOLERANCE: largest deviation {c.max_abs_mm:.2f} mm '
-                    f'&gt; {c.tolerance_mm:g} mm</p>')
+    verdict = f'<p class="{"ok" if c.in_tolerance else "bad"}">{html.escape(_headline(c))}</p>'
     summary = [("design", design_name or "-"), ("measured", measured_name or "-"), *extra_rows]
     sections = [
         ("Summary", verdict + table_html(summary)),
         ("Statistics", table_html(statistics_rows(c), header=("quantity", "value", "unit"))),
-        ("Deviation map", image_html(figure_png(deviation_map_figure(c)), "deviation map")),
+        ("Deviation map", image_html(figure_png(deviation_map_figure(c, scale_mm=scale_mm)), "deviation map")),
         ("Histogram", image_html(figure_png(histogram_figure(c)), "deviation histogram")
          + table_html(_histogram_rows(c), header=("from (mm)", "to (mm)", "points"))),
         ("Registration (measured to design)",
@@ -151,15 +163,24 @@ def comparison_report(
     if c.punch_deviation_mm is not None:
         body = ""
         if punch_x_mm is not None and punch_y_mm is not None:
-            body += image_html(figure_png(punch_map_figure(c, punch_x_mm, punch_y_mm)), "punch deviation map")
-        rows = [[f"row {i + 1}"] + [float(v) for v in row] for i, row in enumerate(c.punch_deviation_mm)]
-        header = ["", *(f"col {j + 1}" for j in range(c.punch_deviation_mm.shape[1]))]
+            body += image_html(figure_png(punch_map_figure(c, punch_x_mm, punch_y_mm, scale_mm)),
+                               "punch deviation map")
+        base = c.punch_label_base
+        rows = [[f"row {i + base}"] + [float(v) for v in row] for i, row in enumerate(c.punch_deviation_mm)]
+        header = ["", *(f"col {j + base}" for j in range(c.punch_deviation_mm.shape[1]))]
         body += ("<p>Deviation at each punch along press z (mm; positive = plate above the design; "
                  "- = off the plate).</p>" + table_html(rows, header=header, css_class="grid"))
         sections.append(("Deviation at the punches", body))
     if c.notes:
         sections.append(("Notes", "<ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in c.notes) + "</ul>"))
     return render_page(title, sections)
+
+
+def _headline(c: Comparison) -> str:
+    """The verdict in capitals and the figures that decided it."""
+    if c.verdict is None:
+        return c.headline
+    return f"{c.verdict.label.upper()}: {'; '.join(c.verdict.reasons)}"
 
 
 def _histogram_rows(c: Comparison) -> list[tuple]:

@@ -146,7 +146,7 @@ class SteelPlate:
         self.last_iterations: list[int] = []
 
     # --- pressing ----------------------------------------------------------------
-    def press_step(self, upper_mm, lower_mm, active) -> FormedSteelPlate:
+    def press_step(self, upper_mm, lower_mm, active, *, share: float = 1.0) -> FormedSteelPlate:
         """Press one step and let the plate spring back.
 
         Parameters
@@ -156,6 +156,9 @@ class SteelPlate:
             entries of inactive punches are ignored (may be NaN).
         active : (rows, cols) bool
             Punch pairs in use; the others are parked and do not touch.
+        share : float
+            Share of the way from the last tips to these the tips travel, in (0, 1]: less
+            than 1 is a step whose motion was stopped on the way (an interruption).
 
         Returns
         -------
@@ -171,9 +174,13 @@ class SteelPlate:
         PlateSolveError
             The equilibrium did not converge.
         """
+        share = check_number("share of the step", share, low=0.0, high=1.0, low_open=True)
         lower, upper, enabled = self._check_step(upper_mm, lower_mm, active)
         start_lower = np.where(self.tips_enabled, self.tips_lower_mm, self.press.lower.park_mm)
         start_upper = np.where(self.tips_enabled, self.tips_upper_mm, self.press.upper.park_mm)
+        if share < 1.0:  # stopped on the way: the tips got this share of it
+            lower = np.where(enabled, start_lower + share * (lower - start_lower), lower)
+            upper = np.where(enabled, start_upper + share * (upper - start_upper), upper)
         # 1. load: the tips travel from where they were to the step's tips
         loaded, iterations = self._load(start_lower, start_upper, lower, upper, enabled)
         # 2. unload: the punches retract, the plate springs back

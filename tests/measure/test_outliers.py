@@ -15,7 +15,8 @@ def test_form_deviation_averages_out_the_scanner_noise():
     u, v, c = sh.bump_result()
     form = c.form_deviation_mm
     assert np.isnan(form[~c.inlier]).all() and np.isfinite(form[c.inlier]).all()
-    assert c.form_max_abs_mm == pytest.approx(np.max(np.abs(form[c.inlier])))
+    # the form max is the largest form value, or a little more where the extreme lies between points
+    assert np.max(np.abs(form[c.inlier])) <= c.form_max_abs_mm <= np.max(np.abs(form[c.inlier])) + 0.1
     # the bump's peak survives the local planes (150 mm wide bump, planes over ~12 points)
     assert c.form_max_abs_mm == pytest.approx(5.0, abs=0.2)
     # away from the bump the form deviation is the noise averaged over about 12 points
@@ -33,7 +34,7 @@ def test_noise_alone_never_fails_the_tolerance_but_its_raw_extremes_would():
     """1.0 mm of scanner noise puts single points beyond a 2.5 mm tolerance; the form
     deviation of that perfectly formed plate stays well inside it."""
     _, _, measured = sh.measured(n=8000, with_bump=False, noise_mm=1.0, seed=6)
-    c = compare(sh.design(), measured, tolerance_mm=2.5)
+    c = compare(sh.design(), measured, tolerance_mm=2.5, rms_tolerance_mm=1.5)  # 1 mm noise: RMS about 1 mm
     assert c.max_abs_mm > 2.5  # raw points: noise extremes
     assert c.form_max_abs_mm < 2.0  # about 1.6: the local planes cut the noise by about 2.5x
     assert c.in_tolerance
@@ -46,7 +47,11 @@ def test_occluded_scan_with_outliers_still_registers():
     assert rotation_angle_deg(error) < 0.05
     assert np.linalg.norm(error[:3, 3]) < 10.0
     assert c.rms_mm == pytest.approx(0.3, abs=0.05)
-    assert c.in_tolerance
+    # the plate is within its limits, but artefacts 5-50 mm off were set aside: a person looks at them
+    assert c.form_max_abs_mm <= c.tolerance_mm and c.rms_mm <= c.rms_tolerance_mm
+    assert c.verdict.kind == "needs_review" and not c.in_tolerance
+    assert c.set_aside.count == int(c.is_outlier.sum()) and c.set_aside.beyond_tolerance > 0
+    assert c.set_aside.worst_punch.startswith("row ")
     # outliers found: nearly all true ones, almost no false ones
     true = sample.is_outlier
     assert (c.is_outlier & true).sum() >= 0.95 * true.sum()

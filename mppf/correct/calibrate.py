@@ -1,0 +1,137 @@
+"""The model plate fitted to the measured cycles: effective yield stress and hardening.
+
+Two numbers of the section (:class:`mppf.correct.section.Section`) are not known for the
+plate in the press and are fitted to what the scanner measured: the effective yield stress
+(it carries the scatter of the yield stress and of the thickness, which act alike on
+springback) and the linear hardening (it sets how much of a small re-press stays). The fit
+(:func:`calibrate`, bounded least squares) weighs
+
+- the change of the plate from each measured cycle to the next against the model's change
+  for the same strokes (the secants: what decides the next correction's gain), fully;
+- each cycle's shape against the model's (absolute: springback magnitude, mixed with what
+  the model does not describe, the edges, the press), at :data:`ABSOLUTE_WEIGHT`;
+- a prior that keeps both near the nominal values when the data say little.
+
+Misfits are compared as heights at the punches (curvature differences integrated back, plane
+removed), where the measurement is.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from mppf.correct.memory import loaded_curvatures, replay
+from mppf.correct.punch_grid import PunchGrid
+from mppf.correct.section import Section
+
+ABSOLUTE_WEIGHT = 0.3
+"""Weight of each cycle's shape misfit against the cycle-to-cycle changes."""
+
+MISFIT_SCALE_MM = 1.0
+"""Height misfit that counts as one standard deviation."""
+
+YIELD_BOUNDS = (0.5, 2.0)
+"""Range of the effective yield stress, as factors of the nominal one."""
+
+YIELD_PRIOR = 0.25
+"""Relative standard deviation of the effective yield stress around the nominal one."""
+
+HARDENING_PRIOR_MPA = (1000.0, 3000.0)
+"""Linear hardening modulus assumed before any data (MPa) and its standard deviation."""
+
+HARDENING_BOUNDS_MPA = (0.0, 20000.0)
+
+
+@dataclass(frozen=True, eq=False)
+class Calibration:
+    """The fitted section and how well it describes the measured cycles.
+
+    Attributes
+    ----------
+    section : Section
+    misfit_mm : float
+        RMS height misfit of the shapes of the measured cycles (model minus measurement).
+    secant_misfit_mm : float
+        RMS misfit of the changes between consecutive measured cycles (NaN with one).
+    change_mm : float
+        RMS measured change between consecutive cycles (NaN with one).
+    """
+
+    section: Section
+    misfit_mm: float
+    secant_misfit_mm: float = float("nan")
+    change_mm: float = float("nan")
+
+
+def calibrate(grid: PunchGrid, nominal: Section, cycles, measured_kappa) -> Calibration:
+    """Fit the yield stress and hardening of ``nominal`` to the measured cycles.
+
+    Parameters
+    ----------
+    grid : PunchGrid
+    nominal : Section
+        Thickness, elasticity and the nominal yield stress.
+    cycles : list of PressedCycle
+    measured_kappa : list of (n, 3) float or None
+        The measured unloaded curvature of each cycle (None: not measured).
+
+    Returns
+    -------
+    Calibration
+    """
+    from scipy.optimize import least_squares
+
+    loaded = loaded_curvatures(grid, cycles)
+    sy0 = nominal.yield_stress_mpa
+    h0, h_sd = HARDENING_PRIOR_MPA
+
+    def section(p) -> Section:
+        return replace(nominal, yield_stress_mpa=sy0 * p[0], hardening_mpa=h0 + h_sd * p[1])
+
+    def parts(p):
+        model = replay(section(p), loaded, cycles).unloaded
+        return _misfits(grid, model, measured_kappa)
+
+    def residuals(p):
+        absolute, secant = parts(p)
+        prior = [(p[0] - 1.0) / YIELD_PRIOR, p[1]]
+        return np.concatenate([ABSOLUTE_WEIGHT * absolute / MISFIT_SCALE_MM, secant / MISFIT_SCALE_MM,
+                               np.sqrt(max(len(absolute), 1) / 20.0) * np.array(prior)])
+
+    lo = [YIELD_BOUNDS[0], (HARDENING_BOUNDS_MPA[0] - h0) / h_sd]
+    hi = [YIELD_BOUNDS[1], (HARDENING_BOUNDS_MPA[1] - h0) / h_sd]
+    fit = least_squares(residuals, x0=[1.0, 0.0], bounds=(lo, hi), diff_step=1e-3, x_scale=[0.05, 0.3],
+                        max_nfev=60)
+    absolute, secant = parts(fit.x)
+    change = _changes(grid, measured_kappa)
+    return Calibration(section(fit.x), _rms(absolute), _rms(secant) if secant.size else float("nan"),
+                       _rms(change) if change.size else float("nan"))
+
+
+def _misfits(grid: PunchGrid, model, measured) -> tuple[np.ndarray, np.ndarray]:
+    """Height misfits at the active punches: of every measured cycle, and of every change between two."""
+    act = grid.active
+    absolute, secant, previous = [], [], None
+    for k, kappa in enumerate(measured):
+        if kappa is None:
+            continue
+        diff = model[k] - kappa
+        absolute.append(grid.heights(diff)[act])
+        if previous is not None:
+            secant.append(grid.heights(diff - previous)[act])
+        previous = diff
+    return (np.concatenate(absolute) if absolute else np.zeros(0),
+            np.concatenate(secant) if secant else np.zeros(0))
+
+
+def _changes(grid: PunchGrid, measured) -> np.ndarray:
+    """The measured changes between consecutive measured cycles, as heights at the active punches."""
+    known = [k for k in measured if k is not None]
+    return np.concatenate([grid.heights(b - a)[grid.active]
+                           for a, b in zip(known, known[1:])]) if len(known) > 1 else np.zeros(0)
+
+
+def _rms(values: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(values**2))) if values.size else float("nan")

@@ -1,0 +1,325 @@
+"""The learned correction: the next strokes from everything the press and the scanner measured.
+
+:func:`learned_correction` is the loop's correction as a short sequence of steps:
+
+1. the model plate (:mod:`mppf.correct.section`, one per punch) is pressed through every step
+   the press did, in order (:func:`mppf.correct.memory.replay`), with the share of an
+   interrupted step fitted to its scan;
+2. its yield stress and hardening are fitted to the measured cycles, above all to the
+   changes from cycle to cycle (:func:`mppf.correct.calibrate.calibrate`);
+3. the plate's response is compared with the model's on every measured secant and the
+   difference learned in smooth modes (:class:`mppf.correct.secant.ModeGain`, Broyden);
+4. the plate is aimed at ``aim`` of the way to the design (short of it: an over-bent plate
+   needs a reverse bend, an under-bent one only more of the same), the model asked for that
+   change divided by the learned response;
+5. the loaded curvature that gives it is found point by point through the model with its
+   memory (:func:`mppf.correct.invert.invert`: crossing what stays elastic, reverse bending
+   where the plate is over-bent), integrated to strokes, in a few virtual cycles on the
+   model (:func:`mppf.correct.solve.solve_change`), inside a trust region in curvature
+   that shrinks when the earlier corrections promised more than they gave
+   (:func:`trust_region`);
+6. what the model cannot make (more than half of the wanted change left) gets the classic
+   displacement adjustment (:func:`_direct_part`);
+7. the strokes are held to the stroke limits; :func:`steps_towards` splits the way from the
+   tips the plate last held into steps within the dimpling limit.
+
+The measured deviation carries what no model describes (the residual): the model gives
+only the change, so what it gets wrong about the plate's shape does not enter the step.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mppf.core.grid import largest_neighbour_difference
+from mppf.correct.calibrate import Calibration, calibrate
+from mppf.correct.memory import PressedCycle, interrupted_share, loaded_curvatures, replay
+from mppf.correct.punch_grid import PunchGrid
+from mppf.correct.secant import ModeGain
+from mppf.correct.solve import STALLED, solve_change
+from mppf.correct.section import Section
+from mppf.forming.material import Material
+from mppf.planning.job import StepStrokes
+from mppf.planning.press import PressConfig
+
+AIM = (0.92, 0.95)
+"""Share of the way to the design aimed at: by the first correction, and once a secant is known
+(short of the design: an over-bent region needs a reverse bend, an under-bent one only more of
+the same)."""
+
+TRUST_POOR, TRUST_GOOD = 0.25, 0.75
+"""Ratios of measured to predicted improvement below which the trust region halves, above which it doubles."""
+
+MIN_TRUST = 0.125
+"""Smallest trust region (share of the full one)."""
+
+LEVERAGE_FACTOR = 3.0
+"""The stroke change may be this many times what the measured leverage of the plate asks for."""
+
+DIRECT_GAIN = 0.7
+"""Gain of the displacement adjustment on what the model step cannot make."""
+
+REACH_ELASTIC_LIMITS = 4.0
+"""Trust region of one correction: the loaded curvature may change by at most this many
+elastic-limit curvatures at any punch (the model is trusted that far from what was pressed)."""
+
+
+@dataclass(frozen=True, eq=False)
+class LearnedCorrection:
+    """The next strokes and what the correction learned.
+
+    Attributes
+    ----------
+    upper_mm, lower_mm : (rows, cols) float
+        The next cycle's final strokes (NaN where inactive).
+    n_steps : int
+        Steps needed from the plate's last tips within the dimpling limit.
+    change_mm : (rows, cols) float
+        Added to both matrices (0 where inactive).
+    predicted_mm : (rows, cols) float
+        Deviation expected after pressing them (NaN where inactive).
+    calibration : Calibration
+    gains : (m,) float
+        Singular values of the learned response ratio (1: as the model).
+    unreached : (rows, cols) bool
+        Punches whose wanted change lies beyond the trust region.
+    clipped : (rows, cols) bool
+        Punches held to the stroke limits.
+    notes : list of str
+    """
+
+    upper_mm: np.ndarray
+    lower_mm: np.ndarray
+    n_steps: int
+    change_mm: np.ndarray
+    predicted_mm: np.ndarray
+    calibration: Calibration
+    gains: np.ndarray
+    unreached: np.ndarray
+    clipped: np.ndarray
+    notes: list = field(default_factory=list)
+
+    @property
+    def predicted_rms_mm(self) -> float:
+        """RMS of the deviation expected after pressing the strokes (mm)."""
+        values = self.predicted_mm[np.isfinite(self.predicted_mm)]
+        return float(np.sqrt(np.mean(values**2))) if values.size else float("nan")
+
+
+def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, nominal: Material, cycles,
+                       base_upper_mm, base_lower_mm, active, trust: float = 1.0) -> LearnedCorrection:
+    """The next strokes from every pressed and measured cycle of the plate.
+
+    Parameters
+    ----------
+    press : PressConfig
+    design_mid_mm : (rows, cols) float
+        The design's mid-surface height at the punches (``Job.layout.design_mid_mm``).
+    thickness_mm : float
+    nominal : Material
+    cycles : list of PressedCycle
+        Every cycle so far, the last one measured.
+    base_upper_mm, base_lower_mm : (rows, cols) float
+        The strokes to correct (the last cycle's final step as planned), NaN where inactive.
+    active : (rows, cols) bool
+    trust : float
+        Size of the trust region, in (0, 1] (:func:`trust_region`): scales the reach in
+        curvature and the share of the way aimed at.
+
+    Returns
+    -------
+    LearnedCorrection
+    """
+    grid = PunchGrid(press, active)
+    design = np.where(grid.active, design_mid_mm, np.nan)
+    # 1. what the scanner measured, as curvatures of the plate at the punches
+    measured = [grid.curvature(design + c.error_mm) if c.measured else None for c in cycles]
+    section = Section(thickness_mm, nominal.youngs_modulus_mpa, nominal.poisson, nominal.yield_stress_mpa)
+    loaded = loaded_curvatures(grid, cycles)
+    cycles = interrupted_share(section, grid, loaded, cycles, measured)
+    # 2. the model plate's yield stress and hardening from the measured cycles
+    calibration = calibrate(grid, section, cycles, measured)
+    section = calibration.section
+    cycles = interrupted_share(section, grid, loaded, [_unknown_share(c) for c in cycles], measured)
+    model = replay(section, loaded, cycles)
+    # 3. the plate's response against the model's, learned on every secant
+    gain = _learn_response(grid, model, cycles)
+    # 4. the change wanted of the plate, and what to ask of the model for it
+    error = grid.flat(np.where(grid.active, cycles[-1].error_mm, np.nan))
+    error = np.where(grid.active & np.isfinite(error), error, 0.0)
+    aim = (AIM[1] if gain.updates else AIM[0]) * (0.5 + 0.5 * trust)
+    request = gain.model_request(-aim * error)
+    # 5. the loaded curvature for it, through the model with its memory, in virtual cycles
+    base_mid = 0.5 * (np.asarray(base_upper_mm, dtype=float) + np.asarray(base_lower_mm, dtype=float))
+    reach = REACH_ELASTIC_LIMITS * trust * section.elastic_limit_per_mm
+    largest = _stroke_room(press)
+    change, misfit, unreached = solve_change(grid, section, model.states[-1], model.unloaded[-1], base_mid, request,
+                                             reach, largest)
+    # 6. what the model cannot make (a local error it does not describe): the displacement adjustment
+    direct = trust * _direct_part(grid, section, model, base_mid, change, request, misfit)
+    # ... held to what the plate's measured leverage allows (a plate with less memory than the model)
+    change, direct = _within_leverage(grid, cycles, error, change, direct)
+    # 7. the strokes, held to the limits, and the steps they need
+    return _strokes(press, grid, base_upper_mm, base_lower_mm, change + direct, error, gain, section, model,
+                    calibration, unreached, aim, direct)
+
+
+def trust_region(rms_mm, predicted_rms_mm, rms_tolerance_mm: float | None = None) -> float:
+    """The trust region of the next correction, in (0, 1], from how well the earlier ones predicted.
+
+    Classic trust-region bookkeeping on the measured RMS: for every correction the ratio of
+    the measured to the predicted improvement; below :data:`TRUST_POOR` the region halves
+    (a correction that made the plate worse: a quarter), above :data:`TRUST_GOOD` it doubles
+    (to at most 1), never below :data:`MIN_TRUST`.
+
+    Parameters
+    ----------
+    rms_mm : sequence of float
+        Measured RMS deviation of each cycle (mm), the first one first.
+    predicted_rms_mm : sequence of float or None
+        The RMS predicted for each cycle by the correction that made its strokes (None for
+        the first cycle, or when unknown), same length.
+    rms_tolerance_mm : float, optional
+        With it, the region is halved once the RMS is within it (only the largest deviation
+        is out): near the tolerance a bold step costs more than a careful one.
+    """
+    trust = 1.0
+    for before, after, predicted in zip(rms_mm, rms_mm[1:], predicted_rms_mm[1:]):
+        if predicted is None or not np.isfinite(predicted) or before <= predicted:
+            continue
+        ratio = (before - after) / (before - predicted)
+        if ratio < 0.0:  # it made the plate worse
+            trust *= 0.25
+        elif ratio < TRUST_POOR:
+            trust *= 0.5
+        elif ratio > TRUST_GOOD:
+            trust = min(1.0, 2.0 * trust)
+    if rms_tolerance_mm is not None and rms_mm[-1] <= rms_tolerance_mm:
+        trust *= 0.5
+    return max(trust, MIN_TRUST)
+
+
+def _within_leverage(grid: PunchGrid, cycles, error, change, direct):
+    """The stroke change scaled down to :data:`LEVERAGE_FACTOR` times what the plate's measured leverage asks.
+
+    The leverage ``L`` is the RMS change of the measured plate between the last two measured
+    cycles over the RMS change of their strokes (planes removed): how much the plate moved per
+    mm of stroke. The model may ask for a stroke change far larger than the error (to cross
+    the elastic stretch of its memory); a plate that moves more per mm than that (less memory
+    than the model has) would be thrown past the design, so the change is held to
+    ``LEVERAGE_FACTOR |e| / L`` (RMS).
+    """
+    known = [c for c in cycles if c.measured]
+    if len(known) < 2:
+        return change, direct
+    act = grid.active
+
+    def rms(field):
+        values = grid.flat(np.where(act, field, np.nan))[act]
+        return float(np.sqrt(np.nanmean(values**2)))
+
+    moved = rms(known[-1].error_mm - known[-2].error_mm)
+    stroked = rms(known[-1].steps_mid_mm[-1] - known[-2].steps_mid_mm[-1])
+    if moved <= 0.0 or stroked <= 0.0 or not np.isfinite(moved / stroked):
+        return change, direct
+    limit = LEVERAGE_FACTOR * rms(error) / (moved / stroked)
+    size = rms(change + direct)
+    if size <= limit:
+        return change, direct
+    return change * (limit / size), direct * (limit / size)
+
+
+def _direct_part(grid: PunchGrid, section: Section, model, base_mid, change, request, misfit: float) -> np.ndarray:
+    """The displacement adjustment of what the model step leaves, when it leaves much (else 0).
+
+    Where the model finds no stroke change that makes the plate change as wanted (a local
+    error at the plate's edge, a region the per-punch model does not describe), the strokes
+    there move by :data:`DIRECT_GAIN` of what is still missing, as the classic displacement
+    adjustment does (the plate is assumed to follow the tips one to one there).
+    """
+    act = grid.active
+    wanted = np.where(act, request, 0.0)
+    if misfit <= STALLED * float(np.sqrt(np.mean(wanted[act] ** 2))):
+        return np.zeros(grid.shape)
+    kappa = grid.curvature(np.where(act, base_mid + change, np.nan))
+    made = grid.heights(section.press(kappa, model.states[-1])[0] - model.unloaded[-1])
+    return np.where(act, DIRECT_GAIN * (wanted - np.where(act, made, 0.0)), 0.0)
+
+
+def _stroke_room(press: PressConfig) -> float:
+    """Largest stroke change the press allows (mm): the trust region is in curvature, not in stroke.
+
+    Scaling a stroke change down as a whole can leave all of it inside the elastic range
+    of a plate bent near its elastic limit (no change at all): so the stroke change is held
+    only by the press, its curvature per punch by :data:`REACH_ELASTIC_LIMITS`.
+    """
+    return float(min(press.upper.max_mm - press.upper.min_mm, press.lower.max_mm - press.lower.min_mm))
+
+
+def _unknown_share(cycle: PressedCycle) -> PressedCycle:
+    return PressedCycle(cycle.steps_mid_mm, cycle.error_mm, cycle.interrupted, None)
+
+
+def _learn_response(grid: PunchGrid, model, cycles) -> ModeGain:
+    """Broyden updates of the plate's response from every pair of consecutive measured cycles."""
+    gain = ModeGain(grid)
+    known = [k for k, c in enumerate(cycles) if c.measured]
+    for j, k in zip(known, known[1:]):
+        model_change = grid.heights(model.unloaded[k] - model.unloaded[j])
+        plate_change = grid.flat(np.where(grid.active, cycles[k].error_mm - cycles[j].error_mm, np.nan))
+        gain.update(model_change, plate_change)
+    return gain
+
+
+def _strokes(press, grid, base_upper, base_lower, change, error, gain, section, model, calibration, unreached, aim,
+             direct):
+    """The corrected strokes within the stroke limits, their steps and the expected deviation."""
+    act = grid.active
+    upper = np.where(act, np.asarray(base_upper, dtype=float) + change, np.nan)
+    lower = np.where(act, np.asarray(base_lower, dtype=float) + change, np.nan)
+    clipped = act & ((upper > press.upper.max_mm) | (upper < press.upper.min_mm) | (lower > press.lower.max_mm)
+                     | (lower < press.lower.min_mm))
+    shift = np.clip(lower, press.lower.min_mm, press.lower.max_mm) - lower
+    shift = np.where(act, shift + np.clip(upper + shift, press.upper.min_mm, press.upper.max_mm) - (upper + shift), 0.0)
+    upper, lower, change = upper + shift, lower + shift, np.where(act, change + shift, 0.0)
+    n_steps = max(1, int(np.ceil(largest_neighbour_difference(change, act) / press.max_neighbour_diff_mm - 1e-9)))
+    kappa = grid.curvature(0.5 * (upper + lower))
+    made = grid.heights(section.press(kappa, model.states[-1])[0] - model.unloaded[-1])
+    predicted = np.where(act, error + gain.plate_response(made) + direct, np.nan)
+    notes = [f"model plate calibrated on {sum(1 for k in model.unloaded)} cycle(s): effective yield stress "
+             f"{section.yield_stress_mpa:.0f} MPa, hardening {section.hardening_mpa:.0f} MPa; shape misfit "
+             f"{calibration.misfit_mm:.2f} mm RMS", f"aim {aim:.0%} of the way; learned response "
+             f"{', '.join(f'{g:.2f}' for g in gain.gains[:3])} ({gain.updates} secant(s))"]
+    if np.any(direct != 0.0):
+        notes.append(f"the model step left much of the error: displacement adjustment on the rest "
+                     f"(largest {np.max(np.abs(direct)):.1f} mm)")
+    return LearnedCorrection(upper, lower, n_steps, change, predicted, calibration, gain.gains, unreached, clipped,
+                             notes)
+
+
+def steps_towards(press: PressConfig, held, learned: LearnedCorrection, active) -> list[StepStrokes]:
+    """Steps from the held tips to the learned strokes, each within the dimpling limit (k/N of the way).
+
+    Parameters
+    ----------
+    press : PressConfig
+    held : tuple of (rows, cols) float
+        The upper and lower tips the plate was last held between (read back), or the flat plate's.
+    learned : LearnedCorrection
+    active : (rows, cols) bool
+
+    Returns
+    -------
+    list of StepStrokes
+        The last one is ``learned``'s strokes.
+    """
+    act = np.asarray(active, dtype=bool)
+    up0, lo0 = (np.where(act, np.asarray(h, dtype=float), 0.0) for h in held)
+    travel_up = np.where(act, learned.upper_mm - up0, 0.0)
+    travel_lo = np.where(act, learned.lower_mm - lo0, 0.0)
+    worst = max(largest_neighbour_difference(travel_up, act), largest_neighbour_difference(travel_lo, act))
+    n = max(1, int(np.ceil(worst / press.max_neighbour_diff_mm - 1e-9)))
+    return [StepStrokes(np.where(act, up0 + travel_up * k / n, np.nan), np.where(act, lo0 + travel_lo * k / n, np.nan),
+                        act) for k in range(1, n + 1)]

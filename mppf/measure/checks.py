@@ -1,0 +1,84 @@
+"""Checks of a comparison's inputs and results: options, size, match, usable points (GeometryError, InputError)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mppf.core.errors import GeometryError, InputError
+from mppf.core.validate import check_number, check_positive
+from mppf.registration.register import Registration
+
+MIN_POINTS = 30
+"""Fewest measured points a comparison accepts."""
+
+SIZE_RATIO = (0.3, 1.3)
+"""Accepted range of the scan's length (largest in-plane extent) over the design's."""
+
+MATCH_FRACTION = 0.5
+"""At least this fraction of the measured points must lie near the design (else: wrong plate)."""
+
+
+def check_options(tolerance_mm, offset_mm, measured, punch_xy_mm, tf_press_design, margin_mm) -> float:
+    """Check the options; return the trim margin as a float."""
+    check_positive("tolerance", tolerance_mm, unit="mm")
+    check_number("skin offset", offset_mm, unit="mm")
+    if measured.shape[0] < MIN_POINTS:
+        raise GeometryError(f"the scan has {measured.shape[0]} point(s), a comparison needs at least {MIN_POINTS}",
+                            hint="check the scan export")
+    if punch_xy_mm is not None:
+        grid = np.asarray(punch_xy_mm, dtype=float)
+        if grid.ndim != 3 or grid.shape[2] != 2:
+            raise InputError(f"punch positions must have shape (rows, cols, 2), got {grid.shape}")
+        if tf_press_design is None:
+            raise InputError("punch deviations need tf_press_design (design -> press)",
+                             hint="pass the job's tf_press_design")
+    if tf_press_design is not None and np.asarray(tf_press_design, dtype=float).shape != (4, 4):
+        raise InputError(f"tf_press_design must be 4x4, got {np.asarray(tf_press_design).shape}")
+    return float(check_number("trim margin", margin_mm, low=0.0, unit="mm",
+                              hint="give the width of the excess band around the design outline, 0 for a net plate"))
+
+
+def check_usable(inlier, outlier, dev) -> None:
+    """Raise GeometryError when too few measured points are left for the statistics."""
+    if inlier.sum() < MIN_POINTS:
+        raise GeometryError(f"only {int(inlier.sum())} of {len(inlier)} measured points are usable "
+                            f"({int(outlier.sum())} outliers, {int(dev.outside.sum())} outside the design, "
+                            f"{int(dev.in_margin.sum())} in the trim margin)",
+                            hint="check the scan: it should cover most of the plate")
+
+
+def check_size(uv_design: np.ndarray, measured_local: np.ndarray, margin_mm: float = 0.0) -> None:
+    """Raise GeometryError when the scan's length is out of proportion with the design's.
+
+    ``measured_local`` are the scan's points in its own frame. A scan that still carries
+    its trim margin may be up to ``SIZE_RATIO[1]`` times the design's length plus twice the
+    margin.
+    """
+    design_mm = float(np.ptp(uv_design[:, 0]))
+    scan_mm = float(np.ptp(measured_local[:, 0]))
+    if not SIZE_RATIO[0] * design_mm <= scan_mm <= SIZE_RATIO[1] * (design_mm + 2.0 * margin_mm):
+        raise GeometryError(
+            f"the scan is {scan_mm:.0f} mm long, the design {design_mm:.0f} mm: not the same plate",
+            hint="check the files and the --units (a scan in metres read as millimetres is 1000 times too small)")
+
+
+def check_match(deviation, outside, tolerance_mm: float, reg: Registration, depth_mm: float) -> None:
+    """Raise GeometryError when the scan is evidently of another plate (or did not register).
+
+    Another plate: more than half of the scan lies beyond the design's edge, or more than
+    half lies farther from the design than ``max(10 tolerance, 25 mm, depth / 4)`` (a
+    badly formed but right plate stays within a quarter of its design depth).
+    """
+    n = deviation.shape[0]
+    if outside.mean() > 1.0 - MATCH_FRACTION:
+        raise GeometryError(
+            f"the scan does not match the design: {100 * outside.mean():.0f} % of the measured points lie "
+            "outside the design plate after registration",
+            hint="check that the scan and the design are of the same plate (and the --units)")
+    gross_mm = max(10.0 * tolerance_mm, 25.0, 0.25 * depth_mm)
+    near = np.abs(np.where(outside, np.inf, deviation)) <= gross_mm
+    if near.sum() < MATCH_FRACTION * n:
+        raise GeometryError(
+            f"the scan does not match the design: only {100 * near.mean():.0f} % of the measured points lie "
+            f"within {gross_mm:g} mm of it after registration (registration RMS {reg.rms_mm:.1f} mm)",
+            hint="check that the scan and the design are of the same plate (and the --units)")

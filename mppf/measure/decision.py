@@ -1,0 +1,132 @@
+"""The one decision rule of an inspection: in tolerance, out of tolerance, or needs review.
+
+``mppf compare``, the loop (:func:`mppf.loop.decide.decide`) and the reports all decide with
+:func:`verdict` (``docs/compare.md``, "The decision"):
+
+- **out of tolerance** when the form maximum (the plate's largest deviation, the scanner's
+  point noise averaged out: :mod:`mppf.measure.form`) exceeds the tolerance, or the RMS of
+  the measured points exceeds the RMS tolerance;
+- else **needs review** when any point set aside as a scanner artefact
+  (:mod:`mppf.measure.outliers`) lies beyond the tolerance: the inspection cannot be sure it
+  was an artefact and not the plate;
+- else **in tolerance**.
+
+Every headline quotes the figures that decided, "form max" labelled as such. Lengths in mm.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from mppf.core.defaults import RMS_TOLERANCE_MM, TOLERANCE_MM
+from mppf.core.validate import check_positive
+
+IN_TOLERANCE = "in_tolerance"
+OUT_OF_TOLERANCE = "out_of_tolerance"
+NEEDS_REVIEW = "needs_review"
+
+LABELS = {IN_TOLERANCE: "IN tolerance", OUT_OF_TOLERANCE: "OUT of tolerance", NEEDS_REVIEW: "NEEDS REVIEW"}
+"""How each kind is written in headlines."""
+
+
+@dataclass(frozen=True)
+class Limits:
+    """The limits an inspection is judged by (mm)."""
+
+    tolerance_mm: float = TOLERANCE_MM        # largest allowed |form deviation|
+    rms_tolerance_mm: float = RMS_TOLERANCE_MM  # largest allowed RMS of the measured points' deviations
+
+    def __post_init__(self):
+        check_positive("tolerance", self.tolerance_mm, unit="mm")
+        check_positive("RMS tolerance", self.rms_tolerance_mm, unit="mm")
+
+
+@dataclass(frozen=True)
+class Figures:
+    """The figures a verdict is taken on (mm).
+
+    Attributes
+    ----------
+    form_max_mm : float
+        Largest absolute form deviation of the net plate.
+    rms_mm : float
+        RMS of the measured points' deviations (the net plate's inliers).
+    set_aside : int
+        Points set aside as scanner artefacts.
+    set_aside_beyond : int
+        How many of them lie beyond the tolerance.
+    set_aside_max_mm : float
+        Their largest absolute deviation (0 when none).
+    """
+
+    form_max_mm: float
+    rms_mm: float
+    set_aside: int = 0
+    set_aside_beyond: int = 0
+    set_aside_max_mm: float = 0.0
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """The decision on one inspection.
+
+    Attributes
+    ----------
+    kind : str
+        :data:`IN_TOLERANCE`, :data:`OUT_OF_TOLERANCE` or :data:`NEEDS_REVIEW`.
+    reasons : tuple of str
+        The comparisons of figures with limits that decided, in words.
+    figures : Figures
+    limits : Limits
+    """
+
+    kind: str
+    reasons: tuple
+    figures: Figures
+    limits: Limits
+
+    @property
+    def in_tolerance(self) -> bool:
+        return self.kind == IN_TOLERANCE
+
+    @property
+    def label(self) -> str:
+        """"IN tolerance", "OUT of tolerance" or "NEEDS REVIEW"."""
+        return LABELS[self.kind]
+
+    @property
+    def headline(self) -> str:
+        """The verdict and the figures that decided, e.g. "OUT of tolerance: form max 5.10 mm > 2.5 mm"."""
+        return f"{self.label}: {'; '.join(self.reasons)}"
+
+    def to_dict(self) -> dict:
+        """JSON-able: kind, headline, reasons, the figures and the limits."""
+        f, lim = self.figures, self.limits
+        return {"kind": self.kind, "headline": self.headline, "reasons": list(self.reasons),
+                "form_max_mm": f.form_max_mm, "rms_mm": f.rms_mm, "set_aside": f.set_aside,
+                "set_aside_beyond_tolerance": f.set_aside_beyond, "set_aside_max_mm": f.set_aside_max_mm,
+                "tolerance_mm": lim.tolerance_mm, "rms_tolerance_mm": lim.rms_tolerance_mm}
+
+
+def within_limits(form_max_mm: float, rms_mm: float, limits: Limits) -> bool:
+    """Whether the form maximum and the RMS are both within their limits (the measured part of the rule)."""
+    return form_max_mm <= limits.tolerance_mm and rms_mm <= limits.rms_tolerance_mm
+
+
+def verdict(figures: Figures, limits: Limits) -> Verdict:
+    """The decision on an inspection (see the module docstring)."""
+    f, lim = figures, limits
+    form_ok = f.form_max_mm <= lim.tolerance_mm
+    rms_ok = f.rms_mm <= lim.rms_tolerance_mm
+    form = f"form max {f.form_max_mm:.2f} mm {'<=' if form_ok else '>'} {lim.tolerance_mm:g} mm"
+    rms = f"RMS {f.rms_mm:.2f} mm {'<=' if rms_ok else '>'} {lim.rms_tolerance_mm:g} mm"
+    if not within_limits(f.form_max_mm, f.rms_mm, lim):
+        failed = [text for text, ok in ((form, form_ok), (rms, rms_ok)) if not ok]
+        return Verdict(OUT_OF_TOLERANCE, tuple(failed), f, lim)
+    if f.set_aside_beyond:
+        return Verdict(NEEDS_REVIEW, (f"{f.set_aside_beyond} of {f.set_aside} point(s) set aside as scanner "
+                                      f"artefacts lie beyond {lim.tolerance_mm:g} mm (largest |deviation| "
+                                      f"{f.set_aside_max_mm:.2f} mm): check them", form, rms), f, lim)
+    aside = ("no point set aside" if not f.set_aside
+             else f"{f.set_aside} point(s) set aside, none beyond {lim.tolerance_mm:g} mm")
+    return Verdict(IN_TOLERANCE, (form, rms, aside), f, lim)

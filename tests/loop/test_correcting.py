@@ -1,0 +1,118 @@
+"""The loop's learned correction: what a cycle tells it (every step the press did, an interrupted one
+last), the next cycle it records, and the stop with a verdict when it finds no way on."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import mppf.loop.correcting as correcting
+from mppf.correct.verdict import Verdict
+from mppf.loop.correcting import pressed_cycle
+from mppf.loop.cycle import run_loop
+from mppf.loop.history import History
+from mppf.loop.plate import record_plate
+from mppf.loop.records import CycleRecord
+from mppf.loop.settings import LoopSettings
+from mppf.loop.states import CycleState, Decision
+from mppf.planning.job import StepStrokes, grid_to_json, load_job
+from mppf.planning.press import example_press_path, load_press
+from mppf.sim.plc.link import InProcessPress
+from mppf.sim.shop import SimulatedPlateScanner
+
+
+def _record(steps, results, step_started, steps_done, deviation=None):
+    return CycleRecord(
+        plate_id="P", cycle=2, state=CycleState.COMPARED, created_utc="2026-01-01T00:00:00+00:00",
+        updated_utc="2026-01-01T00:00:00+00:00", job_path="j", job_sha256="s", steps=steps,
+        step_started=step_started, steps_done=steps_done, results=results, interrupted=step_started > steps_done,
+        scan_path=None, scan_sha256=None, rms_mm=None, max_abs_mm=None, within_pct=None,
+        punch_deviation_mm=deviation, comparison=None, gain=None, correction=None, decision=None,
+    )
+
+
+def test_a_cycle_counts_with_its_read_back_steps_and_the_interrupted_one_last():
+    press = load_press(example_press_path())
+    active = np.zeros(press.shape, dtype=bool)
+    active[2:6, 3:9] = True
+    steps = [StepStrokes(np.where(active, 20.0 + 10 * k, np.nan), np.where(active, 10.0 * k, np.nan), active)
+             for k in (1, 2, 3)]
+    # step 1 done (read back 0.2 mm short), step 2 interrupted in its motion, step 3 never started
+    back_upper = np.where(active, 29.8, press.upper.park_mm)
+    back_lower = np.where(active, 9.8, press.lower.park_mm)
+    results = [{"actual_upper_mm": grid_to_json(back_upper), "actual_lower_mm": grid_to_json(back_lower)}]
+    deviation = np.where(active, 1.0, np.nan)
+    cycle = pressed_cycle(_record(steps, results, step_started=2, steps_done=1, deviation=deviation), press)
+    assert len(cycle.steps_mid_mm) == 2 and cycle.interrupted and cycle.measured
+    np.testing.assert_allclose(cycle.steps_mid_mm[0][active], 19.8)  # the read-back, not the setpoints
+    np.testing.assert_allclose(cycle.steps_mid_mm[1][active], 30.0)  # the interrupted step's setpoints
+    assert np.isnan(cycle.steps_mid_mm[0][~active]).all()
+    # a completed cycle is not interrupted; an unmeasured one has no error
+    done = pressed_cycle(_record(steps[:1], results, step_started=1, steps_done=1), press)
+    assert not done.interrupted and not done.measured and len(done.steps_mid_mm) == 1
+
+
+def _plate(tmp_path, planned_plate, history, plate_id, max_cycles):
+    design, flat, press, job = planned_plate
+    record_plate(history, design, flat, press, 20.0, job, plate_id=plate_id, work_dir=tmp_path / plate_id,
+                 settings=LoopSettings(max_cycles=max_cycles))
+    job = load_job(history.cycle(plate_id, 1).job_path)
+    return press, SimulatedPlateScanner.for_job(press, 20.0, job, flat.points, seed=3)
+
+
+def test_the_loop_corrects_with_what_it_learned_and_records_it(planned_plate, tmp_path):
+    with History(tmp_path / "h.sqlite") as history:
+        press, scanner = _plate(tmp_path, planned_plate, history, "L1", max_cycles=2)
+        with InProcessPress(press) as link:
+            result = run_loop(history, "L1", link, scanner)
+    first, second = result.cycles[:2]
+    assert first.state == "corrected" and second.correction["strategy"] == "learned"
+    assert second.correction["predicted_rms_mm"] < first.rms_mm
+    assert "calibrated" in second.correction["notes"][0]
+    # the next cycle's steps end on the corrected strokes, every one within the dimpling limit
+    assert len(second.steps) >= 1 and np.array_equal(second.steps[-1].active, first.steps[-1].active)
+    assert second.rms_mm < first.rms_mm
+
+
+def test_a_correction_that_finds_no_way_on_stops_the_plate_with_its_verdict(planned_plate, tmp_path, monkeypatch):
+    verdict = Verdict("the strokes it needs lie beyond the press's stroke limits at 3 punches", "re-plan it")
+    monkeypatch.setattr(correcting, "convergence_verdict", lambda *a, **k: verdict)
+    with History(tmp_path / "h.sqlite") as history:
+        press, scanner = _plate(tmp_path, planned_plate, history, "V1", max_cycles=5)
+        with InProcessPress(press) as link:
+            result = run_loop(history, "V1", link, scanner)
+        assert history.plate("V1").status == "cannot_converge"
+    assert result.status == Decision.CANNOT_CONVERGE and len(result.cycles) == 1
+    assert result.cycles[0].state == "done" and result.verdict == verdict.text
+    assert "stroke limits" in result.verdict and "re-plan" in result.verdict
+
+
+@pytest.mark.parametrize("learn", [False])
+def test_without_learning_the_calibrated_correction_is_used(planned_plate, tmp_path, learn):
+    design, flat, press, job = planned_plate
+    with History(tmp_path / "h.sqlite") as history:
+        record_plate(history, design, flat, press, 20.0, job, plate_id="C1", work_dir=tmp_path / "C1",
+                     settings=LoopSettings(max_cycles=2, learn=learn))
+        scanner = SimulatedPlateScanner.for_job(press, 20.0, load_job(history.cycle("C1", 1).job_path), flat.points,
+                                                seed=3)
+        with InProcessPress(press) as link:
+            result = run_loop(history, "C1", link, scanner)
+    assert len(result.cycles) == 2 and "strategy" not in result.cycles[1].correction
+
+
+def test_after_an_interruption_the_next_corrections_start_from_what_was_pressed(planned_plate, tmp_path):
+    from mppf.core.errors import PressFault
+
+    with History(tmp_path / "h.sqlite") as history:
+        press, scanner = _plate(tmp_path, planned_plate, history, "I1", max_cycles=3)
+        with InProcessPress(press) as link:
+            link.program.inject("overpressure", after_s=2.0)  # hydraulic fault in the first motion
+            with pytest.raises(PressFault):
+                run_loop(history, "I1", link, scanner)
+            link.reset()
+            result = run_loop(history, "I1", link, scanner)  # resume: measured as it is, then corrected
+    first, second = result.cycles[:2]
+    assert first.interrupted and (first.step_started, first.steps_done) == (1, 0)
+    assert second.correction["strategy"] == "learned"  # the interrupted cycle feeds the learned correction
+    assert second.rms_mm < 0.5 * first.rms_mm
+    assert result.status != Decision.DIVERGED
