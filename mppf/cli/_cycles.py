@@ -17,7 +17,7 @@ def cycle_table(cycles, title: str):
     from rich.text import Text
 
     table = Table()
-    for name, justify in (("cycle", "right"), ("state", "left"), ("steps", "right"), ("max|dev|", "right"),
+    for name, justify in (("cycle", "right"), ("state", "left"), ("steps", "right"), ("form max", "right"),
                           ("RMS", "right"), ("within%", "right"), ("gain", "right"), ("decision", "left")):
         table.add_column(name, justify=justify, no_wrap=True)
     for c in cycles:
@@ -38,6 +38,6 @@ def print_cycle(record, comparison) -> None:
     """The line printed after each compare while the loop runs (an ``on_cycle`` callback)."""
     if record.state == "compared":
         err_console.print(
-            f"[bold]cycle {record.cycle}[/]: max |dev| {record.max_abs_mm:.2f} mm, RMS {record.rms_mm:.2f} mm, "
+            f"[bold]cycle {record.cycle}[/]: form max {record.max_abs_mm:.2f} mm, RMS {record.rms_mm:.2f} mm, "
             f"{record.within_pct:.1f} % within tolerance -> [bold]{record.decision}[/]"
         )

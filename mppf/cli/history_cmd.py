@@ -49,9 +49,9 @@ def _plates_table(hist, plates):
     from rich.table import Table
 
     table = Table(title=f"plates in {esc(str(hist.path))}", title_justify="left",
-                  caption="max|dev|, RMS: deviations (mm) of the last measured cycle; t: thickness (mm)",
+                  caption="form max, RMS: deviations (mm) of the last measured cycle; t: thickness (mm)",
                   caption_justify="left")
-    for name in ("plate", "status", "cycles", "max|dev|", "RMS", "t", "updated (UTC)"):
+    for name in ("plate", "status", "cycles", "form max", "RMS", "t", "updated (UTC)"):
         table.add_column(name, no_wrap=name == "status", overflow="fold", min_width=5 if name != "t" else 2)
     for p in plates:
         cycles = hist.cycles(p.plate_id)

@@ -288,7 +288,7 @@ def _strokes(press, grid, base_upper, base_lower, change, error, gain, section, 
     kappa = grid.curvature(0.5 * (upper + lower))
     made = grid.heights(section.press(kappa, model.states[-1])[0] - model.unloaded[-1])
     predicted = np.where(act, error + gain.plate_response(made) + direct, np.nan)
-    notes = [f"model plate calibrated on {sum(1 for k in model.unloaded)} cycle(s): effective yield stress "
+    notes = [f"plate model calibrated on {sum(1 for k in model.unloaded)} cycle(s): effective yield stress "
              f"{section.yield_stress_mpa:.0f} MPa, hardening {section.hardening_mpa:.0f} MPa; shape misfit "
              f"{calibration.misfit_mm:.2f} mm RMS", f"aim {aim:.0%} of the way; learned response "
              f"{', '.join(f'{g:.2f}' for g in gain.gains[:3])} ({gain.updates} secant(s))"]

@@ -55,7 +55,7 @@ class LoopResult:
     ----------
     plate_id : str
     status : Decision
-        IN_TOLERANCE, MAX_CYCLES, DIVERGED or CANNOT_CONVERGE.
+        IN_TOLERANCE, NEEDS_REVIEW, MAX_CYCLES, DIVERGED or CANNOT_CONVERGE.
     cycles : list of CycleRecord
         Every cycle of the plate, as stored in the history.
     resumed_state : CycleState or None
@@ -193,7 +193,8 @@ def _on_scanned(run: _Run, record: CycleRecord) -> int:
     # decide on the plate's form deviation (scanner point noise averaged out, see mppf.measure.compare)
     # and on the RMS of every cycle so far; the raw point extremes stay in the stored comparison
     rms = [c.rms_mm for c in run.history.cycles(record.plate_id)[: record.cycle - 1]] + [comparison.rms_mm]
-    decision = decide(rms, comparison.form_max_abs_mm, record.cycle, run.settings)
+    beyond = 0 if comparison.set_aside is None else comparison.set_aside.beyond_tolerance
+    decision = decide(rms, comparison.form_max_abs_mm, record.cycle, run.settings, set_aside_beyond=beyond)
     # record deviations and decision, tell the caller
     run.history.mark_compared(
         record.plate_id, record.cycle, rms_mm=comparison.rms_mm, max_abs_mm=comparison.form_max_abs_mm,

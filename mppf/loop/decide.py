@@ -10,7 +10,8 @@ GROWTH_MARGIN_MM = 0.1
 """An RMS increase below this is scan noise, not growth (for the divergence rule)."""
 
 
-def decide(rms_history_mm: list[float], max_abs_mm: float, cycle: int, settings: LoopSettings) -> Decision:
+def decide(rms_history_mm: list[float], max_abs_mm: float, cycle: int, settings: LoopSettings,
+           set_aside_beyond: int = 0) -> Decision:
     """The decision after a compared cycle.
 
     Parameters
@@ -23,11 +24,16 @@ def decide(rms_history_mm: list[float], max_abs_mm: float, cycle: int, settings:
     cycle : int
         The current cycle (1-based).
     settings : LoopSettings
+    set_aside_beyond : int
+        Points of the scan set aside as scanner artefacts that lie beyond the tolerance.
 
     Returns
     -------
     Decision
-        IN_TOLERANCE when the form maximum and the RMS are both within their limits
+        IN_TOLERANCE when the form maximum and the RMS are both within their limits and no
+        point set aside as a scanner artefact lies beyond the tolerance; NEEDS_REVIEW when
+        they are within their limits but such points exist (the loop stops: a person looks
+        at them, the plate is never declared in tolerance over them)
         (the one decision rule's measured part:
         :func:`mppf.measure.decision.within_limits`, as ``mppf compare`` decides); DIVERGED when the RMS (the robust measure: the largest deviation of
         a scan is one noisy point) grew by more than ``divergence_factor`` since the last
@@ -37,7 +43,7 @@ def decide(rms_history_mm: list[float], max_abs_mm: float, cycle: int, settings:
     """
     e = [float(v) for v in rms_history_mm]
     if within_limits(float(max_abs_mm), e[-1], Limits(settings.tolerance_mm, settings.rms_tolerance_mm)):
-        return Decision.IN_TOLERANCE
+        return Decision.NEEDS_REVIEW if set_aside_beyond else Decision.IN_TOLERANCE
     if len(e) >= 2 and e[-1] > settings.divergence_factor * e[-2] and e[-1] > settings.rms_tolerance_mm:
         return Decision.DIVERGED
     if len(e) >= 3 and e[-1] > e[-2] + GROWTH_MARGIN_MM and e[-2] > e[-3] + GROWTH_MARGIN_MM:

@@ -285,7 +285,7 @@ class History:
                 plate_id, cycle, (CycleState.SCANNED,), CycleState.COMPARED,
                 rms_mm=float(rms_mm), max_abs_mm=float(max_abs_mm), within_pct=float(within_pct),
                 deviation_json=dumps(grid_to_json(punch_deviation_mm)), compare_json=dumps(comparison),
-                decision=decision, detail=f"max |dev| {max_abs_mm:.2f} mm, RMS {rms_mm:.2f} mm -> {decision}",
+                decision=decision, detail=f"form max {max_abs_mm:.2f} mm, RMS {rms_mm:.2f} mm -> {decision}",
             )
 
     def mark_done(self, plate_id: str, cycle: int, decision: Decision) -> None:

@@ -36,6 +36,7 @@ class Decision(StrEnum):
     MAX_CYCLES = "max_cycles"
     DIVERGED = "diverged"
     CANNOT_CONVERGE = "cannot_converge"  # the correction found no way on: see its verdict
+    NEEDS_REVIEW = "needs_review"  # form and RMS within limits, but set-aside points beyond the tolerance
 
 
 class PlateStatus(StrEnum):
@@ -46,6 +47,7 @@ class PlateStatus(StrEnum):
     MAX_CYCLES = "max_cycles"
     DIVERGED = "diverged"
     CANNOT_CONVERGE = "cannot_converge"
+    NEEDS_REVIEW = "needs_review"
 
 
 STATES = tuple(CycleState)

@@ -170,6 +170,13 @@ def principal_start(target: RegistrationTarget, fit_src: np.ndarray, score_src: 
     candidates = compared(converge_candidates(target, fit_src, score_src, starts, metric, matching, settings),
                           metric)
     order, second, tied = rank(candidates, floor_mm, score_src.mean(axis=0), size_mm)
+    if tied and rotation_angle_deg(candidates[second].tf[:3, :3]) < rotation_angle_deg(candidates[order[0]].tf[:3, :3]):
+        # a tie the points cannot settle goes to the least turn of the given coordinates (a design and
+        # its unfolded flat, or a scan taken as the plate lies, share their axes): the same data gives
+        # the same pose whichever way its point sampling tips the residuals
+        order = [second] + [i for i in order if i != second]
+        second = next((i for i in order[1:] if not same_pose(candidates[order[0]].tf, candidates[i].tf,
+                                                             score_src.mean(axis=0), size_mm)), None)
     info = {
         "kind": "principal",
         "candidates": names,

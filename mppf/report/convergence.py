@@ -57,7 +57,7 @@ def plot_punch_deviation(comparison, punch_x_mm, punch_y_mm, path) -> Path:
 
 
 def cycle_rows(cycles: Sequence[CycleRecord]) -> list[tuple]:
-    """One row per cycle: cycle, steps, max |dev|, RMS, within %, gain, decision, scan SHA-256."""
+    """One row per cycle: cycle, steps, form max, RMS, within %, gain, decision, scan SHA-256."""
     return [
         (c.cycle, f"{c.steps_done}/{len(c.steps)}" + (" (interrupted)" if c.interrupted else ""),
          np.nan if c.max_abs_mm is None else c.max_abs_mm, np.nan if c.rms_mm is None else c.rms_mm,
@@ -67,7 +67,7 @@ def cycle_rows(cycles: Sequence[CycleRecord]) -> list[tuple]:
     ]
 
 
-CYCLE_HEADER = ("cycle", "steps", "max |dev| (mm)", "RMS (mm)", "within tolerance (%)", "gain", "decision",
+CYCLE_HEADER = ("cycle", "steps", "form max (mm)", "RMS (mm)", "within tolerance (%)", "gain", "decision",
                 "scan SHA-256")
 
 

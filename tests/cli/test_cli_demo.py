@@ -10,17 +10,22 @@ from mppf.loop.history import History
 
 def test_demo_runs_end_to_end_with_pictures_and_summary(tmp_path, capsys):
     out = tmp_path / "demo"
-    assert main(["demo", "--out", str(out), "--seed", "1"]) == 0
+    assert main(["demo", "--out", str(out), "--seed", "2"]) == 0
     text = capsys.readouterr().out
-    assert "in_tolerance" in text and "simulated PLC" in text and "report.html" in text
+    # formed to tolerance (form max and RMS): "in_tolerance", or "needs_review" when scanner artefacts set
+    # aside lie beyond the tolerance (a person checks them; the plate is never passed over them)
+    status = "in_tolerance" if "in_tolerance" in text else "needs_review"
+    assert status in text and "simulated PLC" in text and "report.html" in text
     for name in ("strain.png", "strokes.png", "deviation-cycle-1.png", "convergence.png"):
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
     report = (out / "report.html").read_text()
-    assert report.count("data:image/png;base64,") >= 4 and "in_tolerance" in report
+    assert report.count("data:image/png;base64,") >= 4 and status in report
     with History(out / "history.sqlite") as history:
         (plate,) = history.plates()
         cycles = history.cycles(plate.plate_id)
-    assert plate.status == "in_tolerance" and cycles[-1].max_abs_mm <= 2.5 and cycles[-1].rms_mm <= 1.0
+    assert plate.status == status == cycles[-1].decision and cycles[-1].max_abs_mm <= 2.5 and cycles[-1].rms_mm <= 1.0
+    if status == "needs_review":
+        assert cycles[-1].comparison["set_aside"]["beyond_tolerance"] > 0
     for c in cycles:
         assert (out / f"deviation-cycle-{c.cycle}.png").exists() and (out / f"punch-deviation-cycle-{c.cycle}.png").exists()
     # the press was driven over Modbus: one GO per step in the audit log

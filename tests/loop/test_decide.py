@@ -26,3 +26,11 @@ def test_decide_divergence_and_max_cycles():
 def test_decisions_are_their_stored_text():
     decision = decide([0.5], 1.0, 1, LoopSettings())
     assert decision is Decision.IN_TOLERANCE and decision == "in_tolerance" and f"{decision}" == "in_tolerance"
+
+
+def test_set_aside_points_beyond_the_tolerance_stop_the_loop_for_review_never_in_tolerance():
+    settings = LoopSettings(tolerance_mm=2.5, rms_tolerance_mm=1.0)
+    assert decide([0.6], 2.0, 1, settings, set_aside_beyond=3) == Decision.NEEDS_REVIEW
+    assert decide([0.6], 2.0, 1, settings, set_aside_beyond=0) == Decision.IN_TOLERANCE
+    # out of tolerance anyway: the loop goes on correcting (the artefacts do not decide)
+    assert decide([1.6], 4.0, 1, settings, set_aside_beyond=3) == Decision.CONTINUE
