@@ -27,10 +27,16 @@ def open_history(path):
 @history_option
 @click.option("--plate-id", help="Show this plate's cycles only.")
 @click.option("--json", "as_json", is_flag=True, help="Print as JSON (with strokes and deviation grids).")
-def history(history_path, plate_id, as_json):
-    """List the plates of the history and their press cycles."""
+@click.option("--report", "report_plate", metavar="PLATE",
+              help="Write this plate's pictures and report.html into its work folder (scans compared again).")
+@click.option("--operator", help="With --report: who ran the plate (printed in the report).")
+def history(history_path, plate_id, as_json, report_plate, operator):
+    """List the plates of the history and their press cycles, or write a plate's report (--report PLATE)."""
     if history_path is not None and not history_path.exists():
         raise InputError(f"history {history_path} does not exist", hint="check the path given with --history")
+    if report_plate is not None:
+        _report(history_path, report_plate, operator)
+        return
     with open_history(history_path) as hist:
         plates = [hist.plate(plate_id)] if plate_id else hist.plates()
         if as_json:
@@ -43,6 +49,23 @@ def history(history_path, plate_id, as_json):
         console.print(_plates_table(hist, plates))
         if plate_id:
             console.print(cycle_table(hist.cycles(plate_id), f"cycles of {esc(plate_id)}"))
+
+
+def _report(history_path, plate_id: str, operator: str | None) -> None:
+    from mppf.cli._common import RichReporter
+    from mppf.cli._plate_report import write_report
+
+    reporter = RichReporter()
+    with open_history(history_path) as hist:
+        plate = hist.plate(plate_id)  # InputError naming the plates for an unknown id
+        if not hist.cycles(plate.plate_id):
+            raise InputError(f"plate {plate_id} has no cycles recorded: there is nothing to report",
+                             hint="run the plate with 'mppf loop' first")
+        try:
+            path = write_report(hist, plate.plate_id, {}, operator=operator, reporter=reporter)
+        finally:
+            reporter.finish()
+    console.print(f"report of plate {esc(plate.plate_id)}: {esc(str(path))}")
 
 
 def _plates_table(hist, plates):

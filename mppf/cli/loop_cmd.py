@@ -19,11 +19,27 @@ from pathlib import Path
 
 import click
 
-from mppf.cli._common import (RichReporter, check_db_path, check_design_size, console, err_console, esc, print_json,
-                              read_input, units_option)
+from mppf.cli._common import (
+    RichReporter,
+    check_db_path,
+    check_design_size,
+    console,
+    err_console,
+    esc,
+    print_json,
+    read_input,
+    units_option,
+)
 from mppf.cli._cycles import cycle_table, print_cycle
+from mppf.cli._plate_report import write_report
 from mppf.cli.history_cmd import history_option, open_history
-from mppf.cli.press_policy import confirm_motion, press_description, press_link, sigterm_as_ctrl_c, time_scale_option
+from mppf.cli.press_policy import (
+    confirm_motion,
+    press_description,
+    press_link,
+    sigterm_as_ctrl_c,
+    time_scale_option,
+)
 from mppf.core.errors import InputError
 from mppf.core.validate import check_number, check_positive
 from mppf.forming.material import MATERIALS
@@ -241,10 +257,13 @@ def _latest_job(history, plate_id):
 @click.option("--resume", is_flag=True, help="Continue an interrupted plate (never presses a cycle twice).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
 @click.option("--yes", is_flag=True, help="Do not ask before driving a real press.")
+@click.option("--report/--no-report", "write_report_", default=True, show_default=True,
+              help="Write the plate's pictures and report.html into its work folder at the end.")
+@click.option("--operator", help="Who runs the plate (printed in the report).")
 @units_option
 def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, rms_tolerance, max_cycles, gain,
          no_springback, margin_mm, material, history_path, audit_path, plate_id, work_dir, seed, time_scale,
-         scan_timeout, resume, as_json, yes, units):
+         scan_timeout, resume, as_json, yes, write_report_, operator, units):
     """Plan, press, measure, compare, correct, press again, until the plate is in tolerance.
 
     Stops when the largest absolute form deviation is within --tolerance and the RMS within
@@ -283,11 +302,22 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
                                                      scanner_spec, settings, material, units, reporter)
             setup = {"plc": plc_url, "scanner": scanner_spec, "seed": seed, "units": units, "material": material}
             audit = AuditLog(audit_path or history.path.parent / "audit.sqlite")
+            comparisons = {}
+
+            def on_cycle(record, comparison):
+                print_cycle(record, comparison)
+                if comparison is not None:
+                    comparisons[record.cycle] = comparison
+
             try:
                 result = run_plate(history, plate_id, draft, plc_url=plc_url, scanner_spec=scanner_spec,
                                    time_scale=time_scale, audit=audit, reporter=reporter,
                                    scan_timeout_s=scan_timeout, yes=yes,
-                                   record=lambda h, d: _record(h, d, settings, work_dir, setup))
+                                   record=lambda h, d: _record(h, d, settings, work_dir, setup), on_cycle=on_cycle)
+                # the plate's report, into its work folder
+                if write_report_:
+                    path = write_report(history, plate_id, comparisons, operator=operator, reporter=reporter)
+                    reporter.info(f"report of plate {plate_id}: {path}")
             finally:
                 reporter.finish()
                 audit.close()

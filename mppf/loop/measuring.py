@@ -89,6 +89,17 @@ def compare_cycle(history: History, plate: PlateRecord, record: CycleRecord, des
         raise
 
 
+def compare_recorded(plate: PlateRecord, record: CycleRecord, design: PointCloud, settings: LoopSettings):
+    """The comparison of a recorded cycle's scan, made again (for a report written afterwards; nothing recorded).
+
+    Raises
+    ------
+    InputError
+        The scan file is missing or changed since it was recorded.
+    """
+    return _compare(plate, record, design, settings)
+
+
 def _compare(plate: PlateRecord, record: CycleRecord, design: PointCloud, settings: LoopSettings):
     scan = read_checked(record.scan_path, record.scan_sha256, "scan")
     job = load_cycle_job(record)

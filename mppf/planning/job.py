@@ -20,8 +20,17 @@ import numpy as np
 from mppf.core.errors import ConfigError, InputError
 from mppf.core.transform import tf_from_list, tf_to_list
 from mppf.core.validate import check_number
-from mppf.planning.job_parts import (PlateLayout, StepStrokes, _grid_from_json, _grid_to_json,  # noqa: F401 (API)
-                                     grid_from_json, grid_to_json, reference_corner_xy, steps_from_json, steps_to_json)
+from mppf.planning.job_parts import (  # noqa: F401 (API)
+    PlateLayout,
+    StepStrokes,
+    _grid_from_json,
+    _grid_to_json,
+    grid_from_json,
+    grid_to_json,
+    reference_corner_xy,
+    steps_from_json,
+    steps_to_json,
+)
 from mppf.planning.job_sections import Section, sections_from_json
 from mppf.planning.press import PressConfig, press_from_dict
 
@@ -204,6 +213,17 @@ def load_job(path) -> Job:
     InputError
         Missing or unreadable file, invalid JSON, or an invalid job.
     """
+    return job_from_dict(read_job_document(path), source=str(path))
+
+
+def read_job_document(path) -> dict:
+    """The JSON document of a job file, not yet checked.
+
+    Raises
+    ------
+    InputError
+        Missing or unreadable file, invalid JSON.
+    """
     path = Path(path)
     try:
         text = path.read_text()
@@ -215,7 +235,7 @@ def load_job(path) -> Job:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
         raise ConfigError(f"{path}, line {exc.lineno}: not valid JSON: {exc.msg}") from None
-    return job_from_dict(doc, source=str(path))
+    return doc
 
 
 def save_job(job: Job, path) -> Path:

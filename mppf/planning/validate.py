@@ -28,13 +28,12 @@ from __future__ import annotations
 import json
 import math
 import numbers
-from pathlib import Path
 
 import numpy as np
 
 from mppf.core.errors import ConfigError, InputError, LimitError
 from mppf.core.grid import neighbour_differences
-from mppf.planning.job import Job, StepStrokes, job_from_dict
+from mppf.planning.job import Job, StepStrokes, job_from_dict, read_job_document
 from mppf.planning.press import PressConfig
 from mppf.planning.steps import flat_heights
 
@@ -140,17 +139,7 @@ def load_checked_job(path) -> Job:
     InputError
         Missing or unreadable file, invalid JSON, values that are not numbers, an invalid job.
     """
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise InputError(f"job file {path} does not exist", hint="make one with 'mppf plan'") from None
-    except (IsADirectoryError, UnicodeDecodeError, PermissionError) as exc:
-        raise InputError(f"job file {path} cannot be read: {exc}") from None
-    try:
-        doc = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ConfigError(f"{path}, line {exc.lineno}: not valid JSON: {exc.msg}") from None
+    doc = read_job_document(path)
     check_job_document(doc, str(path))
     return job_from_dict(doc, source=str(path))
 

@@ -80,6 +80,7 @@ def loop_report(
     pictures: Sequence[tuple[str, bytes]] = (),
     cycle_pictures: Mapping[int, Sequence[tuple[str, bytes]]] | None = None,
     intro: str = "",
+    details: Sequence[tuple[str, object]] = (),
 ) -> str:
     """The HTML report of a plate's loop.
 
@@ -93,6 +94,8 @@ def loop_report(
     cycle_pictures : mapping cycle -> sequence of (caption, png bytes)
         Pictures of each cycle (deviation map, deviation at the punches).
     intro : str
+    details : sequence of (name, value)
+        More rows of the summary (the production report: date, operator, press, job hashes).
 
     Returns
     -------
@@ -103,7 +106,8 @@ def loop_report(
     summary = table_html([
         ("plate", plate.plate_id), ("result", status), ("design", f"{plate.design_path} ({plate.design_sha256[:12]})"),
         ("flat", f"{plate.flat_path} ({plate.flat_sha256[:12]})"), ("thickness (mm)", plate.thickness_mm),
-        ("limits", f"largest |deviation| <= {tolerance_mm:g} mm and RMS <= {rms_tolerance_mm:g} mm"),
+        ("limits", f"form max <= {tolerance_mm:g} mm and RMS <= {rms_tolerance_mm:g} mm"),
+        *details,
     ])
     sections = [("Summary", summary + table_html(cycle_rows(cycles), CYCLE_HEADER)),
                 ("Convergence", image_html(figure_png(convergence_figure(cycles, tolerance_mm, rms_tolerance_mm)),

@@ -29,6 +29,13 @@ th { background: #eee; }
 .ok { color: #1a7f37; font-weight: bold; } .bad { color: #b42318; font-weight: bold; }
 img { max-width: 100%; border: 1px solid #ddd; margin: 0.4em 0; }
 .grid td { font-size: 0.8em; padding: 0.15em 0.35em; }
+@page { size: A4; margin: 14mm; }
+@media print {
+  body { margin: 0; max-width: none; font-size: 10pt; }
+  h1, h2 { break-after: avoid; page-break-after: avoid; }
+  table, img, tr { break-inside: avoid; page-break-inside: avoid; }
+  img { max-height: 240mm; }
+}
 """
 
 

@@ -41,7 +41,8 @@ def loop_args(design, flat, home: Path, *extra) -> list[str]:
 def test_loop_converges_on_the_simulated_press(hull_dir, tmp_path, capsys):
     design, flat = _design_and_flat(tmp_path, hull_dir, CONVERGING_PLATE)
     # seed 2: a plate whose first cycle is out of tolerance (the loop has to correct it)
-    code = main(loop_args(design, flat, tmp_path, "--plate-id", "P1-A", "--seed", "2", "--json"))
+    code = main(loop_args(design, flat, tmp_path, "--plate-id", "P1-A", "--seed", "2", "--json",
+                          "--operator", "A. Operator"))
     out = capsys.readouterr().out
     assert code == 0, out
     doc = json.loads(out)
@@ -52,6 +53,12 @@ def test_loop_converges_on_the_simulated_press(hull_dir, tmp_path, capsys):
     assert 2 <= len(doc["cycles"]) <= 4  # 4 on the steel-plate simulator with the spacing-aware form max
     with History(tmp_path / "history.sqlite") as history:
         cycles = history.cycles("P1-A")
+        work = Path(history.plate("P1-A").settings["work_dir"])
+        # the plate's report, written by default into its work folder: who, when, which press, which jobs
+        report = (work / "report.html").read_text()
+        assert "A. Operator" in report and "report made (UTC)" in report and "@media print" in report
+        assert all(c.job_sha256 in report for c in cycles) and report.count("data:image/png;base64,") >= 2 * len(cycles)
+        assert all((work / f"punch-deviation-cycle-{c.cycle}.png").exists() for c in cycles)
         # every cycle went through every state; strokes, scan and deviations are recorded
         for c in cycles:
             states = [e.state for e in history.events("P1-A") if e.cycle == c.cycle]
@@ -74,6 +81,12 @@ def test_loop_converges_on_the_simulated_press(hull_dir, tmp_path, capsys):
         (gos,) = audit.execute("SELECT COUNT(*) FROM audit WHERE action = 'go' AND outcome = 'ok' "
                                "AND job_sha256 = ?", (c.job_sha256,)).fetchone()
         assert gos == len(c.steps)
+    # the report again, afterwards, from the history and the recorded scans
+    (work / "report.html").unlink()
+    (work / "deviation-cycle-1.png").unlink()
+    assert main(["history", "--history", str(tmp_path / "history.sqlite"), "--report", "P1-A"]) == 0
+    assert "report of plate P1-A" in capsys.readouterr().out
+    assert (work / "deviation-cycle-1.png").exists() and cycles[-1].job_sha256 in (work / "report.html").read_text()
 
 
 def test_loop_with_a_bad_design_file_exits_2_without_planning(plate_files, tmp_path, capsys):
