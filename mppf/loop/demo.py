@@ -62,6 +62,8 @@ class DemoRun:
     result : LoopResult
     comparisons : dict of int to Comparison
         Each cycle's comparison, by cycle.
+    flat_dxf_path : Path or None
+        The flat for the cutter (DXF: cut and net outlines, the reference mark), in ``out``.
     """
 
     out: Path
@@ -75,6 +77,7 @@ class DemoRun:
     plate: PlateRecord
     result: LoopResult
     comparisons: dict = field(default_factory=dict)
+    flat_dxf_path: Path | None = None
 
 
 def bundled_plate(plate_name: str) -> PointCloud:
@@ -158,6 +161,13 @@ def run_demo(out, *, plate_name: str = DEMO_PLATE, seed: int = DEMO_SEED, thickn
         start_plate(history, design, flat, press, thickness_mm, plate_id=plate_id, work_dir=out / "plates" / plate_id,
                     settings=settings, setup={"plc": None, "scanner": "sim", "seed": seed}, reporter=reporter)
         job = load_job(history.cycle(plate_id, 1).job_path)
+        # the flat for the cutter as the job lays it on the press: cut and net outlines, the reference mark
+        from mppf.geometry.dxf import flat_drawing, write_flat_dxf
+
+        margin = job.layout.margin_mm if job.layout is not None else press.margin_mm
+        dxf = write_flat_dxf(out / f"{plate_name}.flat.dxf",
+                             flat_drawing(unfolding.flat[:, :2], unfolding.faces, margin, tf_press_flat=job.tf_press_flat,
+                                          label=f"{plate_name}, margin {margin:g} mm"))
         # 3. the loop on the press, the simulated plate and scanner
         scanner = SimulatedPlateScanner.for_job(press, thickness_mm, job, flat.points, seed=seed)
         with connect(press) as link:
@@ -165,4 +175,4 @@ def run_demo(out, *, plate_name: str = DEMO_PLATE, seed: int = DEMO_SEED, thickn
         plate = history.plate(plate_id)
     return DemoRun(out=out, plate_name=plate_name, thickness_mm=thickness_mm, seed=seed, settings=settings,
                    unfolding=unfolding, flat_path=flat.path, job=job, plate=plate, result=result,
-                   comparisons=comparisons)
+                   comparisons=comparisons, flat_dxf_path=dxf)

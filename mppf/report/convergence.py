@@ -144,7 +144,8 @@ def demo_report(run, intro: str) -> list[Path]:
 
     out, job = run.out, run.job
     strain_title = f"{run.plate_name}: strain of the unfolding"
-    files = [run.flat_path, plot_strain(run.unfolding, out / "strain.png", strain_title),
+    files = [run.flat_path, *([run.flat_dxf_path] if run.flat_dxf_path else []),
+             plot_strain(run.unfolding, out / "strain.png", strain_title),
              plot_strokes(job, out / "strokes.png")]
     cycle_pictures = {}
     for n, comparison in sorted(run.comparisons.items()):

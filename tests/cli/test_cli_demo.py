@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import sqlite3
 
+import ezdxf
+
 from mppf.cli import main
 from mppf.loop.history import History
 
@@ -16,6 +18,9 @@ def test_demo_runs_end_to_end_with_pictures_and_summary(tmp_path, capsys):
     # aside lie beyond the tolerance (a person checks them; the plate is never passed over them)
     status = "in_tolerance" if "in_tolerance" in text else "needs_review"
     assert status in text and "simulated PLC" in text and "report.html" in text
+    # the flat for the cutter, as ezdxf reads it: cut and net outlines and the mark on their layers
+    drawing = ezdxf.readfile(out / "P1_midbody_bilge_smooth.flat.dxf")
+    assert {e.dxf.layer for e in drawing.modelspace()} >= {"CUT", "NET", "MARK"}
     for name in ("strain.png", "strokes.png", "deviation-cycle-1.png", "convergence.png"):
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
     report = (out / "report.html").read_text()
