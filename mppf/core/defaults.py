@@ -17,3 +17,6 @@ DRY_RUN_TIME_SCALE = 50.0
 
 DRY_RUN_REPLY_TIMEOUT_S = 5.0
 """Modbus reply timeout of a dry run: the in-process simulator shares the CPU, so be patient."""
+
+MAD_SCALE = 1.4826
+"""Median absolute deviation to standard deviation of a normal distribution: robust scale = MAD_SCALE x MAD."""

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from mppf.core.defaults import MAD_SCALE
 from mppf.measure.localfit import LocalFits, fit
 
 FIELD = ((10, 6), (20, 6), (40, 6), (40, 3))
@@ -61,7 +62,6 @@ PEAKS = 24
 NOISE_SAMPLE = 5000
 """Points (a seeded sample) whose residuals give the noise."""
 
-MAD_SCALE = 1.4826
 
 
 @dataclass(frozen=True, eq=False)

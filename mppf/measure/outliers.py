@@ -27,6 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from mppf.core.defaults import MAD_SCALE
+
 MIN_NEIGHBOURS = 12
 """Fewest neighbours within :data:`RADIUS_SPACINGS` local spacings of a point that may be set aside."""
 
@@ -45,7 +47,6 @@ SIGMAS = 6.0
 FLOOR_MM = 1.0
 """... and by more than this."""
 
-MAD_SCALE = 1.4826
 
 
 @dataclass(frozen=True, eq=False)

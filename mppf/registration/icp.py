@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from mppf.core.defaults import MAD_SCALE
 from mppf.core.errors import GeometryError
 from mppf.core.progress import NULL_REPORTER, Reporter
 from mppf.core.rigid import fit_rigid
@@ -79,7 +80,7 @@ def pair_weights(residual: np.ndarray, trim_fraction, robust) -> np.ndarray:
             cutoff = np.partition(a, keep - 1)[keep - 1]
             w[a > cutoff] = 0.0
     if robust:
-        scale = 1.4826 * float(np.median(a[w > 0]))
+        scale = MAD_SCALE * float(np.median(a[w > 0]))
         scale = max(scale, 1e-9 * (1.0 + float(a.max())))
         if robust == "huber":
             c = HUBER_K * scale

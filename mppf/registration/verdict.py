@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from mppf.core.defaults import MAD_SCALE
 from mppf.core.transform import apply_tf
 from mppf.registration.target import Cloud, RegistrationTarget, query
 
@@ -44,9 +45,6 @@ TIE_SIGMAS = 3.0
 
 CLIP_FLOORS = 4.0
 """Squared residuals are clipped at this many noise floors in the tie test (outliers, partial overlap)."""
-
-MAD_SCALE = 1.4826
-"""Robust scale of a median absolute value (normal noise)."""
 
 
 def sample_index(n: int, count: int = NOISE_POINTS, seed: int = 0) -> np.ndarray:
