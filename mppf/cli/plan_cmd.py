@@ -91,8 +91,24 @@ def _print_summary(summary: dict, output) -> None:
     for name, (x, y, _) in zip(("-x -y", "+x -y", "+x +y", "-x +y"), summary["plate_corners_mm"]):
         corners.add_row(name, f"{x:.1f}", f"{y:.1f}")
     console.print(corners)
+    if summary.get("sections"):
+        _print_sections(summary["sections"])
     if output:
         console.print(f"job written to {output}", markup=False, soft_wrap=True)
+
+
+def _print_sections(sections: list[dict]) -> None:
+    from rich.table import Table
+
+    table = Table(title=f"the plate is pressed in {len(sections)} sections (placement of each: mppf press shows it)")
+    for col in ("section", "plate centre on the bed x / y (mm)", "steps", "largest travel (mm)",
+                "border step (mm)"):
+        table.add_column(col, justify="right")
+    for s in sections:
+        x, y = (float(c) + 0.0 for c in s["plate_centre_mm"][:2])  # + 0.0: no "-0"
+        table.add_row(str(s["index"]), f"{x:.0f} / {y:.0f}", str(s["n_steps"]), _fmt(s["max_travel_mm"]),
+                      _fmt(s["border_step_mm"], 2))
+    console.print(table)
 
 
 @click.command("plan")
@@ -112,6 +128,9 @@ def _print_summary(summary: dict, output) -> None:
 @click.option("--youngs", type=float, default=None, help="Young's modulus in MPa (overrides the preset).")
 @click.option("--poisson", type=float, default=None, help="Poisson's ratio (overrides the preset).")
 @click.option("--yield", "yield_mpa", type=float, default=None, help="Yield stress in MPa (overrides the preset).")
+@click.option("--transition", "transition_mm", type=float, default=None,
+              help="A plate larger than the bed is planned in sections: the least width in mm that neighbouring "
+                   "sections share and blend over (default: 3 punch pitches; docs/sections.md).")
 @units_option
 @scale_option
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=str), default=None,
@@ -120,21 +139,27 @@ def _print_summary(summary: dict, output) -> None:
               help="Draw the stroke map of the last step (.png .pdf .svg).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 def plan_command(design, flat, press_path, thickness_mm, steps, springback, margin_mm, material, youngs, poisson,
-                 yield_mpa, units, scale, output, plot, as_json):
+                 yield_mpa, transition_mm, units, scale, output, plot, as_json):
     """Plan the strokes of both punch matrices to press FLAT into DESIGN.
 
     DESIGN is the curved plate (mid-surface points or mesh), FLAT its unfolded plate
     (e.g. from 'mppf unfold'; same point order = paired registration). --scale applies to
     DESIGN (a model-scale CAD file); FLAT, written by mppf, is at full scale. Nothing is
-    written when the plan fails validation.
+    written when the plan fails validation. A plate larger than the bed is planned in sections
+    (the plate shifted on the bed between them; see docs/sections.md).
     """
     from mppf.planning.job import save_job
-    from mppf.planning.plan import plan_job, plan_summary  # numpy/scipy work: imported when planning
+    from mppf.planning.plan import plan_summary  # numpy/scipy work: imported when planning
+    from mppf.planning.sectional import plan_plate, sections_summary
     from mppf.planning.press import example_press_path, load_press
 
     if thickness_mm > THICKNESS_MAX_MM:  # 0, negative and NaN: the planner's own message
         raise InputError(f"--thickness {thickness_mm:g} mm is not a plate thickness (at most {THICKNESS_MAX_MM:g} mm)",
                          hint="give the plate thickness in mm, e.g. 20")
+    if transition_mm is not None:
+        from mppf.core.validate import check_positive
+
+        check_positive("--transition", transition_mm, unit="mm", hint="give the shared width in mm, e.g. 300")
     if output:
         check_output_path(output, "the job file")
     if plot:
@@ -156,9 +181,9 @@ def plan_command(design, flat, press_path, thickness_mm, steps, springback, marg
         "units": units,
     }
     reporter = RichReporter(enabled=not as_json)
-    job = plan_job(design_cloud.points, flat_cloud.points, press, thickness_mm, steps=steps, material=mat,
-                   springback=springback, design_faces=design_cloud.faces, reporter=reporter, inputs=inputs,
-                   margin_mm=margin_mm)
+    job = plan_plate(design_cloud.points, flat_cloud.points, press, thickness_mm, steps=steps, material=mat,
+                     springback=springback, design_faces=design_cloud.faces, reporter=reporter, inputs=inputs,
+                     margin_mm=margin_mm, transition_mm=transition_mm)
     reporter.finish()
     if plot:  # the picture first: a job file exists only when the whole command succeeded
         from mppf.report.strokes import plot_strokes
@@ -167,6 +192,8 @@ def plan_command(design, flat, press_path, thickness_mm, steps, springback, marg
     if output:
         save_job(job, output)
     summary = plan_summary(job)
+    if job.sections:
+        summary["sections"] = sections_summary(job)
     if output:
         summary["job"] = {"path": output, "sha256": job.sha256()}
     if as_json:

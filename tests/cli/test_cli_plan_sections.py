@@ -1,0 +1,53 @@
+"""``mppf plan`` on a plate larger than the bed: planned in sections, as ``mppf batch`` does."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from mppf.cli import main
+from mppf.examples import analytic
+from mppf.planning.job import load_job
+
+LONG = Path(analytic.__file__).parent / "long"
+
+
+@pytest.fixture(scope="module")
+def planned(tmp_path_factory):
+    """The 7.5 x 2.4 m cylinder planned by the command, with its JSON summary."""
+    folder = tmp_path_factory.mktemp("plan_sections")
+    job_path = folder / "long.job.json"
+    return job_path, folder
+
+
+def test_a_plate_longer_than_the_bed_is_planned_in_sections(planned, capsys):
+    job_path, _ = planned
+    code = main(["plan", str(LONG / "long_cylinder_7500x2400_R20m.csv"),
+                 str(LONG / "long_cylinder_7500x2400_R20m_flat.csv"), "--thickness", "20",
+                 "-o", str(job_path), "--json"])
+    assert code == 0
+    summary = json.loads(capsys.readouterr().out)
+    job = load_job(job_path)
+    assert job.sections and len(job.sections) == len(summary["sections"]) >= 3
+    # every section sits on the bed and its border with the earlier sections does not step
+    for section in summary["sections"]:
+        assert section["n_steps"] >= 1
+        assert section["border_step_mm"] is None or section["border_step_mm"] <= 0.2
+    # the sections walk the plate over the bed: their plate centres differ
+    centres = {tuple(round(c) for c in s["plate_centre_mm"][:2]) for s in summary["sections"]}
+    assert len(centres) == len(summary["sections"])
+
+
+@pytest.mark.parametrize("value", ["0", "-300", "nan"])
+def test_a_bad_transition_width_exits_2_before_planning(planned, value, capsys):
+    job_path, folder = planned
+    out = folder / f"bad_{value}.job.json"
+    code = main(["plan", str(LONG / "long_cylinder_7500x2400_R20m.csv"),
+                 str(LONG / "long_cylinder_7500x2400_R20m_flat.csv"), "--thickness", "20",
+                 "--transition", value, "-o", str(out)])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "--transition" in err and value in err
+    assert not out.exists()
