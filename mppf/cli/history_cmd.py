@@ -69,11 +69,13 @@ def _report(history_path, plate_id: str, operator: str | None) -> None:
 
 
 def _plates_table(hist, plates):
+    """The title line, the table of plates and the legend line (as plain lines: a table's title and caption
+    would be wrapped to the table's width, in logs too)."""
+    from rich.console import Group
     from rich.table import Table
+    from rich.text import Text
 
-    table = Table(title=f"plates in {esc(str(hist.path))}", title_justify="left",
-                  caption="form max, RMS: deviations (mm) of the last measured cycle; t: thickness (mm)",
-                  caption_justify="left")
+    table = Table()
     for name in ("plate", "status", "cycles", "form max", "RMS", "t", "updated (UTC)"):
         table.add_column(name, no_wrap=name == "status", overflow="fold", min_width=5 if name != "t" else 2)
     for p in plates:
@@ -82,7 +84,8 @@ def _plates_table(hist, plates):
         table.add_row(esc(p.plate_id), p.status, str(len(cycles)),
                       f"{done[-1].max_abs_mm:.2f}" if done else "-", f"{done[-1].rms_mm:.2f}" if done else "-",
                       f"{p.thickness_mm:g}", p.updated_utc[:16].replace("T", " "))
-    return table
+    legend = "form max, RMS: deviations (mm) of the last measured cycle; t: thickness (mm)"
+    return Group(Text.from_markup(f"plates in {esc(str(hist.path))}"), table, Text(legend))
 
 
 COMMANDS = [history]
