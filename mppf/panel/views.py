@@ -23,6 +23,11 @@ VERDICTS = {
     Decision.CONTINUE: ("OUT OF TOLERANCE", "bad", "the next cycle corrects the strokes"),
     Decision.MAX_CYCLES: ("OUT OF TOLERANCE", "bad", "stopped: no cycles left (--max-cycles)"),
     Decision.DIVERGED: ("OUT OF TOLERANCE", "bad", "stopped: the deviation grows (diverged)"),
+    Decision.CANNOT_CONVERGE: ("OUT OF TOLERANCE", "bad", "stopped: the correction finds no way on (see its verdict)"),
+    Decision.NEEDS_REVIEW: ("NEEDS REVIEW", "review", "stopped: within the limits, but not all of it was measured "
+                                                      "or set-aside points lie beyond the tolerance: a person looks"),
+    Decision.BADLY_FORMED: ("OUT OF TOLERANCE", "bad", "stopped: the plate is far from its design (badly formed): "
+                                                     "a person looks"),
 }
 """Large-type verdict, its colour class and what follows, per decision."""
 
