@@ -103,11 +103,10 @@ class SimulatedPlateScanner:
         Scan file format (".ply" or ".csv").
     reference_mark : bool
         Pick the plate's reference-corner mark (:func:`mppf.planning.job.reference_corner_xy` of the
-        net outline) in every scan and write it next to the scan (``<scan>.mark.json``), as
+        outline as cut, margin included) in every scan and write it next to the scan (``<scan>.mark.json``), as
         the operator does on the shop floor; the scan's pose stays arbitrary.
     net_outline_xy_mm : (j, 2) float, optional
-        The net plate's outline (without the trim margin), where the reference corner is
-        scribed; default ``outline_xy_mm``.
+        The net plate's outline (without the trim margin); default ``outline_xy_mm``.
     """
 
     def __init__(self, press, thickness_mm: float, outline_xy_mm, *, seed: int = 0,
@@ -129,8 +128,10 @@ class SimulatedPlateScanner:
         self.occlusion_fraction = occlusion_fraction
         self.outlier_fraction = outlier_fraction
         self.suffix = suffix
-        net = self.outline_xy_mm if net_outline_xy_mm is None else np.asarray(net_outline_xy_mm, dtype=float)
-        self.mark_xy_mm = reference_corner_xy(net) if reference_mark else None
+        self.net_outline_xy_mm = (self.outline_xy_mm if net_outline_xy_mm is None
+                                  else np.asarray(net_outline_xy_mm, dtype=float))
+        # the mark is on the corner of the plate as cut (mppf.planning.job.PlateLayout.reference_corner_mm)
+        self.mark_xy_mm = reference_corner_xy(self.outline_xy_mm) if reference_mark else None
         self.plate = self.new_plate()
         self.pressed: list[list[int]] = []  # (cycle, step) pressed on self.plate, in order
         self.last_formed = None

@@ -1,8 +1,8 @@
 """Where to lay the plate, as ``mppf press`` and ``mppf loop`` print it before the press moves.
 
 The corners of the plate as cut (with its trim margin) in press mm, corner A first (the
-corner nearest the reference mark), then counter-clockwise, and where the mark itself
-lies; the same corners the panel's "Lay the plate" view and the per-plate report draw
+corner the reference mark is on: the mark is the corner of the plate as cut), then
+counter-clockwise, and where the mark itself lies; the same corners the panel's "Lay the plate" view and the per-plate report draw
 (:func:`mppf.panel.placement.placement_of`). On a real press the operator then confirms
 that the plate lies there (:func:`mppf.cli.press_policy.confirm_motion`).
 """
@@ -37,7 +37,8 @@ def placement_lines(job: Job) -> list[str]:
     lines = [f"lay the plate as cut ({margin}) on the bed with its corners at (press mm, x along the columns, "
              f"y along the rows, origin at the bed centre):"]
     for row in placement.rows():
-        note = "  <- the corner nearest the reference mark" if row["mark"] else ""
+        note = "  <- the corner nearest the reference mark (the mark is on it)" if row["mark"] else ""
         lines.append(f"  corner {row['name']}: x {row['x_mm']:9.1f} mm, y {row['y_mm']:9.1f} mm{note}")
-    lines.append(f"  reference mark: x {mark_x:9.1f} mm, y {mark_y:9.1f} mm (on the net outline's corner)")
+    lines.append(f"  reference mark: x {mark_x:9.1f} mm, y {mark_y:9.1f} mm (on corner A of the plate as cut, "
+                 "as on the cutter's drawing)")
     return lines

@@ -74,6 +74,10 @@ def _check_options(thickness, scan_timeout, seed, audit_path) -> None:
         check_db_path(audit_path, "the audit log", "--audit")
 
 
+def _positive(option: str, value: float) -> float:
+    return check_positive(option, value, unit="s", hint="give the wait in s, above 0")
+
+
 def _scanner(history, plate, spec: str, press, scan_timeout_s: float):
     """The Scanner named by ``--scanner``: "sim" (from the plate's recorded flat, first job and seed) or a folder."""
     if spec != SCAN_SIM:
@@ -254,6 +258,19 @@ def _latest_job(history, plate_id):
 @time_scale_option
 @click.option("--scan-timeout", type=float, default=1800.0, show_default=True,
               help="Longest wait for the operator's scan file (s).")
+@click.option("--on-pressed", "on_pressed", metavar="CMD",
+              help="Command run when a cycle is pressed, after the scan request file is written into the scan "
+                   "folder: the request's path is its last argument and $MPPF_SCAN_REQUEST; run without a shell; "
+                   "its failure is reported and the loop goes on (docs/scanner-station.md). Recorded with the "
+                   "plate, like the mark waits: --resume uses the recorded ones.")
+@click.option("--on-pressed-timeout", type=float, default=_DEFAULTS.on_pressed_timeout_s, show_default=True,
+              help="Longest run of the --on-pressed command (s); it is killed after.")
+@click.option("--mark-timeout", type=float, default=_DEFAULTS.mark_timeout_s, show_default=True,
+              help="Longest wait (s) for the reference mark of a scan of a nearly symmetric plate (which is not "
+                   "compared without it); then exit 4, the cycle waits for --resume.")
+@click.option("--mark-settle", type=float, default=_DEFAULTS.mark_settle_s, show_default=True,
+              help="How long (s) a scan without its mark waits for one saved just after it, when the plate does "
+                   "not need the mark (then: the best fit).")
 @click.option("--resume", is_flag=True, help="Continue an interrupted plate (never presses a cycle twice).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
 @click.option("--yes", is_flag=True, help="Do not ask before driving a real press.")
@@ -263,7 +280,8 @@ def _latest_job(history, plate_id):
 @units_option
 def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, rms_tolerance, max_cycles, gain,
          no_springback, margin_mm, material, history_path, audit_path, plate_id, work_dir, seed, time_scale,
-         scan_timeout, resume, as_json, yes, write_report_, operator, units):
+         scan_timeout, on_pressed, on_pressed_timeout, mark_timeout, mark_settle, resume, as_json, yes, write_report_,
+         operator, units):
     """Plan, press, measure, compare, correct, press again, until the plate is in tolerance.
 
     Stops when the largest absolute form deviation is within --tolerance and the RMS within
@@ -275,13 +293,24 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
     Without --plc this is a dry run: the simulated PLC (real Modbus over loopback), a
     simulated plate and a simulated scanner. With --plc a real press asks for confirmation
     first (or takes --yes; without a terminal it refuses, exit 4).
+
+    With --scanner FOLDER, each pressed cycle writes a scan request (PLATE-cycle-NN.scan-request.json)
+    into the folder, runs --on-pressed, and takes the next new scan file there once its
+    reference mark is in (the mark file SCAN.mark.json or a 'reference_mark_mm X Y Z' header
+    line); a nearly symmetric plate is not compared without its mark (exit 4 after
+    --mark-timeout). The scans are the top skin: the design's concave side (its +normal
+    side), not whichever side faces up. See docs/scanner-station.md.
     """
     from mppf.drivers.audit import AuditLog
 
     # every option and file checked before anything is read, planned or recorded
     _check_options(thickness, scan_timeout, seed, audit_path)
     settings = LoopSettings(tolerance_mm=tolerance, rms_tolerance_mm=rms_tolerance, max_cycles=max_cycles,
-                            gain=gain, springback=not no_springback, margin_mm=margin_mm)
+                            gain=gain, springback=not no_springback, margin_mm=margin_mm, on_pressed=on_pressed,
+                            on_pressed_timeout_s=_positive("--on-pressed-timeout", on_pressed_timeout),
+                            mark_timeout_s=_positive("--mark-timeout", mark_timeout),
+                            mark_settle_s=check_number("--mark-settle", mark_settle, low=0.0, unit="s",
+                                                       hint="give the wait in s, 0 or more"))
     reporter = RichReporter(enabled=not as_json)
     # SIGTERM ends the command like Ctrl-C: the press is stopped, the lease given back
     with sigterm_as_ctrl_c(), open_history(history_path) as history:

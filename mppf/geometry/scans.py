@@ -10,10 +10,16 @@
 
 The point count in the header is checked against the memory available before any point
 is read (:func:`mppf.geometry.files.check_fits`).
+
+:func:`read_header_mark` reads the plate's reference mark from a scan file's header, where
+the format has free text for it: a ``comment`` line of a PLY header, a ``#`` comment line
+before the first point of a text file (``.csv .txt .xyz``). E57 and LAS/LAZ scans carry
+their mark in the mark file beside them (``<scan>.mark.json``, :mod:`mppf.measure.mark`).
 """
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -128,3 +134,61 @@ def _check_las_size(path: Path, header, count: int) -> None:
         raise FileFormatError(
             path, f"is truncated: {count:,} points of {header.point_format.size} bytes need {needed:,} bytes, "
             f"the file has {size:,}", hint=f"the file was cut off (an interrupted copy or export); {_RESCAN_HINT}")
+
+
+HEADER_MARK_KEY = "reference_mark_mm"
+"""The word of a header line that carries the reference mark: ``comment reference_mark_mm X Y Z``
+(PLY) or ``# reference_mark_mm X Y Z`` (text); commas or spaces between the numbers, mm, the
+scan's coordinates."""
+
+HEADER_MARK_SUFFIXES = (".ply", ".csv", ".txt", ".xyz")
+"""Scan formats whose header may carry the mark (:func:`read_header_mark`)."""
+
+HEADER_BYTES = 65536
+"""Only this many bytes from the start of a file are searched for the mark line."""
+
+_NUMERIC_START = tuple("0123456789+-.")
+_NUMBER = r"([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)"
+_MARK_LINE = re.compile(rf"^\s*(?:comment|#)\s*{HEADER_MARK_KEY}\s*[:=]?\s*{_NUMBER}\s*[,;\s]\s*{_NUMBER}"
+                        rf"\s*[,;\s]\s*{_NUMBER}\s*$")
+
+
+def read_header_mark(path) -> np.ndarray | None:
+    """The reference mark (3,) mm written in a scan file's header, or None.
+
+    A PLY file: a ``comment reference_mark_mm X Y Z`` line of its header (before
+    ``end_header``, ASCII or binary body). A text file: a ``# reference_mark_mm X Y Z`` comment
+    line before its first point (column-name lines may come first). Other formats, a missing file, no such line or a line whose
+    numbers are not finite: None (the mark file beside the scan may still give it).
+
+    Parameters
+    ----------
+    path : path-like
+        The scan file.
+
+    Returns
+    -------
+    (3,) float or None
+        The mark in the scan's coordinates, mm.
+    """
+    path = Path(path)
+    if path.suffix.lower() not in HEADER_MARK_SUFFIXES:
+        return None
+    try:
+        with open(path, "rb") as stream:
+            head = stream.read(HEADER_BYTES)
+    except OSError:
+        return None
+    text = head.decode("latin-1")
+    lines = text.splitlines()
+    if path.suffix.lower() == ".ply":
+        lines = lines[: next((k for k, line in enumerate(lines) if line.strip() == "end_header"), len(lines))]
+    for line in lines:
+        stripped = line.strip()
+        if path.suffix.lower() != ".ply" and stripped[:1] in _NUMERIC_START:
+            break  # the first point of a text file: its header is over
+        found = _MARK_LINE.match(line)
+        if found:
+            mark = np.array([float(v) for v in found.groups()])
+            return mark if np.all(np.isfinite(mark)) else None
+    return None

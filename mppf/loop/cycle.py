@@ -7,7 +7,8 @@ cycles run out, or the error diverges:
 
     planned   -> press every step of the cycle's job          -> pressing -> pressed
     pressing  -> (interrupted) never press again               -> pressed
-    pressed   -> get the scan of the formed plate              -> scanned
+    pressed   -> request the scan (the station's request file, --on-pressed),
+                 get it, complete with its reference mark     -> scanned
     scanned   -> register it to the design, deviations         -> compared (+ decision)
     compared  -> correct the strokes, plan the next cycle      -> corrected | done
                  (or stop with a verdict: cannot converge)      -> done
@@ -26,6 +27,7 @@ The loop takes the press (:class:`mppf.core.presslink.PressLink`) and the scanne
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable
 
 from mppf.core.presslink import PressLink
@@ -35,11 +37,14 @@ from mppf.geometry.read import PointCloud
 from mppf.loop.correcting import plan_next
 from mppf.loop.decide import decide
 from mppf.loop.history import History
-from mppf.loop.measuring import acquire_scan, compare_cycle, comparison_summary, read_checked
+from mppf.loop.marks import MarkedScanner, MarkNeed, needs_mark, plausible_scan
+from mppf.loop.measuring import acquire_scan, compare_cycle, comparison_summary, load_cycle_job, read_checked
 from mppf.loop.pressing import press_cycle
 from mppf.loop.records import CycleRecord, PlateRecord
+from mppf.loop.scan_request import PostedRequest, post_request
 from mppf.loop.settings import LoopSettings
 from mppf.loop.states import CycleState, Decision
+from mppf.planning.job import load_job
 from mppf.planning.press import PressConfig, press_from_dict
 
 #: Called with each cycle record once compared (and again when corrected or done),
@@ -89,10 +94,28 @@ class _Run:
     reporter: Reporter
     on_cycle: CycleCallback | None
     verdicts: list
+    known: dict
 
     def notify(self, record: CycleRecord, comparison) -> None:
         if self.on_cycle is not None:
             self.on_cycle(record, comparison)
+
+    def mark_need(self) -> MarkNeed:
+        """Whether the plate's scans need the reference mark (worked out once per run, when first asked)."""
+        if "mark_need" not in self.known:
+            rms = [c.rms_mm for c in self.history.cycles(self.plate.plate_id) if c.rms_mm is not None]
+            self.known["mark_need"] = needs_mark(self.design.points, max(rms, default=0.0))
+        return self.known["mark_need"]
+
+    def plausible(self, scan_path) -> bool:
+        """Whether a scan could be of this plate at all (readable, of its size, margin included)."""
+        job = load_job(self.history.cycles(self.plate.plate_id)[-1].job_path)
+        return plausible_scan(scan_path, self.design.points, 0.0 if job.layout is None else job.layout.margin_mm)
+
+    @property
+    def scan_folder(self) -> Path:
+        """Where the scans arrive: the scanner's folder, else the plate's work folder (the simulated scanner)."""
+        return Path(getattr(self.scanner, "folder", None) or self.plate.settings["work_dir"])
 
 
 def run_loop(
@@ -129,6 +152,10 @@ def run_loop(
         state change; or a scan is unreadable (FileFormatError) or does not match the
         design (GeometryError): that scan is recorded as rejected, the cycle waits in
         "pressed" for another one.
+    MarkMissing
+        A scan of a nearly symmetric plate came without its reference mark and none came
+        within ``LoopSettings.mark_timeout_s`` (:mod:`mppf.loop.marks`, exit 4): the cycle
+        stays "pressed", the scan is not rejected (resume takes it again, with its mark).
     PressRefused, LimitError
         The press refused the step before any motion; the step is recorded as not
         started and is pressed when the loop is resumed.
@@ -155,7 +182,7 @@ def _start_run(history, plate_id, link, scanner, reporter, on_cycle) -> _Run:
     settings = LoopSettings.from_dict(plate.settings["loop"])
     press = press_from_dict(plate.press, source=f"history of plate {plate_id}")
     design = read_checked(plate.design_path, plate.design_sha256, "design", plate.settings.get("units", "mm"))
-    return _Run(history, plate, press, settings, design, link, scanner, reporter, on_cycle, [])
+    return _Run(history, plate, press, settings, design, link, scanner, reporter, on_cycle, [], {})
 
 
 # -- one handler per state: each does what the state asks and returns the cycle to look at next --
@@ -182,9 +209,25 @@ def _on_pressing(run: _Run, record: CycleRecord) -> int:
 
 
 def _on_pressed(run: _Run, record: CycleRecord) -> int:
-    # measure: the scanner delivers a file of the formed plate (an unreadable one is rejected)
-    acquire_scan(run.history, run.plate, record, run.press, run.scanner, run.reporter)
+    # tell the scanner station what to scan: the request file in the scan folder, the --on-pressed command
+    request = _request(run, record)
+    try:
+        # measure: the scanner delivers a file of the formed plate (an unreadable one is rejected), complete
+        # only with its reference mark, or once the plate is known not to need one (mppf.loop.marks)
+        scanner = MarkedScanner(run.scanner, run.mark_need, run.plausible, settle_s=run.settings.mark_settle_s,
+                                timeout_s=run.settings.mark_timeout_s)
+        acquire_scan(run.history, run.plate, record, run.press, scanner, run.reporter)
+    finally:
+        # the scan is taken, or the wait ended: the request is withdrawn
+        request.withdraw()
     return record.cycle
+
+
+def _request(run: _Run, record: CycleRecord) -> PostedRequest:
+    """The pressed cycle's scan request; whether the mark is required is worked out for a scanner station only."""
+    required = run.mark_need().required if hasattr(run.scanner, "folder") else None
+    return post_request(run.plate, record, load_cycle_job(record), run.settings, run.scan_folder, run.reporter,
+                        mark_required=required)
 
 
 def _on_scanned(run: _Run, record: CycleRecord) -> int:
@@ -194,7 +237,8 @@ def _on_scanned(run: _Run, record: CycleRecord) -> int:
     # and on the RMS of every cycle so far; the raw point extremes stay in the stored comparison
     rms = [c.rms_mm for c in run.history.cycles(record.plate_id)[: record.cycle - 1]] + [comparison.rms_mm]
     beyond = 0 if comparison.set_aside is None else comparison.set_aside.beyond_tolerance
-    decision = decide(rms, comparison.form_max_abs_mm, record.cycle, run.settings, set_aside_beyond=beyond)
+    decision = decide(rms, comparison.form_max_abs_mm, record.cycle, run.settings, set_aside_beyond=beyond,
+                      verdict=comparison.verdict)
     # record deviations and decision, tell the caller
     run.history.mark_compared(
         record.plate_id, record.cycle, rms_mm=comparison.rms_mm, max_abs_mm=comparison.form_max_abs_mm,

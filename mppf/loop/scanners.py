@@ -4,7 +4,10 @@ A scanner delivers, for one press cycle, the path of a point file (PLY, CSV, XYZ
 the formed plate's top skin, in any pose. :class:`DirectoryScanner` waits for the file the
 operator's 3D scanner (or the person running it) drops into a folder; the simulated
 scanner of dry runs (``mppf.sim.shop``) forms and scans a simulated plate instead. The
-loop (:mod:`mppf.loop.cycle`) takes either through this one interface.
+loop (:mod:`mppf.loop.cycle`) takes either through this one interface; before it waits, it
+writes the scan request into the scanner's ``folder`` (:mod:`mppf.loop.scan_request`), and
+it takes the scan only with its reference mark (:class:`mppf.loop.marks.MarkedScanner`).
+See ``docs/scanner-station.md``.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ class DirectoryScanner:
     """Waits for the operator's scan file in a folder.
 
     A file counts as the scan of the cycle when its suffix is a point format
-    (``.ply .csv .txt .xyz .stl .obj``), it was modified after the cycle was planned
+    (:data:`mppf.geometry.read.READ_SUFFIXES`: ``.ply .csv .txt .xyz .e57 .las .laz``...), it was modified after the cycle was planned
     (``context.since_s``), no earlier cycle of the plate used it, and its size
     stayed the same over two polls (the scanner software finished writing it). When
     several qualify, the newest is taken.

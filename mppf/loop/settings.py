@@ -51,6 +51,18 @@ class LoopSettings:
         and solve the next strokes on the calibrated plate model
         (:func:`mppf.correct.calibrated.calibrated_step`); the model step of
         :func:`mppf.correct.compensate.compensate` when the fit explains too little.
+    on_pressed : str or None
+        Command run when a cycle is pressed, after its scan request is written (``--on-pressed``;
+        the request's path is its last argument and ``$MPPF_SCAN_REQUEST``; no shell:
+        :func:`mppf.loop.scan_request.run_on_pressed`).
+    on_pressed_timeout_s : float
+        Longest run of that command (s); it is killed after, the loop goes on.
+    mark_settle_s : float
+        How long a scan without its reference mark waits for one saved just after it (s),
+        when the plate does not need the mark (:mod:`mppf.loop.marks`).
+    mark_timeout_s : float
+        How long a scan of a plate that needs its mark (nearly symmetric) waits for it (s)
+        before the loop stops (exit 4, the cycle stays "pressed").
     """
 
     tolerance_mm: float = TOLERANCE_MM
@@ -64,14 +76,23 @@ class LoopSettings:
     margin_mm: float | None = None
     calibrate: bool = True
     learn: bool = True
+    on_pressed: str | None = None
+    on_pressed_timeout_s: float = 60.0
+    mark_settle_s: float = 5.0
+    mark_timeout_s: float = 600.0
 
     def __post_init__(self):
         checks = {  # name: (lower bound, exclusive)
             "tolerance_mm": 0.0, "rms_tolerance_mm": 0.0, "gain": 0.0, "divergence_factor": 1.0,
+            "on_pressed_timeout_s": 0.0, "mark_timeout_s": 0.0,
         }
         for name, low in checks.items():
             object.__setattr__(self, name, check_number(f"loop setting {name}", getattr(self, name), low=low,
                                                         low_open=True))
+        object.__setattr__(self, "mark_settle_s", check_number("loop setting mark_settle_s", self.mark_settle_s,
+                                                               low=0.0, unit="s"))
+        if self.on_pressed is not None and not str(self.on_pressed).strip():
+            object.__setattr__(self, "on_pressed", None)
         object.__setattr__(self, "max_cycles", check_number("loop setting max_cycles", self.max_cycles, low=1,
                                                             high=MAX_CYCLES_LIMIT, integer=True))
 

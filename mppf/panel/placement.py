@@ -5,7 +5,8 @@ cut, the net outline, the margin, the reference mark) and keeps of each outline 
 corners (:func:`outline_corners`); :func:`bed_svg` draws the bed to scale with the punches
 (those of the step about to be pressed filled), the plate as cut, its net outline, the
 mark and the lettered corners with their press coordinates. Corner A is the corner of the
-cut plate nearest the mark, the others follow counter-clockwise. Pure: arrays in, SVG text
+cut plate the mark is on (the mark is the corner of the plate as cut, the same corner as the
+cutter's DXF and the comparison), the others follow counter-clockwise. Pure: arrays in, SVG text
 out; for the panel's "Lay the plate" view, the placement output of ``mppf press`` /
 ``mppf loop`` and the per-plate report alike.
 """
@@ -78,7 +79,8 @@ class Placement:
     net_corners_mm : (m, 2) float
         Corners of the net outline (the plate after trimming).
     mark_mm : (2,) float
-        The reference mark (on the net outline's corner nearest punch R1 C1).
+        The reference mark: on the corner of the plate as cut (corner A, the cut outline's
+        corner nearest punch R1 C1; :attr:`mppf.planning.job.PlateLayout.reference_corner_mm`).
     margin_mm : float
     cut_outline_mm, net_outline_mm : (k, 2) float
         The full outlines, for drawing.

@@ -48,14 +48,17 @@ class StepStrokes:
 def reference_corner_xy(outline_xy_mm) -> np.ndarray:
     """The plate's reference corner on the press: the outline corner with the smallest x + y.
 
-    The flat plate is cut with a mark on one corner; the operator lays it in the press
-    by the corner positions of the plan with the mark on the corner nearest the press's
-    first punch (row 1, column 1), so this is where the mark is.
+    The flat plate is cut with a mark on one corner of the plate AS CUT (the net outline
+    grown by the trim margin: the physical corner the operator sees); the operator lays it
+    in the press by the corner positions of the plan with the mark on the corner nearest
+    the press's first punch (row 1, column 1), so this is where the mark is. The job
+    layout, the cutter's DXF, the placement view and the comparison all take this corner
+    of the outline as cut (``docs/file-formats.md``, "The reference mark").
 
     Parameters
     ----------
     outline_xy_mm : (k, 2) float
-        An outline on the press.
+        An outline on the press (the outline as cut, for the mark).
 
     Returns
     -------
@@ -81,7 +84,11 @@ class PlateLayout:
     margin_mm : float
         Width of the trim margin (0: the plate is cut to its net outline).
     reference_corner_mm : (2,) float
-        Where the plate's reference mark lies (:func:`reference_corner_xy` of the net outline).
+        Where the plate's reference mark lies: :func:`reference_corner_xy` of the outline
+        AS CUT (``outline_mm``, the net outline grown by the margin), the physical corner the
+        operator sees. Always derived from ``outline_mm`` when a job file is read (jobs
+        written before this definition stored the net outline's corner there; that value is
+        not used).
     design_mid_mm : (rows, cols) float or None
         The design's mid-surface height at each active punch axis, as the tips would hold
         it (NaN at inactive punches); None for jobs planned before it was recorded.
@@ -101,7 +108,7 @@ class PlateLayout:
         object.__setattr__(self, "net_outline_mm", np.asarray(self.net_outline_mm, dtype=float).reshape(-1, 2))
         object.__setattr__(self, "margin_mm", float(self.margin_mm))
         if self.reference_corner_mm is None:
-            object.__setattr__(self, "reference_corner_mm", reference_corner_xy(self.net_outline_mm))
+            object.__setattr__(self, "reference_corner_mm", reference_corner_xy(self.outline_mm))
         else:
             object.__setattr__(self, "reference_corner_mm", np.asarray(self.reference_corner_mm, dtype=float))
         if self.design_mid_mm is not None:
@@ -133,11 +140,11 @@ class PlateLayout:
             outline = np.asarray(doc["outline_mm"], dtype=float)
             net = np.asarray(doc.get("net_outline_mm") or doc["outline_mm"], dtype=float)
             margin = doc.get("margin_mm", 0.0)
-            corner = doc.get("reference_corner_mm")
             mid = doc.get("design_mid_mm")
             material = doc.get("material")
+            # the mark's corner is always that of the outline as cut: a stored "reference_corner_mm"
+            # (older jobs stored the net outline's corner) is not read
             layout = cls(outline_mm=outline, net_outline_mm=net, margin_mm=margin,
-                         reference_corner_mm=None if corner is None else np.asarray(corner, dtype=float),
                          design_mid_mm=grid_from_json(mid), material=None if not material else Material(**material))
         except (KeyError, TypeError, ValueError) as exc:
             raise ConfigError(f"{source}: the plate layout is malformed ({type(exc).__name__}: {exc})",

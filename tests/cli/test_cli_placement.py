@@ -23,11 +23,16 @@ def test_the_corners_of_the_plate_as_cut_corner_a_nearest_the_mark(planned_plate
     # every corner printed is a vertex of the outline as cut (to the printed 0.1 mm)
     for x, y in corners.values():
         assert np.min(np.linalg.norm(cut - [x, y], axis=1)) < 0.06
-    # corner A is the cut corner nearest the reference mark, and it lies outside the net outline by the margin
+    # corner A is the cut corner nearest the reference mark: the mark is on it (the plate as cut), and it
+    # lies outside the net outline by the margin
+    from mppf.core.polygon import distance_outside
+
     mark = job.layout.reference_corner_mm
     a = np.array(corners["A"])
     assert all(np.linalg.norm(a - mark) <= np.linalg.norm(np.array(c) - mark) for c in corners.values())
-    assert job.layout.margin_mm > 0 and np.linalg.norm(a - mark) >= job.layout.margin_mm - 0.1
+    assert np.linalg.norm(a - mark) < 0.06
+    assert job.layout.margin_mm > 0
+    assert distance_outside(job.layout.net_outline_mm, a[None])[0] >= job.layout.margin_mm - 0.1
     assert "nearest the reference mark" in next(line for line in lines if "corner A" in line)
     assert f"{job.layout.margin_mm:g} mm trim margin" in lines[0]
 

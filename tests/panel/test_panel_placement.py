@@ -31,7 +31,7 @@ def test_a_gentle_arc_is_not_a_corner_but_a_chamfer_is():
 
 def test_corner_a_is_the_cut_corner_at_the_mark_and_the_rest_follow_counter_clockwise():
     placement = placement_of(layout_job().layout)
-    np.testing.assert_allclose(placement.mark_mm, (-1100.0, -700.0))  # the net outline's corner at R1 C1
+    np.testing.assert_allclose(placement.mark_mm, (-1200.0, -800.0))  # the corner of the plate as cut at R1 C1
     rows = placement.rows()
     assert [r["name"] for r in rows] == ["A", "B", "C", "D"]
     assert rows[0]["mark"] and not any(r["mark"] for r in rows[1:])

@@ -174,7 +174,7 @@ def test_plate_layout_round_trips_and_version_1_jobs_are_read(tmp_path):
     net = np.array([[-500.0, -300.0], [500.0, -300.0], [500.0, 300.0], [-500.0, 300.0]])
     mid = np.where(PRESS.punch_x_mm[None, :] > 0, 5.0, np.nan) * np.ones(PRESS.shape)
     layout = PlateLayout(net * 1.2, net, margin_mm=100.0, design_mid_mm=mid, material=Material(yield_stress_mpa=355.0))
-    assert np.allclose(layout.reference_corner_mm, [-500.0, -300.0])
+    assert np.allclose(layout.reference_corner_mm, [-600.0, -360.0])  # the corner of the plate as cut
     job = _job()
     job.layout = layout
     back = load_job(save_job(job, tmp_path / "job.json"))
@@ -188,7 +188,7 @@ def test_plate_layout_round_trips_and_version_1_jobs_are_read(tmp_path):
                margin_mm=plate["margin_mm"], design_mid_mm=plate["design_mid_mm"], material=plate["material"])
     old = job_from_dict(doc)
     assert np.allclose(old.layout.outline_mm, back.layout.outline_mm) and old.layout.margin_mm == 100.0
-    assert np.allclose(old.layout.reference_corner_mm, [-500.0, -300.0])
+    assert np.allclose(old.layout.reference_corner_mm, [-600.0, -360.0])
     assert "plate_outline_mm" not in old.extra and old.extra["registration"] == {"method": "paired"}
     # an old job without an outline has no layout
     for key in ("plate_outline_mm", "net_outline_mm", "margin_mm", "design_mid_mm", "material"):
