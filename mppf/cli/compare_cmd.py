@@ -11,6 +11,7 @@ from mppf.cli._common import PICTURE_SUFFIXES, check_output_path, console, err_c
 from mppf.core.defaults import RMS_TOLERANCE_MM, TOLERANCE_MM
 from mppf.core.errors import InputError
 from mppf.core.validate import check_number, check_positive
+from mppf.measure.coverage import GAP_MM, GAP_SPACINGS, MAX_GAP_MM, check_gaps
 
 SKIN_SIDE = {"top": 1.0, "mid": 0.0, "bottom": -1.0}
 """Offset of the measured skin from the design mid-surface, in half thicknesses."""
@@ -55,15 +56,22 @@ def parse_mark(text: str | None):
                    "punch grid and press pose (punch deviations) and the reference corner of the mark.")
 @click.option("--thickness", type=float, default=None, help="Plate thickness (mm), for --skin top/bottom.")
 @click.option("--skin", type=click.Choice(["top", "mid", "bottom"]), default=None,
-              help="Which skin the scan measured: the design is the mid-surface; top = its +normal side "
-                   "(the concave side of a curved plate), offset by half the thickness. Default: top with --job, "
-                   "else mid.")
+              help="Which skin the scan measured: the design is the mid-surface; top = its +normal side: the "
+                   "design's concave side (the inside of the bowl), not whichever side faces up (with --job: the "
+                   "side up on the press, where the planner lays the concave side), offset by half the "
+                   "thickness. Default: top with --job, else mid.")
 @click.option("--margin", type=float, default=None,
               help="Width of the trim margin (excess) the scanned plate still carries around the design outline "
                    "(mm); statistics cover the net plate only. Default: the job's, else 0.")
 @click.option("--mark", "mark", default=None, metavar="X,Y,Z",
               help="Where the plate's reference-corner mark is in the scan (mm, scan coordinates); default: "
                    "<scan>.mark.json when present. It settles which way round a nearly symmetric plate lies.")
+@click.option("--gap", "gap_mm", type=float, default=None, metavar="MM",
+              help=f"Smallest allowed gap in the measurement (mm across): in tolerance needs the whole net plate "
+                   f"measured without an empty gap wider than max(this, {GAP_SPACINGS:g} point spacings) "
+                   f"[default: {GAP_MM:g}].")
+@click.option("--max-gap", "max_gap_mm", type=float, default=None, metavar="MM",
+              help=f"Largest allowed gap (mm across), however sparse the measurement [default: {MAX_GAP_MM:g}].")
 @units_option
 @click.option("--scan-units", type=click.Choice(["mm", "m"]), default=None,
               help="Length unit of the scan file when it differs from --units (scanners often write metres).")
@@ -81,15 +89,18 @@ def parse_mark(text: str | None):
 def compare_command(design: str, measured: str, tolerance: float, rms_tolerance: float, job_path: str | None,
                     thickness: float | None, skin: str | None, margin: float | None, mark: str | None, units: str,
                     scan_units: str | None, as_json: bool, plot: str | None, scale_mm: float | None,
-                    report: str | None, export_path: str | None) -> None:
+                    report: str | None, export_path: str | None, gap_mm: float | None = None,
+                    max_gap_mm: float | None = None) -> None:
     """Compare the scan MEASURED with the design plate DESIGN.
 
     Registers the scan onto the design (ICP from the principal axes: point-to-point,
     then robust point-to-plane, pinned by the outline only where the surface leaves the pose
     free), measures the signed normal deviation of every scanned point (positive = on the
     design's +normal side) and decides by one rule: form max <= tolerance, RMS <= RMS
-    tolerance, and no point set aside as a scanner artefact beyond the tolerance (else
-    "needs review"). Only certain scanner artefacts of dense scans are set aside, and
+    tolerance, no point set aside as a scanner artefact beyond the tolerance and the whole
+    net plate measured without a gap wider than the allowed gap (else "needs review",
+    the areas not measured named and drawn). A scan far from its design whose outline and
+    shape are the design's is this plate badly formed: out of tolerance. Only certain scanner artefacts of dense scans are set aside, and
     each is reported. With --job, the job's trim margin, thickness, punch grid and
     reference corner are used, as the loop does. Both files are point or mesh files (.csv
     .txt .xyz .ply .stl .obj). Exit code 2 for unreadable files or a scan that does not
@@ -105,6 +116,7 @@ def compare_command(design: str, measured: str, tolerance: float, rms_tolerance:
     if scale_mm is not None:
         check_positive("--scale", scale_mm, unit="mm")
     mark_mm = parse_mark(mark)
+    gaps = check_gaps(GAP_MM if gap_mm is None else gap_mm, MAX_GAP_MM if max_gap_mm is None else max_gap_mm)
     for path, what, suffixes, kind in ((plot, "the deviation map (--plot)", PICTURE_SUFFIXES, "picture"),
                                        (report, "the report (--report)", None, "file"),
                                        (export_path, "the export (--export)", (".ply", ".csv"), "point file")):
@@ -116,7 +128,8 @@ def compare_command(design: str, measured: str, tolerance: float, rms_tolerance:
     options = _options(job_path, design_cloud.points, measured, skin, thickness, margin, mark_mm)
     # 3. compare and decide
     result = compare(design_cloud.points, measured_cloud.points, tolerance_mm=tolerance,
-                     rms_tolerance_mm=rms_tolerance, design_faces=design_cloud.faces, **options)
+                     rms_tolerance_mm=rms_tolerance, design_faces=design_cloud.faces, gap_mm=gaps[0],
+                     max_gap_mm=gaps[1], **options)
     # 4. pictures, report, export, the result
     _outputs(result, plot, report, export_path, scale_mm, design, measured, design_cloud, measured_cloud)
     if as_json:
@@ -136,7 +149,7 @@ def _options(job_path, design_points, scan_path, skin, thickness, margin, mark_m
     """The compare keywords from the job (as the loop judges) and the explicit options (which win)."""
     if job_path is None:
         options = {"offset_mm": skin_offset_mm(skin or "mid", thickness), "margin_mm": 0.0,
-                   "reference_mark": _mark_without_job(design_points, scan_path, mark_mm)}
+                   "reference_mark": _mark_without_job(design_points, scan_path, mark_mm, margin)}
     else:
         from mppf.measure.job_options import job_compare_options
         from mppf.planning.job import load_job
@@ -149,11 +162,11 @@ def _options(job_path, design_points, scan_path, skin, thickness, margin, mark_m
     return options
 
 
-def _mark_without_job(design_points, scan_path, mark_mm):
-    """The reference mark without a job: the design side at the corner of the design's own frame."""
+def _mark_without_job(design_points, scan_path, mark_mm, margin=None):
+    """The reference mark without a job: the design side at the corner of the plate as cut (--margin), own frame."""
     from mppf.measure.mark import reference_mark
 
-    return reference_mark(scan_path, design_points, None, mark_mm)
+    return reference_mark(scan_path, design_points, None, mark_mm, margin_mm=max(float(margin or 0.0), 0.0))
 
 
 def _outputs(result, plot, report, export_path, scale_mm, design, measured, design_cloud, measured_cloud) -> None:
@@ -209,6 +222,11 @@ def _print_result(result, design: str, measured: str) -> None:
     table.add_row("set aside / outside", f"{int(c.is_outlier.sum())} / {int(c.is_outside.sum())}")
     if c.set_aside is not None and c.set_aside.count:
         table.add_row("set aside (scanner artefacts)", c.set_aside.describe(c.tolerance_mm))
+    if c.coverage is not None:
+        cov = c.coverage
+        table.add_row("not measured (decides)", "none: the whole net plate measured" if cov.complete else
+                      f"{len(cov.regions)} area(s), {cov.uncovered_pct:.1f} % of the net plate: " + "; ".join(cov.names()))
+        table.add_row("allowed gap / largest gap", f"{cov.allowed_gap_mm:.0f} mm / {cov.largest_gap_mm:.0f} mm")
     table.add_row("form smoothing", f"point spacing {c.form.get('spacing_mm', float('nan')):.1f} mm, noise "
                                     f"{c.form.get('noise_mm', float('nan')):.2f} mm (see the notes)")
     if c.margin_mm > 0:

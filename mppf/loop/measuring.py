@@ -2,8 +2,11 @@
 
 A scan that cannot be read, or that does not match the design (another plate, other
 units), is recorded as rejected (never taken again) and the cycle waits in "pressed" for
-another one. Every file the loop reads back (design, scan, job) is checked against the
-SHA-256 recorded for it.
+another one. A scan of this plate far from its design (its outline and shape are the
+design's, its point count the previous cycle's scan's) is not rejected: it is judged, badly
+formed, and the loop stops there (:mod:`mppf.measure.identity`, ``Decision.BADLY_FORMED``).
+Every file the loop reads back (design, scan, job) is checked against the SHA-256 recorded
+for it.
 """
 
 from __future__ import annotations
@@ -83,7 +86,7 @@ def compare_cycle(history: History, plate: PlateRecord, record: CycleRecord, des
         its ``<scan>.mark.json`` (exit 4).
     """
     try:
-        return _compare(plate, record, design, settings)
+        return _compare(plate, record, design, settings, _expected_points(history, record))
     except (GeometryError, AmbiguousStart) as exc:  # not judged: back to "pressed", wait for another
         history.reject_scan(plate.plate_id, record.cycle, record.scan_path, record.scan_sha256, exc.message)
         raise
@@ -100,14 +103,23 @@ def compare_recorded(plate: PlateRecord, record: CycleRecord, design: PointCloud
     return _compare(plate, record, design, settings)
 
 
-def _compare(plate: PlateRecord, record: CycleRecord, design: PointCloud, settings: LoopSettings):
+def _expected_points(history: History, record: CycleRecord) -> int | None:
+    """The point count of the previous cycle's scan (None for the first cycle)."""
+    if record.cycle <= 1:
+        return None
+    previous = history.cycle(record.plate_id, record.cycle - 1).comparison
+    return None if not previous else previous.get("n_points")
+
+
+def _compare(plate: PlateRecord, record: CycleRecord, design: PointCloud, settings: LoopSettings,
+             expected_points: int | None = None):
     scan = read_checked(record.scan_path, record.scan_sha256, "scan")
     job = load_cycle_job(record)
     offset_mm = plate.thickness_mm / 2.0 if settings.offset_mm is None else settings.offset_mm
     # the same keywords as ``mppf compare --job``: the same scan gets the same verdict
     options = job_compare_options(job, design.points, record.scan_path, offset_mm=offset_mm)
     return compare(design.points, scan.points, tolerance_mm=settings.tolerance_mm,
-                   rms_tolerance_mm=settings.rms_tolerance_mm, **options)
+                   rms_tolerance_mm=settings.rms_tolerance_mm, expected_points=expected_points, **options)
 
 
 def comparison_summary(comparison) -> dict:

@@ -36,7 +36,8 @@ class Decision(StrEnum):
     MAX_CYCLES = "max_cycles"
     DIVERGED = "diverged"
     CANNOT_CONVERGE = "cannot_converge"  # the correction found no way on: see its verdict
-    NEEDS_REVIEW = "needs_review"  # form and RMS within limits, but set-aside points beyond the tolerance
+    NEEDS_REVIEW = "needs_review"  # form and RMS within limits, but set-aside points beyond the tolerance or gaps
+    BADLY_FORMED = "badly_formed"  # the scan is this plate, far from its design: the loop stops, a person looks
 
 
 class PlateStatus(StrEnum):
@@ -48,6 +49,7 @@ class PlateStatus(StrEnum):
     DIVERGED = "diverged"
     CANNOT_CONVERGE = "cannot_converge"
     NEEDS_REVIEW = "needs_review"
+    BADLY_FORMED = "badly_formed"
 
 
 STATES = tuple(CycleState)

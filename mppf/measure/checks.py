@@ -62,23 +62,37 @@ def check_size(uv_design: np.ndarray, measured_local: np.ndarray, margin_mm: flo
             hint="check the files and the --units (a scan in metres read as millimetres is 1000 times too small)")
 
 
-def check_match(deviation, outside, tolerance_mm: float, reg: Registration, depth_mm: float) -> None:
-    """Raise GeometryError when the scan is evidently of another plate (or did not register).
+def gross_mm(tolerance_mm: float, depth_mm: float) -> float:
+    """The gross distance: ``max(10 tolerance, 25 mm, depth / 4)`` (a plate within it of its design is near it)."""
+    return max(10.0 * tolerance_mm, 25.0, 0.25 * depth_mm)
 
-    Another plate: more than half of the scan lies beyond the design's edge, or more than
-    half lies farther from the design than ``max(10 tolerance, 25 mm, depth / 4)`` (a
-    badly formed but right plate stays within a quarter of its design depth).
+
+def check_match(dev, skin, tolerance_mm: float, reg: Registration, expected_points: int | None = None):
+    """Raise GeometryError when the scan is evidently of another plate (or in other units, or did not register);
+    return the :class:`~mppf.measure.identity.Evidence` when it is this plate badly formed, None when it is near
+    its design.
+
+    Another plate: more than half of the scan lies beyond the design's edge; or more than
+    half lies farther from the design than :func:`gross_mm` and its outline, shape or point
+    count says it is not this plate (:mod:`mppf.measure.identity`). When they say it is,
+    the plate is **badly formed**: judged (out of tolerance), not refused.
     """
-    n = deviation.shape[0]
+    from mppf.measure.identity import evidence
+
+    deviation, outside = dev.deviation_mm, dev.outside
     if outside.mean() > 1.0 - MATCH_FRACTION:
         raise GeometryError(
             f"the scan does not match the design: {100 * outside.mean():.0f} % of the measured points lie "
             "outside the design plate after registration",
             hint="check that the scan and the design are of the same plate (and the --units)")
-    gross_mm = max(10.0 * tolerance_mm, 25.0, 0.25 * depth_mm)
-    near = np.abs(np.where(outside, np.inf, deviation)) <= gross_mm
-    if near.sum() < MATCH_FRACTION * n:
+    gross = gross_mm(tolerance_mm, float(np.ptp(skin.design_local[:, 2])))
+    near = np.abs(np.where(outside, np.inf, deviation)) <= gross
+    if near.sum() >= MATCH_FRACTION * deviation.shape[0]:
+        return None
+    found = evidence(dev, skin, near, gross, expected_points)
+    if not found.same_plate:
         raise GeometryError(
-            f"the scan does not match the design: only {100 * near.mean():.0f} % of the measured points lie "
-            f"within {gross_mm:g} mm of it after registration (registration RMS {reg.rms_mm:.1f} mm)",
+            f"the scan does not match the design: {found.describe()} (registration RMS {reg.rms_mm:.1f} mm): "
+            "another plate, or other units",
             hint="check that the scan and the design are of the same plate (and the --units)")
+    return found

@@ -32,8 +32,12 @@ The steps of :func:`compare` (the math is in ``docs/compare.md``):
    point, set-aside ones included), the form deviation with its smoothing scale from the
    point spacing and the noise (:mod:`mppf.measure.form`) and, given the punch positions,
    the deviation at each punch (:mod:`mppf.measure.punches`).
+   Coverage: the areas of the net plate not measured, gaps wider than the allowed gap
+   (:mod:`mppf.measure.coverage`).
 7. The verdict: the one decision rule (:func:`mppf.measure.decision.verdict`): form max,
-   RMS and the set-aside points.
+   RMS, the set-aside points, the coverage, and a badly formed plate (a scan far from its
+   design whose outline and shape say it is this plate, :mod:`mppf.measure.identity`:
+   judged out of tolerance, not refused as another plate).
 
 A trim margin (``margin_mm``: the excess band the scanned plate still carries around the
 net outline) grows the registration target, the size check and the outline fit by the
@@ -55,9 +59,11 @@ from mppf.core.defaults import RMS_TOLERANCE_MM
 from mppf.core.transform import apply_tf, as_points
 from mppf.geometry.surface import fit_plate
 from mppf.measure import checks
+from mppf.measure.coverage import GAP_MM, MAX_GAP_MM, check_gaps, coverage
 from mppf.measure.decision import Figures, Limits, verdict
 from mppf.measure.deviations import DesignSkin, normal_sign
 from mppf.measure.form import form_of
+from mppf.measure.localfit import spatial_query
 from mppf.measure.outliers import SetAside, find_outliers
 from mppf.measure.punches import nearest_punch, punch_deviations
 from mppf.measure.result import Comparison
@@ -93,6 +99,9 @@ def compare(
     fit_outline: bool | None = None,
     margin_mm: float = 0.0,
     punch_label_base: int = 1,
+    gap_mm: float = GAP_MM,
+    max_gap_mm: float = MAX_GAP_MM,
+    expected_points: int | None = None,
 ) -> Comparison:
     """Register a scan onto its design and measure the deviation of every point.
 
@@ -153,6 +162,15 @@ def compare(
         extension past its edge and give the deviations of the punches under the margin,
         but are left out of every statistic (the tolerance is on the net plate). Default
         0: no margin.
+    gap_mm, max_gap_mm : float
+        The smallest and the largest allowed gap in the measurement (mm across): "in
+        tolerance" needs the whole net plate measured within ``max(gap_mm, 5 point
+        spacings)``, at most ``max_gap_mm`` (:mod:`mppf.measure.coverage`); else "needs review"
+        with the uncovered areas named.
+    expected_points : int, optional
+        How many points a scan of this plate has (the loop: the previous cycle's); one piece
+        of the evidence that a scan far from its design is this plate, badly formed
+        (:mod:`mppf.measure.identity`).
 
     Returns
     -------
@@ -164,7 +182,9 @@ def compare(
         Bad options or shapes.
     GeometryError
         Too few points, a design that is not a plate, or a scan that does not match the
-        design (registration failed or most points far from it).
+        design (another plate or other units: its size, or most points far from it and its
+        outline, shape or point count unlike the design's). A scan far from its design
+        whose outline and shape are the design's is this plate badly formed: it is judged.
     AmbiguousStart
         The scan fits its design equally well two ways round (a nearly symmetric plate) and
         neither a reference mark nor a rotation hint says which (exit 4; both candidates in
@@ -175,6 +195,7 @@ def compare(
     measured = as_points(measured_points, name="measured points")
     margin_mm = checks.check_options(tolerance_mm, offset_mm, measured, punch_xy_mm, tf_press_design, margin_mm)
     limits = Limits(float(tolerance_mm), float(rms_tolerance_mm))
+    gap_mm, max_gap_mm = check_gaps(gap_mm, max_gap_mm)
 
     # 1. the design surface, its normal oriented (up in press coordinates when known)
     fitted = fit_plate(design, kind="spline", faces=design_faces, source="design")
@@ -203,8 +224,10 @@ def compare(
                                         margin_mm=margin_mm, heights=skin.heights(measured))
         notes[0] = f"{notes[0]}; {note}"
         dev = skin.deviate(measured, transform)
-    checks.check_match(dev.deviation_mm, dev.outside, tolerance_mm, reg,
-                       depth_mm=float(np.ptp(skin.design_local[:, 2])))
+    # another plate or other units: refused; this plate far from its design: judged (badly formed)
+    badly = checks.check_match(dev, skin, tolerance_mm, reg, expected_points)
+    if badly is not None:
+        notes.append(f"badly formed: {badly.describe()}: this plate, far out of tolerance")
     # a scan of this plate that fits two ways round is not judged (exit 4, both candidates shown)
     start.require_settled()
 
@@ -222,6 +245,10 @@ def compare(
     form, field = form_of(dev.uv, dev.deviation_mm, inlier, measured_ok, dev.in_margin)
     aside = _set_aside(set_aside & net, dev, artefacts, tolerance_mm, tf_press_design, punch_xy_mm, punch_label_base)
     notes += [field.describe(), aside.describe(tolerance_mm), *_left_out(set_aside, dev, margin_mm)]
+    # what of the net plate was not measured (occlusions, rim bands): gaps wider than allowed
+    covered = coverage(skin.outline, _nearest(artefacts, dev), artefacts.spacing_mm, gap_mm, max_gap_mm,
+                       _on_press(skin, tf_press_design, punch_xy_mm, punch_label_base))
+    notes.append(covered.describe())
     punch = punch_n = punch_interp = None
     if punch_xy_mm is not None:
         punch, punch_n, punch_interp = punch_deviations(punch_xy_mm, tf_press_design, skin, dev, measured_ok, design,
@@ -229,9 +256,11 @@ def compare(
         notes.append(f"punch deviations: {int(np.isfinite(punch).sum())} punches on the plate, "
                      f"{int(punch_interp.sum())} interpolated across gaps in the scan")
 
-    # 7. the one decision rule: form max, RMS, set-aside points beyond the tolerance
+    # 7. the one decision rule: form max, RMS, set-aside points beyond the tolerance, coverage, badly formed
     form_max = float(abs(field.peak_mm))
-    decided = verdict(Figures(form_max, stats.rms_mm, aside.count, aside.beyond_tolerance, aside.max_abs_mm), limits)
+    decided = verdict(Figures(form_max, stats.rms_mm, aside.count, aside.beyond_tolerance, aside.max_abs_mm,
+                              covered.names(), len(covered.regions), covered.allowed_gap_mm,
+                              "" if badly is None else badly.describe()), limits)
     return Comparison(
         rms_mm=stats.rms_mm, max_abs_mm=stats.max_abs_mm, mean_mm=stats.mean_mm, std_mm=stats.std_mm,
         within_tolerance_pct=within_pct, tolerance_mm=float(tolerance_mm),
@@ -244,7 +273,7 @@ def compare(
         form_deviation_mm=form, punch_deviation_mm=punch, punch_normal_deviation_mm=punch_n,
         punch_interpolated=punch_interp, notes=notes, margin_mm=margin_mm, in_margin=dev.in_margin,
         rms_tolerance_mm=float(rms_tolerance_mm), verdict=decided, set_aside=aside, form=field.to_dict(),
-        punch_label_base=int(punch_label_base),
+        punch_label_base=int(punch_label_base), coverage=covered, identity=badly,
     )
 
 
@@ -291,6 +320,32 @@ def _set_aside(mask, dev, artefacts, tolerance_mm: float, tf_press_design, punch
             punch = nearest_punch(np.asarray(punch_xy_mm, dtype=float), press_xy, label_base)
     return SetAside(int(mask.sum()), float(absolute.max()), int(np.sum(absolute > tolerance_mm)), dev.uv[worst].copy(),
                     press_xy, punch, spacing, share)
+
+
+def _nearest(artefacts, dev):
+    """``nearest(cells) -> distances`` to the nearest measured point (not outside): the artefact test's k-d tree
+    (set-aside points count as measured positions: one is set aside only where a dense scan surrounds it)."""
+    tree = artefacts.tree
+    if tree is None:
+        from scipy.spatial import cKDTree
+
+        tree = cKDTree(dev.uv[~dev.outside])
+    return lambda cells: spatial_query(tree, cells, 1)[0][:, 0]
+
+
+def _on_press(skin: DesignSkin, tf_press_design, punch_xy_mm, label_base: int):
+    """``where(uv) -> (press xy, nearest punch)`` of a place on the design plane, or None without the press pose."""
+    if tf_press_design is None:
+        return None
+    tf = np.asarray(tf_press_design, dtype=float)
+
+    def where(uv):
+        press_xy = apply_tf(tf, skin.at(np.asarray(uv, dtype=float)[None]))[0, :2]
+        punch = None if punch_xy_mm is None else nearest_punch(np.asarray(punch_xy_mm, dtype=float), press_xy,
+                                                               label_base)
+        return press_xy, punch
+
+    return where
 
 
 def _left_out(set_aside, dev, margin_mm: float) -> list[str]:

@@ -5,10 +5,14 @@
 
 - **out of tolerance** when the form maximum (the plate's largest deviation, the scanner's
   point noise averaged out: :mod:`mppf.measure.form`) exceeds the tolerance, or the RMS of
-  the measured points exceeds the RMS tolerance;
+  the measured points exceeds the RMS tolerance, or the plate is **badly formed** (most of
+  it farther than the gross distance from its design, but its outline and shape say it is
+  this plate: :mod:`mppf.measure.identity`; the loop stops there);
 - else **needs review** when any point set aside as a scanner artefact
-  (:mod:`mppf.measure.outliers`) lies beyond the tolerance: the inspection cannot be sure it
-  was an artefact and not the plate;
+  (:mod:`mppf.measure.outliers`) lies beyond the tolerance (the inspection cannot be sure it
+  was an artefact and not the plate), or when part of the net plate was not measured: an
+  empty gap wider than the allowed gap (:mod:`mppf.measure.coverage`; the plate cannot be
+  passed on what was not measured);
 - else **in tolerance**.
 
 Every headline quotes the figures that decided, "form max" labelled as such. Lengths in mm.
@@ -17,6 +21,8 @@ Every headline quotes the figures that decided, "form max" labelled as such. Len
 from __future__ import annotations
 
 from dataclasses import dataclass
+
+import numpy as np
 
 from mppf.core.defaults import RMS_TOLERANCE_MM, TOLERANCE_MM
 from mppf.core.validate import check_positive
@@ -57,6 +63,15 @@ class Figures:
         How many of them lie beyond the tolerance.
     set_aside_max_mm : float
         Their largest absolute deviation (0 when none).
+    gaps : tuple of str
+        The areas of the net plate not measured (:class:`mppf.measure.coverage.Gap`), in
+        words, the largest first (at most three named).
+    n_gaps : int
+        How many there are.
+    allowed_gap_mm : float
+        The allowed gap (NaN: coverage not judged).
+    badly_formed : str
+        Empty, or why a scan far from its design is this plate (badly formed: out of tolerance).
     """
 
     form_max_mm: float
@@ -64,6 +79,10 @@ class Figures:
     set_aside: int = 0
     set_aside_beyond: int = 0
     set_aside_max_mm: float = 0.0
+    gaps: tuple = ()
+    n_gaps: int = 0
+    allowed_gap_mm: float = float("nan")
+    badly_formed: str = ""
 
 
 @dataclass(frozen=True)
@@ -90,6 +109,11 @@ class Verdict:
         return self.kind == IN_TOLERANCE
 
     @property
+    def badly_formed(self) -> bool:
+        """Out of tolerance because the plate is far from its design (this plate, badly formed)."""
+        return bool(self.figures.badly_formed)
+
+    @property
     def label(self) -> str:
         """"IN tolerance", "OUT of tolerance" or "NEEDS REVIEW"."""
         return LABELS[self.kind]
@@ -105,6 +129,7 @@ class Verdict:
         return {"kind": self.kind, "headline": self.headline, "reasons": list(self.reasons),
                 "form_max_mm": f.form_max_mm, "rms_mm": f.rms_mm, "set_aside": f.set_aside,
                 "set_aside_beyond_tolerance": f.set_aside_beyond, "set_aside_max_mm": f.set_aside_max_mm,
+                "uncovered_regions": f.n_gaps, "allowed_gap_mm": f.allowed_gap_mm, "badly_formed": self.badly_formed,
                 "tolerance_mm": lim.tolerance_mm, "rms_tolerance_mm": lim.rms_tolerance_mm}
 
 
@@ -120,13 +145,24 @@ def verdict(figures: Figures, limits: Limits) -> Verdict:
     rms_ok = f.rms_mm <= lim.rms_tolerance_mm
     form = f"form max {f.form_max_mm:.2f} mm {'<=' if form_ok else '>'} {lim.tolerance_mm:g} mm"
     rms = f"RMS {f.rms_mm:.2f} mm {'<=' if rms_ok else '>'} {lim.rms_tolerance_mm:g} mm"
-    if not within_limits(f.form_max_mm, f.rms_mm, lim):
+    if not within_limits(f.form_max_mm, f.rms_mm, lim) or f.badly_formed:
         failed = [text for text, ok in ((form, form_ok), (rms, rms_ok)) if not ok]
+        if f.badly_formed:
+            failed.insert(0, f"badly formed: {f.badly_formed}")
         return Verdict(OUT_OF_TOLERANCE, tuple(failed), f, lim)
+    review = []
     if f.set_aside_beyond:
-        return Verdict(NEEDS_REVIEW, (f"{f.set_aside_beyond} of {f.set_aside} point(s) set aside as scanner "
-                                      f"artefacts lie beyond {lim.tolerance_mm:g} mm (largest |deviation| "
-                                      f"{f.set_aside_max_mm:.2f} mm): check them", form, rms), f, lim)
+        review.append(f"{f.set_aside_beyond} of {f.set_aside} point(s) set aside as scanner artefacts lie beyond "
+                      f"{lim.tolerance_mm:g} mm (largest |deviation| {f.set_aside_max_mm:.2f} mm): check them")
+    if f.n_gaps:
+        more = f"; and {f.n_gaps - len(f.gaps)} more" if f.n_gaps > len(f.gaps) else ""
+        review.append(f"{f.n_gaps} area(s) of the net plate not measured (gaps wider than {f.allowed_gap_mm:.0f} mm): "
+                      f"{'; '.join(f.gaps)}{more}: measure them")
+    if review:
+        return Verdict(NEEDS_REVIEW, (*review, form, rms), f, lim)
     aside = ("no point set aside" if not f.set_aside
              else f"{f.set_aside} point(s) set aside, none beyond {lim.tolerance_mm:g} mm")
-    return Verdict(IN_TOLERANCE, (form, rms, aside), f, lim)
+    reasons = (form, rms, aside)
+    if np.isfinite(f.allowed_gap_mm):
+        reasons += (f"the whole net plate measured (no gap wider than {f.allowed_gap_mm:.0f} mm)",)
+    return Verdict(IN_TOLERANCE, reasons, f, lim)

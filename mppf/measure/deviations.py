@@ -10,7 +10,8 @@ trim-margin masks (:meth:`DesignSkin.deviate`). Lengths in mm.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -20,12 +21,16 @@ from mppf.core.transform import apply_rotation, apply_tf
 from mppf.geometry.frame import LocalFrame
 from mppf.geometry.localize import FootPoints, foot_points
 from mppf.geometry.surface import FittedPlate
+from mppf.measure.localfit import WORKERS, spatial_query
 
 DENSE_POINTS = 25000
 """Points of the dense design skin the scan is registered onto."""
 
 ON_OUTLINE_MM = 1e-9
 """Points this close to an outline count as inside it (grid points on a straight edge)."""
+
+PARALLEL_POINTS = 50000
+"""From this many points the foot points are found on every core."""
 
 OUTSIDE_SPACINGS = 1.5
 """A foot point beyond the outline is outside the design when farther than this many design
@@ -125,7 +130,7 @@ class DesignSkin:
     def deviate(self, measured, tf) -> Deviation:
         """Moved points, foot points, signed deviations, outside and trim-margin masks at ``tf``."""
         moved = apply_tf(tf, measured)
-        feet = foot_points(self.fitted.surface, self.frame.to_local(moved))
+        feet = _foot_points(self.fitted.surface, self.frame.to_local(moved))
         distance = np.asarray(feet.distance_mm, dtype=float)
         deviation = np.where(np.isfinite(distance), self.sign * distance - self.offset_mm, np.nan)
         uv = np.asarray(feet.uv, dtype=float)
@@ -138,8 +143,10 @@ class DesignSkin:
     def outside(self, uv) -> np.ndarray:
         """Foot points (n, 2) outside the design: beyond its grown outline and away from its points."""
         beyond = ~contains(self.grown, uv)
-        far = self._tree.query(uv)[0] > OUTSIDE_SPACINGS * max(self.spacing_mm, 1e-9) + self.margin_mm
-        return beyond & far
+        rows = np.flatnonzero(beyond)  # only the points beyond the outline need the distance to the design's points
+        reach = OUTSIDE_SPACINGS * max(self.spacing_mm, 1e-9) + self.margin_mm
+        beyond[rows] = spatial_query(self._tree, uv[rows], 1)[0][:, 0] > reach
+        return beyond
 
     def up_normals(self, uv) -> np.ndarray:
         """Unit design normals (k, 3) at design-plane points ``uv``, world, on the side of positive deviations."""
@@ -155,6 +162,22 @@ class DesignSkin:
             return dev.moved[use], self.up_normals(dev.uv[use]), dev.deviation_mm[use]
 
         return net_plate_at
+
+
+def _foot_points(surface, local: np.ndarray) -> FootPoints:
+    """:func:`mppf.geometry.localize.foot_points` of many points in :data:`WORKERS` parts on as many threads (each
+    point's Newton iteration is its own: the same foot points; ``iterations`` is the slowest part's and
+    ``mean_sq_change_mm2`` its last iteration's)."""
+    n = local.shape[0]
+    if n < PARALLEL_POINTS or WORKERS < 2:
+        return foot_points(surface, local)
+    parts = np.array_split(np.arange(n), WORKERS)
+    with ThreadPoolExecutor(WORKERS) as pool:
+        found = list(pool.map(lambda rows: foot_points(surface, local[rows]), parts))
+    slowest = max(found, key=lambda f: f.iterations)
+    joined = {name: np.concatenate([getattr(f, name) for f in found])
+              for name in ("uv", "xyz", "distance_mm", "converged", "residual_mm")}
+    return replace(slowest, **joined)
 
 
 def _within(polygon, points_xy, tolerance_mm: float) -> np.ndarray:

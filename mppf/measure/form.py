@@ -30,7 +30,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from mppf.core.defaults import MAD_SCALE
-from mppf.measure.localfit import LocalFits, fit
+from mppf.measure.localfit import LocalFits, fit, spatial_query
+from mppf.measure.localfit import fits as shared_fits
 
 FIELD = ((10, 6), (20, 6), (40, 6), (40, 3))
 """(points, terms) of the local fits the form deviation chooses from, narrowest first: quadrics (6 terms),
@@ -112,22 +113,13 @@ class FormField:
                 "peak_mm": self.peak_mm, "peak_uv_mm": [float(v) for v in self.peak_uv_mm]}
 
 
-def _neighbours(tree: cKDTree, centres: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """(distances, indices) of the ``k`` nearest data points of each centre, queried in a spatial order."""
-    order = np.lexsort((centres[:, 1], np.floor(centres[:, 0] / max(np.ptp(centres[:, 0]) / 64.0, 1e-9))))
-    dist, idx = tree.query(centres[order], k=k, workers=-1 if centres.shape[0] >= 20000 else 1)
-    back = np.empty_like(order)
-    back[order] = np.arange(order.size)
-    return dist[back].reshape(-1, k), idx[back].reshape(-1, k)
-
-
 def noise_mm(uv: np.ndarray, values: np.ndarray, tree: cKDTree) -> float:
     """The deviations' noise: their scatter about their own k = 20 quadric fits (robust), mm."""
     k = min(SCALES[1], uv.shape[0])
     sample = np.arange(uv.shape[0])
     if sample.size > NOISE_SAMPLE:
         sample = np.sort(np.random.default_rng(0).choice(sample.size, NOISE_SAMPLE, replace=False))
-    dist, nb = _neighbours(tree, uv[sample], k)
+    dist, nb = spatial_query(tree, uv[sample], k)
     fits = fit(uv, values, uv[sample], nb, dist, k)
     spread = np.sqrt(np.maximum(1.0 - 2.0 * fits.leverage + fits.variance, 1e-3))
     return float(MAD_SCALE * np.median(np.abs(values[sample] - fits.value) / spread))
@@ -161,19 +153,29 @@ def smooth(uv: np.ndarray, values: np.ndarray, centres: np.ndarray, sigma: float
     """
     levels = FIELD if levels is None else levels
     ks = [min(k, uv.shape[0]) for k, _ in levels]
-    dist, nb = _neighbours(tree, centres, max(ks))
+    dist, nb = spatial_query(tree, centres, max(ks))
     out, level = np.empty(centres.shape[0]), np.empty(centres.shape[0], dtype=int)
     kept, radius = [], []
     for lo in range(0, centres.shape[0], CHUNK):
         hi = min(lo + CHUNK, centres.shape[0])
-        fits = [fit(uv, values, centres[lo:hi], nb[lo:hi], dist[lo:hi], k, terms, hat=True)
-                for k, (_, terms) in zip(ks, levels)]
+        fits = _level_fits(uv, values, centres[lo:hi], nb[lo:hi], dist[lo:hi], ks, [t for _, t in levels])
         out[lo:hi], level[lo:hi] = _lepski(fits, sigma, gamma)
         kept.append(fits)
         radius.append([np.median(f.radius) for f in fits])
     if keep:
         return out, level, kept[0]
     return out, level, list(np.median(np.array(radius), axis=0))
+
+
+def _level_fits(uv, values, centres, nb, dist, ks: list[int], terms: list[int]) -> list[LocalFits]:
+    """The fits of every level (with their hat weights), in the order of the levels; levels over the same number
+    of points share one neighbourhood (:func:`mppf.measure.localfit.fits`)."""
+    out: list = [None] * len(ks)
+    for k in dict.fromkeys(ks):
+        mine = [i for i, kk in enumerate(ks) if kk == k]
+        for i, f in zip(mine, shared_fits(uv, values, centres, nb, dist, k, tuple(terms[i] for i in mine), hat=True)):
+            out[i] = f
+    return out
 
 
 def _stationary(fits: LocalFits, rows: np.ndarray) -> np.ndarray:

@@ -28,6 +28,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from mppf.core.defaults import MAD_SCALE
+from mppf.measure.localfit import spatial_query
 
 MIN_NEIGHBOURS = 12
 """Fewest neighbours within :data:`RADIUS_SPACINGS` local spacings of a point that may be set aside."""
@@ -115,6 +116,7 @@ class ArtefactTest:
     mask: np.ndarray          # (n,) bool: certainly scanner artefacts
     dense_fraction: float     # share of the tested points dense enough to be tested at all
     spacing_mm: float         # median local point spacing
+    tree: cKDTree | None = None  # the k-d tree of the tested points (design plane; None when too few to test)
 
 
 def find_outliers(uv: np.ndarray, deviation: np.ndarray, valid: np.ndarray) -> ArtefactTest:
@@ -134,18 +136,18 @@ def find_outliers(uv: np.ndarray, deviation: np.ndarray, valid: np.ndarray) -> A
         return ArtefactTest(out, 0.0, float("nan"))
     pts, dev = uv[idx], deviation[idx]
     tree = cKDTree(pts)
-    dist, nb = tree.query(pts, k=MIN_NEIGHBOURS + 1, workers=-1)
+    dist, nb = spatial_query(tree, pts, MIN_NEIGHBOURS + 1)
     dense = _dense(dist, nb)
     # a cheap screen: far from the median of the nearest neighbours (most points end here)
     jump = dev - np.median(dev[nb[:, 1:MIN_NEIGHBOURS + 1]], axis=1)
     noise = MAD_SCALE * float(np.median(np.abs(jump - np.median(jump))))
     rows = np.flatnonzero(dense & (np.abs(jump) > max(SIGMAS * noise, FLOOR_MM)))
     if rows.size:
-        near, nb = tree.query(pts[rows], k=NEIGHBOURS + 1)
+        near, nb = spatial_query(tree, pts[rows], NEIGHBOURS + 1)
         miss, scatter = _quadric_miss(pts, dev, rows, nb[:, 1:], near[:, 1:])
         artefact = np.abs(miss) > np.maximum(SIGMAS * np.maximum(scatter, noise), FLOOR_MM)
         out[idx[rows[artefact]]] = True
-    return ArtefactTest(out, float(dense.mean()), float(np.median(local_spacing_mm(dist))))
+    return ArtefactTest(out, float(dense.mean()), float(np.median(local_spacing_mm(dist))), tree)
 
 
 def _dense(dist: np.ndarray, nb: np.ndarray) -> np.ndarray:

@@ -8,7 +8,9 @@ import numpy as np
 
 from mppf.core.transform import tf_to_list
 from mppf.geometry.frame import LocalFrame
+from mppf.measure.coverage import Coverage
 from mppf.measure.decision import Verdict
+from mppf.measure.identity import Evidence
 from mppf.measure.outliers import SetAside
 from mppf.registration.register import Registration
 
@@ -90,6 +92,11 @@ class Comparison:
         The form deviation's smoothing as used (:meth:`mppf.measure.form.FormField.to_dict`).
     punch_label_base : int
         Punch rows and columns are named from this (1 by default).
+    coverage : Coverage or None
+        What of the net plate was not measured (:mod:`mppf.measure.coverage`).
+    identity : Evidence or None
+        Set when the plate is badly formed: the evidence that a scan far from its design is
+        this plate (:mod:`mppf.measure.identity`).
     """
 
     rms_mm: float
@@ -127,6 +134,8 @@ class Comparison:
     set_aside: SetAside | None = None
     form: dict = field(default_factory=dict)
     punch_label_base: int = 1
+    coverage: Coverage | None = None
+    identity: Evidence | None = None
 
     def __post_init__(self):
         if self.in_margin is None:
@@ -175,6 +184,8 @@ class Comparison:
             "set_aside": None if self.set_aside is None else self.set_aside.to_dict(),
             "form": self.form,
             "punch_label_base": self.punch_label_base,
+            "coverage": None if self.coverage is None else self.coverage.to_dict(),
+            "badly_formed": None if self.identity is None else self.identity.to_dict(),
             "n_points": self.n_points,
             "n_inliers": self.n_inliers,
             "n_outliers": int(self.is_outlier.sum()),

@@ -5,7 +5,9 @@ seen from the +normal side): the measured points coloured by their signed deviat
 with a diverging colour map centred on 0 (blue below the design, red above) on a FIXED
 scale (default +-2 x the tolerance, :func:`colour_limit_mm`: the same for every cycle of a
 plate, so pictures compare), the tolerance as black contour lines, set-aside points as
-black crosses and the design outline; areas without scan data are hatched. With a trim
+black crosses and the design outline; areas without scan data are hatched, and the areas
+of the net plate not measured within the allowed gap (:mod:`mppf.measure.coverage`) are
+outlined in magenta, cross-hatched and numbered. With a trim
 margin, the points in the margin are grey dots (not counted) inside the grown outline
 (dashed). The punch map names rows and columns as the press does (from 1 by default) and
 writes each punch's value in its cell.
@@ -14,6 +16,7 @@ writes each punch's value in its cell.
 from __future__ import annotations
 
 import io
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -87,6 +90,9 @@ def deviation_map_figure(comparison: Comparison, title: str | None = None, scale
                           linestyles=["--", "-"], zorder=3)
     else:
         sc = ax.scatter(uv[inl, 0], uv[inl, 1], c=d, cmap=CMAP, norm=norm, s=12, linewidths=0, zorder=2)
+    extra = []  # legend entries drawn without a label of their own
+    if c.coverage is not None and c.coverage.uncovered.any():
+        extra.append(_draw_uncovered(ax, c.coverage))
     if c.is_outlier.any():
         ax.plot(uv[c.is_outlier, 0], uv[c.is_outlier, 1], "x", color="black", markersize=4, zorder=4,
                 label=f"set aside as scanner artefacts ({int(c.is_outlier.sum())}, reported)")
@@ -97,11 +103,29 @@ def deviation_map_figure(comparison: Comparison, title: str | None = None, scale
     ax.set_aspect("equal")
     ax.set_xlabel("u (mm, design frame)")
     ax.set_ylabel("v (mm, design frame)")
-    ax.set_title(title or f"{c.headline}\nlargest point |d| {c.max_abs_mm:.2f} mm, "
+    ax.set_title(title or f"{textwrap.fill(c.headline, 125)}\nlargest point |d| {c.max_abs_mm:.2f} mm, "
                           f"{c.within_tolerance_pct:.1f} % of the net points within +-{c.tolerance_mm:g} mm",
                  fontsize=9)
-    ax.legend(loc="upper right", fontsize=8)
+    handles, _ = ax.get_legend_handles_labels()
+    ax.legend(handles=handles + extra, loc="upper right", fontsize=8)
     return fig
+
+
+def _draw_uncovered(ax, coverage):
+    """Draw the areas of the net plate not measured (:mod:`mppf.measure.coverage`): outlined in magenta,
+    cross-hatched, each numbered as listed (the largest first); return their legend entry."""
+    from matplotlib.patches import Patch
+
+    mask = coverage.uncovered.astype(float)
+    ax.contourf(coverage.grid_u_mm, coverage.grid_v_mm, mask, levels=[0.5, 1.5], colors="none", hatches=["xx"],
+                zorder=3)
+    ax.contour(coverage.grid_u_mm, coverage.grid_v_mm, mask, levels=[0.5], colors="magenta", linewidths=1.4, zorder=4)
+    for number, gap in enumerate(coverage.regions[:9], start=1):
+        ax.annotate(f"{number}", gap.centroid_uv_mm, color="magenta", fontsize=10, fontweight="bold", ha="center",
+                    va="center", zorder=5, bbox={"facecolor": "white", "edgecolor": "magenta", "boxstyle": "circle"})
+    return Patch(facecolor="none", edgecolor="magenta", hatch="xx",
+                 label=f"not measured: {len(coverage.regions)} area(s), gaps wider than "
+                       f"{coverage.allowed_gap_mm:.0f} mm (needs review)")
 
 
 def histogram_figure(comparison: Comparison) -> Figure:
