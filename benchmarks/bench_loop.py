@@ -147,7 +147,7 @@ def run_direct(press, planned: Planned, plate, max_cycles: int) -> dict:
             row["decisions"].append("max_cycles")
             break
         # correct: the learned correction, its verdict, the next steps
-        trust = trust_region(row["rms"], predicted, RMS_TOL_MM)
+        trust = trust_region(row["rms"], predicted, RMS_TOL_MM, max_mm=row["max"], tolerance_mm=TOL_MM)
         learned = learned_correction(press, job.layout.design_mid_mm, THICKNESS_MM, NOMINAL, cycles,
                                      final.upper_mm, final.lower_mm, active, trust=trust)
         predicted.append(learned.predicted_rms_mm)

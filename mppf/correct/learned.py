@@ -52,11 +52,12 @@ the same)."""
 TRUST_POOR, TRUST_GOOD = 0.25, 0.75
 """Ratios of measured to predicted improvement below which the trust region halves, above which it doubles."""
 
+WORSE_THAN_BEST = 1.25
+"""A cycle whose excess over the tolerances is more than this times the best one seen counts as a step that made
+the plate worse (:func:`trust_region`)."""
+
 MIN_TRUST = 0.125
 """Smallest trust region (share of the full one)."""
-
-LEVERAGE_FACTOR = 3.0
-"""The stroke change may be this many times what the measured leverage of the plate asks for."""
 
 DIRECT_GAIN = 0.7
 """Gain of the displacement adjustment on what the model step cannot make."""
@@ -64,6 +65,10 @@ DIRECT_GAIN = 0.7
 REACH_ELASTIC_LIMITS = 4.0
 """Trust region of one correction: the loaded curvature may change by at most this many
 elastic-limit curvatures at any punch (the model is trusted that far from what was pressed)."""
+
+MIN_REACH_ELASTIC_LIMITS = 2.5
+"""The smallest reach, however small the trust region: a reverse bend must cross the elastic
+stretch of the plate's memory (two elastic-limit curvatures) to change anything at all."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -153,20 +158,20 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
     request = gain.model_request(-aim * error)
     # 5. the loaded curvature for it, through the model with its memory, in virtual cycles
     base_mid = 0.5 * (np.asarray(base_upper_mm, dtype=float) + np.asarray(base_lower_mm, dtype=float))
-    reach = REACH_ELASTIC_LIMITS * trust * section.elastic_limit_per_mm
+    reach = (MIN_REACH_ELASTIC_LIMITS + (REACH_ELASTIC_LIMITS - MIN_REACH_ELASTIC_LIMITS) * trust) \
+        * section.elastic_limit_per_mm
     largest = _stroke_room(press)
     change, misfit, unreached = solve_change(grid, section, model.states[-1], model.unloaded[-1], base_mid, request,
                                              reach, largest)
     # 6. what the model cannot make (a local error it does not describe): the displacement adjustment
     direct = trust * _direct_part(grid, section, model, base_mid, change, request, misfit)
-    # ... held to what the plate's measured leverage allows (a plate with less memory than the model)
-    change, direct = _within_leverage(grid, cycles, error, change, direct)
     # 7. the strokes, held to the limits, and the steps they need
     return _strokes(press, grid, base_upper_mm, base_lower_mm, change + direct, error, gain, section, model,
                     calibration, unreached, aim, direct)
 
 
-def trust_region(rms_mm, predicted_rms_mm, rms_tolerance_mm: float | None = None) -> float:
+def trust_region(rms_mm, predicted_rms_mm, rms_tolerance_mm: float | None = None, *, max_mm=None,
+                 tolerance_mm: float | None = None) -> float:
     """The trust region of the next correction, in (0, 1], from how well the earlier ones predicted.
 
     Classic trust-region bookkeeping on the measured RMS: for every correction the ratio of
@@ -184,6 +189,14 @@ def trust_region(rms_mm, predicted_rms_mm, rms_tolerance_mm: float | None = None
     rms_tolerance_mm : float, optional
         With it, the region is halved once the RMS is within it (only the largest deviation
         is out): near the tolerance a bold step costs more than a careful one.
+    max_mm : sequence of float, optional
+        Largest (form) deviation of the same cycles (mm), with ``tolerance_mm`` and
+        ``rms_tolerance_mm``: when the last cycle's excess over the tolerances (the larger of
+        largest deviation / tolerance and RMS / RMS tolerance) is more than
+        :data:`WORSE_THAN_BEST` times the best one seen, the region is a quarter (whatever
+        the RMS says: a correction that threw one region far off is not followed by a bold one).
+    tolerance_mm : float, optional
+        The tolerance of the largest deviation (mm).
     """
     trust = 1.0
     for before, after, predicted in zip(rms_mm, rms_mm[1:], predicted_rms_mm[1:]):
@@ -196,39 +209,14 @@ def trust_region(rms_mm, predicted_rms_mm, rms_tolerance_mm: float | None = None
             trust *= 0.5
         elif ratio > TRUST_GOOD:
             trust = min(1.0, 2.0 * trust)
+    known = max_mm is not None and all(m is not None and r is not None for r, m in zip(rms_mm, max_mm))
+    if rms_tolerance_mm is not None and tolerance_mm is not None and known and len(rms_mm) > 1:
+        excess = [max(r / rms_tolerance_mm, m / tolerance_mm) for r, m in zip(rms_mm, max_mm)]
+        if excess[-1] > WORSE_THAN_BEST * min(excess[:-1]):
+            trust *= 0.25
     if rms_tolerance_mm is not None and rms_mm[-1] <= rms_tolerance_mm:
         trust *= 0.5
     return max(trust, MIN_TRUST)
-
-
-def _within_leverage(grid: PunchGrid, cycles, error, change, direct):
-    """The stroke change scaled down to :data:`LEVERAGE_FACTOR` times what the plate's measured leverage asks.
-
-    The leverage ``L`` is the RMS change of the measured plate between the last two measured
-    cycles over the RMS change of their strokes (planes removed): how much the plate moved per
-    mm of stroke. The model may ask for a stroke change far larger than the error (to cross
-    the elastic stretch of its memory); a plate that moves more per mm than that (less memory
-    than the model has) would be thrown past the design, so the change is held to
-    ``LEVERAGE_FACTOR |e| / L`` (RMS).
-    """
-    known = [c for c in cycles if c.measured]
-    if len(known) < 2:
-        return change, direct
-    act = grid.active
-
-    def rms(field):
-        values = grid.flat(np.where(act, field, np.nan))[act]
-        return float(np.sqrt(np.nanmean(values**2)))
-
-    moved = rms(known[-1].error_mm - known[-2].error_mm)
-    stroked = rms(known[-1].steps_mid_mm[-1] - known[-2].steps_mid_mm[-1])
-    if moved <= 0.0 or stroked <= 0.0 or not np.isfinite(moved / stroked):
-        return change, direct
-    limit = LEVERAGE_FACTOR * rms(error) / (moved / stroked)
-    size = rms(change + direct)
-    if size <= limit:
-        return change, direct
-    return change * (limit / size), direct * (limit / size)
 
 
 def _direct_part(grid: PunchGrid, section: Section, model, base_mid, change, request, misfit: float) -> np.ndarray:

@@ -150,7 +150,8 @@ def _plan_learned(history: History, plate: PlateRecord, record: CycleRecord, pre
     # 2. the next strokes, learned from all of it
     rms = [r.rms_mm for r in records]
     predicted = [None if not r.correction else r.correction.get("predicted_rms_mm") for r in records]
-    trust = trust_region(rms, predicted, settings.rms_tolerance_mm)
+    trust = trust_region(rms, predicted, settings.rms_tolerance_mm, max_mm=[r.max_abs_mm for r in records],
+                         tolerance_mm=settings.tolerance_mm)
     learned = learned_correction(press, job.layout.design_mid_mm, plate.thickness_mm, job.layout.material, cycles,
                                  final.upper_mm, final.lower_mm, final.active, trust=trust)
     # 3. stop with a verdict when it finds no way on
