@@ -28,7 +28,6 @@ from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 
-from mppf.core.errors import InputError
 from mppf.core.db import open_sqlite
 from mppf.core.paths import data_dir
 

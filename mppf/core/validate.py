@@ -115,7 +115,7 @@ def check_name(name: str, value, *, hint: str = "", error=InputError) -> str:
     """
     if not isinstance(value, str) or not SAFE_NAME.fullmatch(value) or ".." in value:
         raise error(f"{name} {value!r} is not allowed: it names a folder, so it may hold only letters, digits, "
-                    "'.', '_' and '-'", hint=f"give at most 64 of those, no '..', starting with a letter or digit"
+                    "'.', '_' and '-'", hint="give at most 64 of those, no '..', starting with a letter or digit"
                     + (f" ({hint})" if hint else ""))
     return value
 

@@ -27,7 +27,6 @@ E57 files declare their unit), times ``scale`` for model-scale files.
 from __future__ import annotations
 
 import hashlib
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
