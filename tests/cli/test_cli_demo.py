@@ -5,11 +5,13 @@ from __future__ import annotations
 import sqlite3
 
 import ezdxf
+import pytest
 
 from mppf.cli import main
 from mppf.loop.history import History
 
 
+@pytest.mark.slow  # the whole mppf demo: a minute of simulation (several cycles over loopback Modbus)
 def test_demo_runs_end_to_end_with_pictures_and_summary(tmp_path, capsys):
     out = tmp_path / "demo"
     assert main(["demo", "--out", str(out), "--seed", "2"]) == 0

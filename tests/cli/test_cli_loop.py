@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from mppf.cli import main
 from mppf.core.scanner import ScanContext
@@ -38,6 +39,7 @@ def loop_args(design, flat, home: Path, *extra) -> list[str]:
             "--history", str(home / "history.sqlite"), "--time-scale", "200", *extra]
 
 
+@pytest.mark.slow  # minutes of simulation: 2-4 cycles of the steel-plate simulator, compared on dense scans
 def test_loop_converges_on_the_simulated_press(hull_dir, tmp_path, capsys):
     design, flat = _design_and_flat(tmp_path, hull_dir, CONVERGING_PLATE)
     # seed 2: a plate whose first cycle is out of tolerance (the loop has to correct it)

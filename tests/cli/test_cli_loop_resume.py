@@ -20,6 +20,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from mppf.loop.history import History
 from mppf.loop.plate import record_plate
@@ -46,6 +47,9 @@ def _state(db: Path, plate_id: str) -> tuple[str, int] | None:
     return row
 
 
+# minutes of simulation: real processes, motion at 4x real speed until the kill, then two cycles of the
+# steel-plate simulator (the resume logic itself is tested in-process: tests/loop/test_cycle.py)
+@pytest.mark.slow
 def test_kill_while_pressing_then_resume_loses_nothing_and_presses_nothing_twice(planned_plate, tmp_path):
     env = {**os.environ, "MPPF_HOME": str(tmp_path / "home")}
     db = tmp_path / "home" / "history.sqlite"
