@@ -28,7 +28,10 @@ with one physical effect turned off at a time (scatter, compliance, anisotropy, 
 the nominal-material mismatch) to show what each costs in cycles.
 
 Run:  python benchmarks/bench_loop.py [--seeds 1 2 3] [--plates P1_midbody_bilge_smooth ...]
-                                      [--mode direct|loop] [--simple] [--sweep] [--sweep-seeds 1]
+                                      [--mode direct|loop] [--simple] [--sweep] [--sweep-seeds 1] [--no-edge]
+
+In direct mode the correction also sees the net plate's edge beyond the outer punch rows
+(:func:`mppf.measure.punches.edge_deviations` of the true deviation; ``--no-edge``: not).
 """
 
 from __future__ import annotations
@@ -46,6 +49,7 @@ from threadpoolctl import threadpool_limits
 from mppf.core.errors import MppfError
 from mppf.core.grid import without_plane
 from mppf.core.transform import apply_tf
+from mppf.measure.punches import edge_deviations
 from mppf.correct.learned import learned_correction, steps_towards, trust_region
 from mppf.correct.memory import PressedCycle
 from mppf.correct.verdict import convergence_verdict
@@ -114,17 +118,22 @@ class Planned:
 
 
 def true_deviation(press, formed, planned: Planned, active):
-    """(form max, RMS) over the net plate, and the deviation at the punches (best planes removed)."""
+    """(form max, RMS) over the net plate, the deviation at the punches and at the edge beyond the outer rows."""
     p = planned.design_press
     dev = formed.height_mm(p[:, 0], p[:, 1]) - p[:, 2]
     dev = without_plane(p[:, 0], p[:, 1], dev)
     px, py = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
     punch = deviation(press, formed.height_mm(px, py), planned.job.layout.design_mid_mm, active)
-    return float(np.nanmax(np.abs(dev))), float(np.sqrt(np.nanmean(dev**2))), punch
+    edge = edge_deviations(press.punch_x_mm, press.punch_y_mm, active, p[:, :2], dev)
+    return float(np.nanmax(np.abs(dev))), float(np.sqrt(np.nanmean(dev**2))), punch, edge
 
 
-def run_direct(press, planned: Planned, plate, max_cycles: int) -> dict:
-    """The loop's correction on the plate in process, on the true deviations (see the module docstring)."""
+def run_direct(press, planned: Planned, plate, max_cycles: int, use_edge: bool = True) -> dict:
+    """The loop's correction on the plate in process, on the true deviations (see the module docstring).
+
+    With ``use_edge`` the correction also sees the net plate's edge beyond the outer punch rows
+    (:func:`mppf.measure.punches.edge_deviations`, what a comparison of the scan shows there).
+    """
     job = planned.job
     final = job.steps[-1]
     active = final.active
@@ -136,7 +145,7 @@ def run_direct(press, planned: Planned, plate, max_cycles: int) -> dict:
         for s in steps:
             upper, lower = s.setpoints_mm(press)
             plate.press_step(upper, lower, s.active)
-        form_max, rms, punch = true_deviation(press, plate.formed, planned, active)
+        form_max, rms, punch, edge = true_deviation(press, plate.formed, planned, active)
         row["max"].append(form_max), row["rms"].append(rms)
         cycles.append(PressedCycle([np.where(s.active, 0.5 * (s.upper_mm + s.lower_mm), np.nan) for s in steps], punch))
         if form_max <= TOL_MM and rms <= RMS_TOL_MM:
@@ -149,7 +158,8 @@ def run_direct(press, planned: Planned, plate, max_cycles: int) -> dict:
         # correct: the learned correction, its verdict, the next steps
         trust = trust_region(row["rms"], predicted, RMS_TOL_MM, max_mm=row["max"], tolerance_mm=TOL_MM)
         learned = learned_correction(press, job.layout.design_mid_mm, THICKNESS_MM, NOMINAL, cycles,
-                                     final.upper_mm, final.lower_mm, active, trust=trust)
+                                     final.upper_mm, final.lower_mm, active, trust=trust,
+                                     edge_mm=edge if use_edge else None)
         predicted.append(learned.predicted_rms_mm)
         verdict = convergence_verdict(row["rms"], learned.predicted_rms_mm, RMS_TOL_MM,
                                       clipped=int(learned.clipped.sum()), unreached=int(learned.unreached.sum()),
@@ -236,6 +246,8 @@ def main(argv=None) -> int:
     parser.add_argument("--simple", action="store_true", help="also run the old simple plate (the planner's model)")
     parser.add_argument("--sweep", action="store_true", help="also turn the steel plate's effects off one at a time")
     parser.add_argument("--sweep-seeds", nargs="+", type=int, default=None, help="seeds of the sweep (default --seeds)")
+    parser.add_argument("--no-edge", action="store_true",
+                        help="direct mode: the correction does not see the net plate's edge beyond the outer rows")
     parser.add_argument("--no-main", action="store_true", help="skip the main table (with --sweep or --simple)")
     args = parser.parse_args(argv)
     threadpool_limits(1, "blas")
@@ -265,7 +277,7 @@ def main(argv=None) -> int:
                             outline = p.job.layout.outline_mm
                             plate = (steel_plate(press, outline, seed, args.true_yield, off) if model == "steel"
                                      else simple_plate(press, outline, seed, args.true_yield))
-                            row = run_direct(press, p, plate, args.max_cycles)
+                            row = run_direct(press, p, plate, args.max_cycles, not args.no_edge)
                     except MppfError as exc:  # a failed run counts as not in tolerance
                         row = {"max": [], "rms": [], "decisions": ["error"], "ok_at": None, "seconds": 0.0,
                                "verdict": f"{type(exc).__name__}: {exc.message[:160]}"}

@@ -10,8 +10,10 @@
 3. the plate's response is compared with the model's on every measured secant and the
    difference learned in smooth modes (:class:`mppf.correct.secant.ModeGain`, Broyden);
 4. the plate is aimed at ``aim`` of the way to the design (short of it: an over-bent plate
-   needs a reverse bend, an under-bent one only more of the same), the model asked for that
-   change divided by the learned response;
+   needs a reverse bend, an under-bent one only more of the same), the outer rows aimed
+   between their own deviation and the net plate's edge beyond them when it is known
+   (:func:`mppf.correct.edge.balanced_error`), the model asked for that change divided by
+   the learned response;
 5. the loaded curvature that gives it is found point by point through the model with its
    memory (:func:`mppf.correct.invert.invert`: crossing what stays elastic, reverse bending
    where the plate is over-bent), integrated to strokes, in a few virtual cycles on the
@@ -35,6 +37,7 @@ import numpy as np
 
 from mppf.core.grid import largest_neighbour_difference
 from mppf.correct.calibrate import Calibration, calibrate
+from mppf.correct.edge import balanced_error
 from mppf.correct.memory import PressedCycle, interrupted_share, loaded_curvatures, replay
 from mppf.correct.punch_grid import PunchGrid
 from mppf.correct.secant import ModeGain
@@ -114,7 +117,7 @@ class LearnedCorrection:
 
 
 def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, nominal: Material, cycles,
-                       base_upper_mm, base_lower_mm, active, trust: float = 1.0) -> LearnedCorrection:
+                       base_upper_mm, base_lower_mm, active, trust: float = 1.0, edge_mm=None) -> LearnedCorrection:
     """The next strokes from every pressed and measured cycle of the plate.
 
     Parameters
@@ -132,6 +135,10 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
     trust : float
         Size of the trust region, in (0, 1] (:func:`trust_region`): scales the reach in
         curvature and the share of the way aimed at.
+    edge_mm : (rows, cols) float, optional
+        The deviation of the net plate's edge beyond the outer-row punches after the last
+        cycle (:func:`mppf.measure.punches.edge_deviations`): near the design those punches
+        are aimed between their own deviation and the edge's (:func:`mppf.correct.edge.balanced_error`).
 
     Returns
     -------
@@ -152,7 +159,7 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
     # 3. the plate's response against the model's, learned on every secant
     gain = _learn_response(grid, model, cycles)
     # 4. the change wanted of the plate, and what to ask of the model for it
-    error = grid.flat(np.where(grid.active, cycles[-1].error_mm, np.nan))
+    error = grid.flat(np.where(grid.active, balanced_error(cycles[-1].error_mm, edge_mm), np.nan))
     error = np.where(grid.active & np.isfinite(error), error, 0.0)
     aim = (AIM[1] if gain.updates else AIM[0]) * (0.5 + 0.5 * trust)
     request = gain.model_request(-aim * error)

@@ -33,7 +33,7 @@ from mppf.loop.pressing import last_step, pressed_steps
 from mppf.loop.records import CycleRecord, PlateRecord
 from mppf.loop.settings import LoopSettings
 from mppf.loop.states import Decision
-from mppf.planning.job import Job, StepStrokes, grid_to_json, save_job
+from mppf.planning.job import Job, StepStrokes, grid_from_json, grid_to_json, save_job
 from mppf.planning.press import PressConfig
 from mppf.planning.steps import flat_heights
 
@@ -152,8 +152,9 @@ def _plan_learned(history: History, plate: PlateRecord, record: CycleRecord, pre
     predicted = [None if not r.correction else r.correction.get("predicted_rms_mm") for r in records]
     trust = trust_region(rms, predicted, settings.rms_tolerance_mm, max_mm=[r.max_abs_mm for r in records],
                          tolerance_mm=settings.tolerance_mm)
+    edge = grid_from_json((record.comparison or {}).get("punch_edge_mm"))  # the net edge beyond the outer rows
     learned = learned_correction(press, job.layout.design_mid_mm, plate.thickness_mm, job.layout.material, cycles,
-                                 final.upper_mm, final.lower_mm, final.active, trust=trust)
+                                 final.upper_mm, final.lower_mm, final.active, trust=trust, edge_mm=edge)
     # 3. stop with a verdict when it finds no way on
     verdict = convergence_verdict(rms, learned.predicted_rms_mm, settings.rms_tolerance_mm,
                                   clipped=int(learned.clipped.sum()), unreached=int(learned.unreached.sum()),

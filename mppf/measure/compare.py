@@ -65,7 +65,7 @@ from mppf.measure.deviations import DesignSkin, normal_sign
 from mppf.measure.form import form_of
 from mppf.measure.localfit import spatial_query
 from mppf.measure.outliers import SetAside, find_outliers
-from mppf.measure.punches import nearest_punch, punch_deviations
+from mppf.measure.punches import edge_at_punches, nearest_punch, punch_deviations
 from mppf.measure.result import Comparison
 from mppf.measure.statistics import statistics
 from mppf.registration.outline_fit import refit_outline
@@ -249,10 +249,11 @@ def compare(
     covered = coverage(skin.outline, _nearest(artefacts, dev), artefacts.spacing_mm, gap_mm, max_gap_mm,
                        _on_press(skin, tf_press_design, punch_xy_mm, punch_label_base))
     notes.append(covered.describe())
-    punch = punch_n = punch_interp = None
+    punch = punch_n = punch_interp = punch_edge = None
     if punch_xy_mm is not None:
         punch, punch_n, punch_interp = punch_deviations(punch_xy_mm, tf_press_design, skin, dev, measured_ok, design,
                                                         punch_radius_mm)
+        punch_edge = edge_at_punches(punch_xy_mm, tf_press_design, skin, dev, measured_ok & net, np.isfinite(punch))
         notes.append(f"punch deviations: {int(np.isfinite(punch).sum())} punches on the plate, "
                      f"{int(punch_interp.sum())} interpolated across gaps in the scan")
 
@@ -271,7 +272,7 @@ def compare(
         design_uv_mm=skin.uv, design_fit_rms_mm=float(fitted.rms_mm),
         form_rms_mm=float(np.sqrt(np.mean(form[inlier] ** 2))), form_max_abs_mm=form_max,
         form_deviation_mm=form, punch_deviation_mm=punch, punch_normal_deviation_mm=punch_n,
-        punch_interpolated=punch_interp, notes=notes, margin_mm=margin_mm, in_margin=dev.in_margin,
+        punch_interpolated=punch_interp, punch_edge_mm=punch_edge, notes=notes, margin_mm=margin_mm, in_margin=dev.in_margin,
         rms_tolerance_mm=float(rms_tolerance_mm), verdict=decided, set_aside=aside, form=field.to_dict(),
         punch_label_base=int(punch_label_base), coverage=covered, identity=badly,
     )

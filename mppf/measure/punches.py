@@ -6,7 +6,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from mppf.core.grid import tps_fill
-from mppf.core.polygon import contains, convex_outline, offset_convex
+from mppf.core.polygon import contains, convex_outline, distance_to_outline, offset_convex
 from mppf.core.transform import apply_rotation, apply_tf
 
 RADIUS_PITCHES = 0.45
@@ -104,6 +104,91 @@ def punch_values(punch_xy, xy, deviation, n_z, design_xy, radius_mm, margin_mm: 
         for values in (normal, vertical):
             values[gap] = tps_fill(flat[measured], values[measured], flat[gap], smoothing=FILL_SMOOTHING)
     return vertical.reshape(rows, cols), normal.reshape(rows, cols), gap.reshape(rows, cols)
+
+
+EDGE_BAND_MM = 5.0
+"""Points this close to the net plate's outline are its edge (mm)."""
+
+
+def edge_deviations(punch_x_mm, punch_y_mm, active, points_xy_mm, deviation_mm) -> np.ndarray:
+    """Mean deviation of the net plate's edge beyond each outer-row punch.
+
+    The outer-row punches are the first and the last active punch of each column; the edge
+    beyond one is the points within :data:`EDGE_BAND_MM` of the net outline, within half a
+    column pitch of its axis in x (the axis held to the net plate's x range: a column in the
+    trim margin takes the corner) and at most one row pitch beyond it in y.
+
+    Parameters
+    ----------
+    punch_x_mm : (cols,) float
+    punch_y_mm : (rows,) float
+    active : (rows, cols) bool
+    points_xy_mm : (n, 2) float
+        The net plate's points (press x, y), e.g. the design's.
+    deviation_mm : (n,) float
+        Their deviation (plate above the design positive, plane removed; NaN unknown).
+
+    Returns
+    -------
+    (rows, cols) float
+        NaN where the punch is not an outer-row one or no edge point lies beyond it.
+    """
+    act = np.asarray(active, dtype=bool)
+    xs, ys = np.asarray(punch_x_mm, dtype=float), np.asarray(punch_y_mm, dtype=float)
+    xy = np.asarray(points_xy_mm, dtype=float)
+    dev = np.asarray(deviation_mm, dtype=float)
+    keep = np.isfinite(dev)
+    xy, dev = xy[keep], dev[keep]
+    out = np.full(act.shape, np.nan)
+    if len(xy) < 3 or len(xs) < 2 or len(ys) < 2:
+        return out
+    edge = distance_to_outline(convex_outline(xy, "the net plate's points"), xy) <= EDGE_BAND_MM
+    exy, edev = xy[edge], dev[edge]
+    half_x, pitch_y = 0.5 * float(np.min(np.abs(np.diff(xs)))), float(np.min(np.abs(np.diff(ys))))
+    x_lo, x_hi = float(xy[:, 0].min()), float(xy[:, 0].max())
+    for c in range(act.shape[1]):
+        rows = np.flatnonzero(act[:, c])
+        if rows.size == 0:
+            continue
+        x = min(max(xs[c], x_lo), x_hi)
+        near_x = np.abs(exy[:, 0] - x) <= half_x
+        for r, side in ((rows[0], np.sign(ys[rows[0]] - ys[rows[-1]])), (rows[-1], np.sign(ys[rows[-1]] - ys[rows[0]]))):
+            if side == 0:
+                continue
+            beyond = (exy[:, 1] - ys[r]) * side
+            use = near_x & (beyond >= 0.0) & (beyond <= pitch_y)
+            if use.any():
+                out[r, c] = float(np.mean(edev[use]))
+    return out
+
+
+def edge_at_punches(punch_xy_mm, tf_press_design, skin, dev, use_net, on_plate) -> np.ndarray:
+    """The net plate's measured edge beyond each outer-row punch (:func:`edge_deviations`), along press z.
+
+    Parameters
+    ----------
+    punch_xy_mm : (rows, cols, 2) float, mm
+    tf_press_design : (4, 4) float
+    skin, dev
+        As :func:`punch_deviations`.
+    use_net : (n,) bool
+        The measured points of the net plate that count (not margin, outside or outliers).
+    on_plate : (rows, cols) bool
+        The punches under the plate (their deviation known).
+
+    Returns
+    -------
+    (rows, cols) float, mm
+        Positive = plate above the design; NaN where the punch is not an outer-row one or no
+        measured edge point lies beyond it.
+    """
+    press_local = np.asarray(tf_press_design, dtype=float) @ skin.frame.tf_world_local
+    uv = dev.uv[use_net]
+    n_z = apply_rotation(press_local, skin.fitted.surface.normals(uv[:, 0], uv[:, 1]))[:, 2] * skin.sign
+    foot_press = apply_tf(press_local, np.asarray(dev.feet.xyz, dtype=float)[use_net])
+    grid = np.asarray(punch_xy_mm, dtype=float)
+    return edge_deviations(grid[0, :, 0], grid[:, 0, 1], on_plate, foot_press[:, :2],
+                           dev.deviation_mm[use_net] / np.maximum(n_z, SLOPE_FLOOR))
 
 
 def punch_label(row: int, col: int, label_base: int = 1) -> str:

@@ -74,6 +74,10 @@ class Comparison:
         The same along the design normal.
     punch_interpolated : (rows, cols) bool or None
         Punches without measured points nearby (occlusion) whose value is interpolated.
+    punch_edge_mm : (rows, cols) float or None
+        The net plate's measured edge beyond each outer-row punch, along press z
+        (:func:`mppf.measure.punches.edge_deviations`); NaN elsewhere. The learned correction
+        balances the outer rows against it.
     notes : list of str
     margin_mm : float
         Width of the trim margin (excess band around the design outline), as given.
@@ -126,6 +130,7 @@ class Comparison:
     punch_deviation_mm: np.ndarray | None = None
     punch_normal_deviation_mm: np.ndarray | None = None
     punch_interpolated: np.ndarray | None = None
+    punch_edge_mm: np.ndarray | None = None
     notes: list[str] = field(default_factory=list)
     margin_mm: float = 0.0
     in_margin: np.ndarray | None = None
@@ -203,6 +208,8 @@ class Comparison:
             doc["punch_deviation_mm"] = _nan_to_none(self.punch_deviation_mm)
             doc["punch_normal_deviation_mm"] = _nan_to_none(self.punch_normal_deviation_mm)
             doc["punch_interpolated"] = self.punch_interpolated.tolist()
+        if self.punch_edge_mm is not None:
+            doc["punch_edge_mm"] = _nan_to_none(self.punch_edge_mm)
         return doc
 
 
