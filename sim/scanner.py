@@ -11,7 +11,9 @@ A scan (see ``docs/compare.md``, section "The simulated scanner") is
   (reflections, dust),
 - in an arbitrary rigid pose (a random rotation and a translation of up to 2 m): the
   scanner knows nothing of the press coordinates. With ``max_turn_deg`` the rotation is
-  a turn about the vertical only (a scanner mounted over the press table),
+  a turn about the vertical only (a scanner mounted over the press table). A pose may be
+  given instead (``tf_scan_press``): a fixed station's second take of the same plate, in
+  the frame of its first (a rescan),
 - optionally with the plate's reference-corner mark picked in the scan (``mark_xy_mm``):
   its position in the scanner's coordinates, as the operator would click it in the
   scanner software (within a few mm), written next to the scan as
@@ -126,7 +128,7 @@ class SimulatedScanner:
         self.seed = seed
         self._rng = np.random.default_rng(seed)
 
-    def sample(self, formed: FormedPlate, mark_xy_mm=None) -> ScanSample:
+    def sample(self, formed: FormedPlate, mark_xy_mm=None, tf_scan_press=None) -> ScanSample:
         """Scan ``formed`` and return the points with their ground truth.
 
         Parameters
@@ -135,6 +137,9 @@ class SimulatedScanner:
         mark_xy_mm : (2,) float, optional
             Press (x, y) of the plate's reference-corner mark: its top-skin point is
             returned in the scanner's coordinates (picked within ``MARK_PICK_MM``).
+        tf_scan_press : (4, 4) float, optional
+            The pose to scan in (a fixed station's take in the frame of an earlier one);
+            default a random pose. The random draws are the same either way.
 
         Returns
         -------
@@ -169,7 +174,8 @@ class SimulatedScanner:
         else:
             turn = rng.uniform(-self.max_turn_deg, self.max_turn_deg)
             rotation = Rotation.from_euler("z", turn, degrees=True).as_matrix()
-        tf_scan_press = make_tf(rotation, rng.uniform(-MAX_TRANSLATION_MM, MAX_TRANSLATION_MM, 3))
+        random_pose = make_tf(rotation, rng.uniform(-MAX_TRANSLATION_MM, MAX_TRANSLATION_MM, 3))
+        tf_scan_press = random_pose if tf_scan_press is None else np.asarray(tf_scan_press, dtype=float)
         order = rng.permutation(len(points))
         mark = None
         if mark_xy_mm is not None:  # drawn last: the scan itself is the same with or without
@@ -211,19 +217,19 @@ class SimulatedScanner:
         """Scan ``formed``; (n, 3) float points in the scanner's coordinates, mm."""
         return self.sample(formed).points
 
-    def scan(self, formed: FormedPlate, path, mark_xy_mm=None) -> Path:
+    def scan(self, formed: FormedPlate, path, mark_xy_mm=None, tf_scan_press=None) -> Path:
         """Scan ``formed`` and write the points to ``path`` (.ply binary, .csv, .txt, .xyz).
 
         With ``mark_xy_mm`` (press x, y of the reference-corner mark) the mark picked in
         the scan is also written to ``<path>.mark.json`` as ``{"reference_mark_mm": [x, y, z]}``
-        in the scan's coordinates.
+        in the scan's coordinates. ``tf_scan_press``: the pose (see :meth:`sample`).
 
         Returns
         -------
         Path
             The file written.
         """
-        sample = self.sample(formed, mark_xy_mm)
+        sample = self.sample(formed, mark_xy_mm, tf_scan_press)
         header = (f"simulated scan: noise {self.noise_mm} mm, occlusion {sample.occluded_fraction:.3f}, "
                   f"outliers {int(sample.is_outlier.sum())}, seed {self.seed}")
         written = write_points(path, sample.points, header=header)

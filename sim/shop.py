@@ -21,7 +21,9 @@ The press side of a dry run is the simulated PLC (:func:`mppf.sim.plc.run_simula
 driven over loopback Modbus by the real driver (``mppf loop`` without ``--plc``,
 ``mppf demo``), or the in-process press (:class:`mppf.sim.plc.link.InProcessPress`).
 Each cycle's scan uses its own seed (``seed * 1000 + cycle``), so a scan repeated after a
-resume is the same scan.
+resume is the same scan. A rescan of the cycle (:meth:`SimulatedPlateScanner.rescan`: a fixed
+station scans the plate again where it lies) is a new take with its own occlusion blobs,
+noise and outliers (seeded by ``[seed, cycle, rescan]``), in the pose of the cycle's first take.
 """
 
 from __future__ import annotations
@@ -172,6 +174,28 @@ class SimulatedPlateScanner:
     def acquire(self, cycle: int, context: ScanContext) -> Path:
         """Press the plate with the cycle's steps (each once, in order) and scan it into the work folder."""
         context.reporter.info(f"cycle {cycle}: simulated forming and scan")
+        formed = self._formed(cycle, context)
+        return self._take(cycle).scan(formed, context.work_dir / f"scan-cycle-{cycle:02d}{self.suffix}",
+                                      self.mark_xy_mm)
+
+    def rescan(self, cycle: int, number: int, context: ScanContext) -> Path:
+        """The plate of the cycle scanned again where it lies: a new take (its own occlusion blobs, noise and
+        outliers) in the pose of the cycle's first take, without a mark (the first take's places it)."""
+        context.reporter.info(f"cycle {cycle}: simulated rescan {number}")
+        formed = self._formed(cycle, context)
+        pose = self._take(cycle).sample(formed, self.mark_xy_mm).tf_scan_press  # the first take, drawn again
+        take = SimulatedScanner(noise_mm=self.noise_mm, occlusion_fraction=self.occlusion_fraction,
+                                outlier_fraction=self.outlier_fraction, seed=[self.seed, int(cycle), int(number)])
+        return take.scan(formed, context.work_dir / f"scan-cycle-{cycle:02d}-rescan-{number}{self.suffix}",
+                         tf_scan_press=pose)
+
+    def _take(self, cycle: int) -> SimulatedScanner:
+        """The scanner of the cycle's first take (its seed)."""
+        return SimulatedScanner(noise_mm=self.noise_mm, occlusion_fraction=self.occlusion_fraction,
+                                outlier_fraction=self.outlier_fraction, seed=self.seed * 1000 + cycle)
+
+    def _formed(self, cycle: int, context: ScanContext):
+        """The plate pressed with every step of the cycle not yet pressed on it (its state saved)."""
         context.work_dir.mkdir(parents=True, exist_ok=True)
         state_path = context.work_dir / STATE_FILE
         # 1. the plate as the last run left it (another process, after a crash)
@@ -182,12 +206,8 @@ class SimulatedPlateScanner:
             if [step.cycle, step.step] not in self.pressed:
                 self._press(step)
         self._save(state_path)
-        # 3. scan it
-        formed = self.plate.formed
-        self.last_formed = formed
-        scanner = SimulatedScanner(noise_mm=self.noise_mm, occlusion_fraction=self.occlusion_fraction,
-                                   outlier_fraction=self.outlier_fraction, seed=self.seed * 1000 + cycle)
-        return scanner.scan(formed, context.work_dir / f"scan-cycle-{cycle:02d}{self.suffix}", self.mark_xy_mm)
+        self.last_formed = self.plate.formed
+        return self.last_formed
 
     def _press(self, step: PressedStep) -> None:
         """One step on the plate; an interrupted one takes the tips :data:`INTERRUPTED_SHARE` of the way."""

@@ -43,7 +43,7 @@ from mppf.cli.press_policy import (
 from mppf.core.errors import InputError
 from mppf.core.validate import check_number, check_positive
 from mppf.forming.material import MATERIALS
-from mppf.loop.settings import LoopSettings
+from mppf.loop.settings import MAX_RESCANS, LoopSettings
 
 SCAN_SIM = "sim"
 _DEFAULTS = LoopSettings()  # the loop's defaults (tolerances from mppf.core.defaults), written once
@@ -271,6 +271,9 @@ def _latest_job(history, plate_id):
 @click.option("--mark-settle", type=float, default=_DEFAULTS.mark_settle_s, show_default=True,
               help="How long (s) a scan without its mark waits for one saved just after it, when the plate does "
                    "not need the mark (then: the best fit).")
+@click.option("--rescans", type=int, default=_DEFAULTS.rescans, show_default=True,
+              help="Rescans a cycle may ask for when areas of the net plate were not measured and nothing else "
+                   "needs review; the union of the scans is compared (0: stop for review at once).")
 @click.option("--resume", is_flag=True, help="Continue an interrupted plate (never presses a cycle twice).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
 @click.option("--yes", is_flag=True, help="Do not ask before driving a real press.")
@@ -280,8 +283,8 @@ def _latest_job(history, plate_id):
 @units_option
 def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, rms_tolerance, max_cycles, gain,
          no_springback, margin_mm, material, history_path, audit_path, plate_id, work_dir, seed, time_scale,
-         scan_timeout, on_pressed, on_pressed_timeout, mark_timeout, mark_settle, resume, as_json, yes, write_report_,
-         operator, units):
+         scan_timeout, on_pressed, on_pressed_timeout, mark_timeout, mark_settle, rescans, resume, as_json, yes,
+         write_report_, operator, units):
     """Plan, press, measure, compare, correct, press again, until the plate is in tolerance.
 
     Stops when the largest absolute form deviation is within --tolerance and the RMS within
@@ -299,7 +302,9 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
     reference mark is in (the mark file SCAN.mark.json or a 'reference_mark_mm X Y Z' header
     line); a nearly symmetric plate is not compared without its mark (exit 4 after
     --mark-timeout). The scans are the top skin: the design's concave side (its +normal
-    side), not whichever side faces up. See docs/scanner-station.md.
+    side), not whichever side faces up. Areas of the net plate not measured (and nothing else
+    in the way of "in tolerance") are rescanned, up to --rescans times, and the union of the
+    scans compared. See docs/scanner-station.md.
     """
     from mppf.drivers.audit import AuditLog
 
@@ -310,7 +315,8 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
                             on_pressed_timeout_s=_positive("--on-pressed-timeout", on_pressed_timeout),
                             mark_timeout_s=_positive("--mark-timeout", mark_timeout),
                             mark_settle_s=check_number("--mark-settle", mark_settle, low=0.0, unit="s",
-                                                       hint="give the wait in s, 0 or more"))
+                                                       hint="give the wait in s, 0 or more"),
+                            rescans=check_number("--rescans", rescans, low=0, high=MAX_RESCANS, integer=True))
     reporter = RichReporter(enabled=not as_json)
     # SIGTERM ends the command like Ctrl-C: the press is stopped, the lease given back
     with sigterm_as_ctrl_c(), open_history(history_path) as history:

@@ -9,7 +9,8 @@ cycles run out, or the error diverges:
     pressing  -> (interrupted) never press again               -> pressed
     pressed   -> request the scan (the station's request file, --on-pressed),
                  get it, complete with its reference mark     -> scanned
-    scanned   -> register it to the design, deviations         -> compared (+ decision)
+    scanned   -> register it to the design, deviations; areas not measured
+                 (alone): rescan them, compare the union       -> compared (+ decision)
     compared  -> correct the strokes, plan the next cycle      -> corrected | done
                  (or stop with a verdict: cannot converge)      -> done
 
@@ -41,6 +42,7 @@ from mppf.loop.marks import MarkedScanner, MarkNeed, needs_mark, plausible_scan
 from mppf.loop.measuring import acquire_scan, compare_cycle, comparison_summary, load_cycle_job, read_checked
 from mppf.loop.pressing import press_cycle
 from mppf.loop.records import CycleRecord, PlateRecord
+from mppf.loop.rescanning import rescan_uncovered
 from mppf.loop.scan_request import PostedRequest, post_request
 from mppf.loop.settings import LoopSettings
 from mppf.loop.states import CycleState, Decision
@@ -233,6 +235,11 @@ def _request(run: _Run, record: CycleRecord) -> PostedRequest:
 def _on_scanned(run: _Run, record: CycleRecord) -> int:
     # compare the scan with the design (a scan of another plate is rejected)
     comparison = compare_cycle(run.history, run.plate, record, run.design, run.settings)
+    # areas not measured, and nothing else in the way of the verdict: rescan them, compare the union (mppf.loop.rescanning)
+    measured = rescan_uncovered(run, record, comparison)
+    comparison = measured.comparison
+    if measured.stopped:
+        run.verdicts.append(measured.stopped)
     # decide on the plate's form deviation (scanner point noise averaged out, see mppf.measure.compare)
     # and on the RMS of every cycle so far; the raw point extremes stay in the stored comparison
     rms = [c.rms_mm for c in run.history.cycles(record.plate_id)[: record.cycle - 1]] + [comparison.rms_mm]
@@ -243,7 +250,7 @@ def _on_scanned(run: _Run, record: CycleRecord) -> int:
     run.history.mark_compared(
         record.plate_id, record.cycle, rms_mm=comparison.rms_mm, max_abs_mm=comparison.form_max_abs_mm,
         within_pct=comparison.within_tolerance_pct, punch_deviation_mm=comparison.punch_deviation_mm,
-        comparison=comparison_summary(comparison), decision=decision,
+        comparison=comparison_summary(comparison, measured.scans, measured.stopped), decision=decision,
     )
     run.notify(run.history.cycle(record.plate_id, record.cycle), comparison)
     return record.cycle

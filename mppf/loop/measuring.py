@@ -6,12 +6,17 @@ another one. A scan of this plate far from its design (its outline and shape are
 design's, its point count the previous cycle's scan's) is not rejected: it is judged, badly
 formed, and the loop stops there (:mod:`mppf.measure.identity`, ``Decision.BADLY_FORMED``).
 Every file the loop reads back (design, scan, job) is checked against the SHA-256 recorded
-for it.
+for it. A cycle rescanned where areas were not measured (:mod:`mppf.loop.rescanning`) is
+compared as the union of its scans, in the first scan's frame; the files are listed in its
+stored comparison (``scans``), and :func:`compare_recorded` compares the same union.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
+
+import numpy as np
 
 from mppf.core.errors import ConfigError, GeometryError, InputError
 from mppf.core.progress import Reporter
@@ -61,6 +66,7 @@ def acquire_scan(history: History, plate: PlateRecord, record: CycleRecord, pres
         No scan came, or it cannot be read (FileFormatError: recorded as rejected).
     """
     context = scan_context(history, plate, record, press, reporter)
+    context = dataclasses.replace(context, used_paths=context.used_paths + rescan_paths(history, plate.plate_id))
     path = Path(scanner.acquire(record.cycle, context)).resolve()
     try:
         scan = read_points(path)
@@ -93,37 +99,69 @@ def compare_cycle(history: History, plate: PlateRecord, record: CycleRecord, des
 
 
 def compare_recorded(plate: PlateRecord, record: CycleRecord, design: PointCloud, settings: LoopSettings):
-    """The comparison of a recorded cycle's scan, made again (for a report written afterwards; nothing recorded).
+    """The comparison of a recorded cycle's scan (the union of its merged scans), made again (for a report
+    written afterwards; nothing recorded).
 
     Raises
     ------
     InputError
-        The scan file is missing or changed since it was recorded.
+        A scan file is missing or changed since it was recorded.
     """
-    return _compare(plate, record, design, settings)
+    merged = [s for s in (record.comparison or {}).get("scans", [])[1:] if s.get("merged")]
+    return _compare(plate, record, design, settings, extra=merged)
+
+
+def compare_union(plate: PlateRecord, record: CycleRecord, design: PointCloud, settings: LoopSettings, rescans: list):
+    """The comparison of the union of the cycle's scan and ``rescans`` (``{"path", "sha256"}`` dicts, the
+    same frame); nothing recorded, nothing rejected.
+
+    Raises
+    ------
+    GeometryError, AmbiguousStart
+        The union does not register onto the design.
+    """
+    return _compare(plate, record, design, settings, extra=rescans)
+
+
+def rescan_paths(history: History, plate_id: str) -> tuple[str, ...]:
+    """Every rescan file the plate's compared cycles took (never taken again as another scan)."""
+    return tuple(s["path"] for c in history.cycles(plate_id) for s in (c.comparison or {}).get("scans", [])[1:])
 
 
 def _expected_points(history: History, record: CycleRecord) -> int | None:
-    """The point count of the previous cycle's scan (None for the first cycle)."""
+    """The point count of the previous cycle's (first) scan (None for the first cycle)."""
     if record.cycle <= 1:
         return None
     previous = history.cycle(record.plate_id, record.cycle - 1).comparison
-    return None if not previous else previous.get("n_points")
+    if not previous:
+        return None
+    scans = previous.get("scans")
+    return scans[0]["n_points"] if scans else previous.get("n_points")
 
 
 def _compare(plate: PlateRecord, record: CycleRecord, design: PointCloud, settings: LoopSettings,
-             expected_points: int | None = None):
+             expected_points: int | None = None, extra: list = ()):
     scan = read_checked(record.scan_path, record.scan_sha256, "scan")
+    points = np.vstack([scan.points] + [read_checked(s["path"], s["sha256"], "rescan").points for s in extra])
     job = load_cycle_job(record)
     offset_mm = plate.thickness_mm / 2.0 if settings.offset_mm is None else settings.offset_mm
     # the same keywords as ``mppf compare --job``: the same scan gets the same verdict
     options = job_compare_options(job, design.points, record.scan_path, offset_mm=offset_mm)
-    return compare(design.points, scan.points, tolerance_mm=settings.tolerance_mm,
-                   rms_tolerance_mm=settings.rms_tolerance_mm, expected_points=expected_points, **options)
+    return compare(design.points, points, tolerance_mm=settings.tolerance_mm,
+                   rms_tolerance_mm=settings.rms_tolerance_mm, expected_points=None if extra else expected_points,
+                   **options)
 
 
-def comparison_summary(comparison) -> dict:
-    """The comparison as stored with the cycle (the punch deviations have their own column)."""
+def comparison_summary(comparison, scans: list | None = None, rescan_stopped: str | None = None) -> dict:
+    """The comparison as stored with the cycle (the punch deviations have their own column).
+
+    ``scans``: every scan the cycle took (:func:`mppf.loop.rescanning.rescan_uncovered`), the first one
+    first; the comparison is of the union of those ``merged``. ``rescan_stopped``: why a rescan was not
+    merged (the loop stopped for review).
+    """
     doc = comparison.to_dict()
     doc.pop("punch_deviation_mm", None)
+    if scans is not None:
+        doc["scans"] = list(scans)
+        doc["rescan_stopped"] = rescan_stopped
     return doc

@@ -77,18 +77,23 @@ class PostedRequest:
             pass
 
 
-def request_name(plate_id: str, cycle: int) -> str:
-    """The request file's name: ``<plate id>-cycle-<NN>.scan-request.json``."""
-    return f"{plate_id}-cycle-{int(cycle):02d}{REQUEST_SUFFIX}"
+def _stem(plate_id: str, cycle: int, rescan: int = 0) -> str:
+    return f"{plate_id}-cycle-{int(cycle):02d}" + (f"-rescan-{int(rescan)}" if rescan else "")
 
 
-def scan_name(plate_id: str, cycle: int) -> str:
-    """The scan file name the request asks for: ``<plate id>-cycle-<NN>.ply``."""
-    return f"{plate_id}-cycle-{int(cycle):02d}{SCAN_SUFFIX}"
+def request_name(plate_id: str, cycle: int, rescan: int = 0) -> str:
+    """The request file's name: ``<plate id>-cycle-<NN>.scan-request.json`` (a rescan: ``...-cycle-<NN>-rescan-<K>...``)."""
+    return _stem(plate_id, cycle, rescan) + REQUEST_SUFFIX
+
+
+def scan_name(plate_id: str, cycle: int, rescan: int = 0) -> str:
+    """The scan file name the request asks for: ``<plate id>-cycle-<NN>.ply`` (a rescan: ``...-rescan-<K>.ply``)."""
+    return _stem(plate_id, cycle, rescan) + SCAN_SUFFIX
 
 
 def build_request(plate: PlateRecord, record: CycleRecord, job: Job, settings: LoopSettings, folder,
-                  *, mark_required: bool | None = None, now: datetime | None = None) -> dict:
+                  *, mark_required: bool | None = None, now: datetime | None = None, rescan: int = 0,
+                  regions: list | None = None, first_scan: dict | None = None) -> dict:
     """The request document of a pressed cycle (see ``docs/scanner-station.md`` for every key).
 
     Parameters
@@ -104,12 +109,16 @@ def build_request(plate: PlateRecord, record: CycleRecord, job: Job, settings: L
         The folder the scan is expected in.
     mark_required : bool or None
         Whether the loop compares a scan of this plate only with its mark (None: not decided).
+    rescan : int
+        0: the cycle's scan; K >= 1: its K-th rescan (of at most ``settings.rescans``), of the
+        ``regions`` not measured (dicts of :meth:`mppf.loop.rescanning.region_doc`), in the frame of
+        ``first_scan`` (``{"path", "sha256"}``): the union of the scans is compared.
     """
     folder = Path(folder).resolve()
-    scan_path = folder / scan_name(plate.plate_id, record.cycle)
+    scan_path = folder / scan_name(plate.plate_id, record.cycle, rescan)
     layout = job.layout
     offset_mm = plate.thickness_mm / 2.0 if settings.offset_mm is None else float(settings.offset_mm)
-    return {
+    doc = {
         "format": REQUEST_FORMAT,
         "version": REQUEST_VERSION,
         "written_utc": (now or datetime.now(timezone.utc)).isoformat(timespec="seconds"),
@@ -141,7 +150,16 @@ def build_request(plate: PlateRecord, record: CycleRecord, job: Job, settings: L
             "outline_cut_press_mm": None if layout is None else _rounded(layout.outline_mm),
             "net_outline_press_mm": None if layout is None else _rounded(layout.net_outline_mm),
         },
+        "rescan": int(rescan),
+        "rescans": int(settings.rescans),
+        "regions": list(regions or []),
+        "first_scan": first_scan,
     }
+    if rescan:  # the rescan is placed by the first scan's frame: no mark of its own
+        doc["mark"].update(required=False, settle_s=0.0,
+                           note="a rescan needs no mark: it must be in the frame of the cycle's first scan "
+                                "(a fixed station), whose mark places the union")
+    return doc
 
 
 def _rounded(points) -> list:
@@ -159,7 +177,7 @@ def write_request(folder, doc: dict) -> PostedRequest:
     from mppf.core.errors import InputError
 
     folder = Path(folder)
-    path = folder / request_name(doc["plate_id"], doc["cycle"])
+    path = folder / request_name(doc["plate_id"], doc["cycle"], doc.get("rescan", 0))
     tmp = folder / f".{path.name}.tmp"
     try:
         tmp.write_text(json.dumps(doc, indent=2) + "\n")
@@ -211,8 +229,10 @@ def run_on_pressed(command: str, request_path, reporter: Reporter, timeout_s: fl
 
 
 def post_request(plate: PlateRecord, record: CycleRecord, job: Job, settings: LoopSettings, folder, reporter: Reporter,
-                 *, mark_required: bool | None = None) -> PostedRequest:
-    """Write the pressed cycle's request into ``folder``, say so, and run the ``on_pressed`` command.
+                 *, mark_required: bool | None = None, rescan: int = 0, regions: list | None = None,
+                 first_scan: dict | None = None) -> PostedRequest:
+    """Write the pressed cycle's request (or its ``rescan``-th rescan's) into ``folder``, say so, and run the
+    ``on_pressed`` command.
 
     A folder the request cannot be written into is reported and the loop goes on waiting for
     the scan (as before there were requests); the ``on_pressed`` command then does not run.
@@ -220,16 +240,22 @@ def post_request(plate: PlateRecord, record: CycleRecord, job: Job, settings: Lo
     from mppf.core.errors import InputError
 
     # 1. the request, atomically, where the station looks
-    doc = build_request(plate, record, job, settings, folder, mark_required=mark_required)
+    doc = build_request(plate, record, job, settings, folder, mark_required=mark_required, rescan=rescan,
+                        regions=regions, first_scan=first_scan)
+    what = f"rescan {rescan} of {settings.rescans} asked" if rescan else "pressed"
     try:
         posted = write_request(folder, doc)
     except InputError as exc:
-        reporter.info(f"cycle {record.cycle}: pressed; {exc.message}: no scan request for the station, "
+        reporter.info(f"cycle {record.cycle}: {what}; {exc.message}: no scan request for the station, "
                       f"the on-pressed command not run; waiting for the scan all the same")
-        return PostedRequest(Path(folder) / request_name(plate.plate_id, record.cycle), Path(doc["scan"]["path"]),
-                             Path(doc["mark"]["path"]), written=False)
-    reporter.info(f"cycle {record.cycle}: pressed; scan request {posted.path}: scan to {posted.scan_path.name}, "
-                  f"its mark to {posted.mark_path.name}")
+        return PostedRequest(Path(folder) / request_name(plate.plate_id, record.cycle, rescan),
+                             Path(doc["scan"]["path"]), Path(doc["mark"]["path"]), written=False)
+    if rescan:
+        reporter.info(f"cycle {record.cycle}: {what}; scan request {posted.path}: scan the {len(doc['regions'])} "
+                      f"area(s) to {posted.scan_path.name}, in the frame of the first scan")
+    else:
+        reporter.info(f"cycle {record.cycle}: pressed; scan request {posted.path}: scan to {posted.scan_path.name}, "
+                      f"its mark to {posted.mark_path.name}")
     # 2. the station's trigger, when configured (its failure is reported, never fatal)
     if settings.on_pressed:
         run_on_pressed(settings.on_pressed, posted.path, reporter, settings.on_pressed_timeout_s)

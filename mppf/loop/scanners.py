@@ -19,6 +19,7 @@ from mppf.core.errors import InputError
 from mppf.core.scanner import ScanContext
 from mppf.core.validate import check_positive
 from mppf.geometry.read import READ_SUFFIXES
+from mppf.loop.scan_request import scan_name
 
 
 class DirectoryScanner:
@@ -67,23 +68,32 @@ class DirectoryScanner:
 
     def acquire(self, cycle: int, context: ScanContext) -> Path:
         """Wait for a new, complete scan file; return its path."""
-        context.reporter.info(f"cycle {cycle}: waiting for the scan file in {self.folder} "
-                              f"(up to {self.timeout_s:.0f} s)")
-        context.reporter.start(f"waiting for scan {cycle}", total=self.timeout_s)
+        return self._wait(cycle, context, "the scan file", f"scan {cycle}")
+
+    def rescan(self, cycle: int, number: int, context: ScanContext) -> Path:
+        """Wait for the ``number``-th rescan of the cycle: a new, complete scan file (not one of ``context.used_paths``,
+        which hold the cycle's first scan and earlier rescans); in the first scan's frame (the station's business)."""
+        expected = (self.folder / scan_name(context.plate_id, cycle, number)).resolve()
+        return self._wait(cycle, context, f"rescan {number}", f"scan {cycle} rescan {number}", expected)
+
+    def _wait(self, cycle: int, context: ScanContext, what: str, task: str, expected: Path | None = None) -> Path:
+        context.reporter.info(f"cycle {cycle}: waiting for {what} in {self.folder} (up to {self.timeout_s:.0f} s)")
+        context.reporter.start(f"waiting for {task}", total=self.timeout_s)
         start = time.monotonic()
         previous: dict[Path, int] = {}
         try:
             while True:
                 current = self._candidates(context)
                 stable = [p for p, size in current.items() if size > 0 and previous.get(p) == size]
-                if stable:
-                    return max(stable, key=lambda p: p.stat().st_mtime)
+                if stable:  # the file the request named, else the newest
+                    named = [p for p in stable if p.resolve() == expected]
+                    return named[0] if named else max(stable, key=lambda p: p.stat().st_mtime)
                 previous = current
                 waited = time.monotonic() - start
                 if waited >= self.timeout_s:
                     raise InputError(
                         f"no new scan file appeared in {self.folder} within {self.timeout_s:.0f} s "
-                        f"for cycle {cycle} of plate {context.plate_id}",
+                        f"for {task.replace('scan ', 'cycle ', 1)} of plate {context.plate_id}",
                         hint="save the scan there (PLY or CSV) and run 'mppf loop --resume' to go on",
                     )
                 context.reporter.update(waited)

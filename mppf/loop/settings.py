@@ -11,6 +11,9 @@ from mppf.core.validate import check_number
 MAX_CYCLES_LIMIT = 50
 """Most press cycles a plate may be given."""
 
+MAX_RESCANS = 10
+"""Most rescans a cycle may ask for."""
+
 
 @dataclass(frozen=True)
 class LoopSettings:
@@ -63,6 +66,10 @@ class LoopSettings:
     mark_timeout_s : float
         How long a scan of a plate that needs its mark (nearly symmetric) waits for it (s)
         before the loop stops (exit 4, the cycle stays "pressed").
+    rescans : int
+        Rescans a compared cycle may ask for, 0 to :data:`MAX_RESCANS`, when its verdict needs
+        review only because areas of the net plate were not measured
+        (:mod:`mppf.loop.rescanning`; ``--rescans``); 0: the loop stops with needs_review there.
     """
 
     tolerance_mm: float = TOLERANCE_MM
@@ -80,6 +87,7 @@ class LoopSettings:
     on_pressed_timeout_s: float = 60.0
     mark_settle_s: float = 5.0
     mark_timeout_s: float = 600.0
+    rescans: int = 2
 
     def __post_init__(self):
         checks = {  # name: (lower bound, exclusive)
@@ -95,6 +103,8 @@ class LoopSettings:
             object.__setattr__(self, "on_pressed", None)
         object.__setattr__(self, "max_cycles", check_number("loop setting max_cycles", self.max_cycles, low=1,
                                                             high=MAX_CYCLES_LIMIT, integer=True))
+        object.__setattr__(self, "rescans", check_number("loop setting rescans", self.rescans, low=0,
+                                                         high=MAX_RESCANS, integer=True))
 
     def to_dict(self) -> dict:
         """JSON-ready dict (stored with the plate)."""

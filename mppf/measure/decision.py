@@ -31,6 +31,10 @@ IN_TOLERANCE = "in_tolerance"
 OUT_OF_TOLERANCE = "out_of_tolerance"
 NEEDS_REVIEW = "needs_review"
 
+REVIEW_ARTEFACTS = "artefacts"
+REVIEW_UNCOVERED = "uncovered"
+"""The causes of a "needs review" (:attr:`Verdict.review_causes`): set-aside points beyond the tolerance, areas not measured."""
+
 LABELS = {IN_TOLERANCE: "IN tolerance", OUT_OF_TOLERANCE: "OUT of tolerance", NEEDS_REVIEW: "NEEDS REVIEW"}
 """How each kind is written in headlines."""
 
@@ -112,6 +116,20 @@ class Verdict:
     def badly_formed(self) -> bool:
         """Out of tolerance because the plate is far from its design (this plate, badly formed)."""
         return bool(self.figures.badly_formed)
+
+    @property
+    def review_causes(self) -> tuple[str, ...]:
+        """Why the verdict needs review: :data:`REVIEW_ARTEFACTS`, :data:`REVIEW_UNCOVERED`, both, or () (no review)."""
+        if self.kind != NEEDS_REVIEW:
+            return ()
+        causes = ((REVIEW_ARTEFACTS, bool(self.figures.set_aside_beyond)), (REVIEW_UNCOVERED, bool(self.figures.n_gaps)))
+        return tuple(name for name, present in causes if present)
+
+    @property
+    def only_uncovered(self) -> bool:
+        """Needs review only because areas of the net plate were not measured (the limits met, no artefact beyond
+        the tolerance): measuring those areas again can decide it."""
+        return self.review_causes == (REVIEW_UNCOVERED,)
 
     @property
     def label(self) -> str:

@@ -1,0 +1,234 @@
+"""Rescans: areas of the net plate not measured are scanned again, and the union of the scans is compared.
+
+A compared cycle whose verdict needs review only because areas of the net plate were not
+measured (:attr:`mppf.measure.decision.Verdict.only_uncovered`: the limits met, no artefact
+beyond the tolerance) is not stopped at once: the loop asks the station for a rescan of those
+areas (a scan request with ``rescan`` K and the ``regions``, :mod:`mppf.loop.scan_request`;
+``--on-pressed`` runs for it too), up to ``LoopSettings.rescans`` times per cycle, and compares
+the union of the scans. A rescan is taken in the frame of the cycle's first scan (a fixed
+station: the plate and the scanner have not moved), so its points are simply added.
+
+**The guard** (:func:`overlap_agreement`): where the rescan overlaps the earlier scans, the
+union's normal deviations of its points must agree with those of the nearest earlier point
+(within one point spacing in u, v): the median absolute difference must be at most
+:data:`AGREE_NOISE` x the same median of the earlier scans' points against their own nearest
+neighbour (their noise level) + :data:`AGREE_FLOOR_MM`, over at least :data:`MIN_OVERLAP`
+points. A rescan that disagrees (the plate or the scanner moved), does not overlap, cannot be
+read or makes a union that does not register is not merged: the loop stops with needs_review
+and says why. See ``docs/scanner-station.md``, "Rescans".
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from mppf.core.errors import GeometryError, InputError
+from mppf.core.transform import apply_tf
+from mppf.geometry.read import read_points
+from mppf.loop.measuring import compare_union, load_cycle_job, rescan_paths
+from mppf.loop.pressing import scan_context
+from mppf.loop.scan_request import post_request
+from mppf.registration.scan_start import AmbiguousStart
+
+AGREE_NOISE = 3.0
+"""A rescan agrees when its median difference is within this many times the earlier scans' own (their noise)."""
+
+AGREE_FLOOR_MM = 0.1
+"""... plus this (mm): a noise-free scan still has its sampling and smoothing differences."""
+
+MIN_OVERLAP = 30
+"""Fewest rescan points beside earlier ones for the agreement to be judged (fewer: not merged)."""
+
+
+@dataclass(frozen=True)
+class Agreement:
+    """How a rescan agrees with the earlier scans where they overlap (mm).
+
+    Attributes
+    ----------
+    overlap : int
+        Rescan points with an earlier point within one point spacing (u, v).
+    difference_mm : float
+        Median |deviation - the nearest earlier point's deviation| over them (NaN: no overlap).
+    noise_mm : float
+        The same median of the earlier scans' points against their own nearest neighbour.
+    limit_mm : float
+        ``AGREE_NOISE * noise_mm + AGREE_FLOOR_MM``.
+    """
+
+    overlap: int
+    difference_mm: float
+    noise_mm: float
+    limit_mm: float
+
+    @property
+    def agrees(self) -> bool:
+        return self.overlap >= MIN_OVERLAP and bool(self.difference_mm <= self.limit_mm)
+
+    def describe(self) -> str:
+        """One line, e.g. "median difference 0.28 mm <= 0.96 mm over 5210 overlapping points"."""
+        if self.overlap < MIN_OVERLAP:
+            return (f"it overlaps the earlier scans at {self.overlap} point(s) only (at least {MIN_OVERLAP}): "
+                    "it cannot be checked to be in their frame")
+        sign = "<=" if self.agrees else ">"
+        return (f"median difference {self.difference_mm:.2f} mm {sign} {self.limit_mm:.2f} mm "
+                f"({AGREE_NOISE:g} x the scans' own {self.noise_mm:.2f} mm + {AGREE_FLOOR_MM:g} mm) over "
+                f"{self.overlap} overlapping points")
+
+    def to_dict(self) -> dict:
+        return {"overlap": self.overlap, "difference_mm": _finite(self.difference_mm), "noise_mm": self.noise_mm,
+                "limit_mm": self.limit_mm, "agrees": self.agrees}
+
+
+@dataclass(frozen=True)
+class Measured:
+    """What a cycle measured: the comparison decided on, every scan taken, why a rescan was not merged."""
+
+    comparison: object
+    scans: list
+    stopped: str | None = None
+
+
+def overlap_agreement(comparison, n_before: int) -> Agreement:
+    """Whether the points after the first ``n_before`` of a union's comparison agree with those before.
+
+    Parameters
+    ----------
+    comparison : Comparison
+        Of the union (the earlier scans' points first).
+    n_before : int
+        How many points the earlier scans have.
+    """
+    from scipy.spatial import cKDTree
+
+    dev = np.asarray(comparison.deviation_mm, dtype=float)
+    usable = np.isfinite(dev) & ~np.asarray(comparison.is_outlier) & ~np.asarray(comparison.is_outside)
+    index = np.arange(dev.shape[0])
+    before, after = usable & (index < n_before), usable & (index >= n_before)
+    uv = np.asarray(comparison.measured_uv_mm, dtype=float)
+    if before.sum() < 2 or not after.any():
+        return Agreement(0, float("nan"), float("nan"), float("nan"))
+    tree = cKDTree(uv[before])
+    # 1. the earlier scans' own spacing and noise: each point against its nearest other point
+    dist, own = tree.query(uv[before], k=2)
+    spacing = float(np.median(dist[:, 1]))
+    noise = float(np.median(np.abs(dev[before] - dev[before][own[:, 1]])))
+    # 2. the rescan's points against the nearest earlier point within one spacing
+    dist, near = tree.query(uv[after], k=1, distance_upper_bound=spacing)
+    hit = np.isfinite(dist)
+    difference = float(np.median(np.abs(dev[after][hit] - dev[before][near[hit]]))) if hit.any() else float("nan")
+    return Agreement(int(hit.sum()), difference, noise, AGREE_NOISE * noise + AGREE_FLOOR_MM)
+
+
+def region_doc(gap, comparison, tf_press_design) -> dict:
+    """An area not measured, for the rescan request: design (u, v) and, with the press pose, press (x, y).
+
+    ``corners_press_mm``: the (u, v) box's corners on the press (the design frame's plane placed by
+    ``tf_press_design``: about where the area lies, for the station to aim at).
+    """
+    doc = gap.to_dict()
+    u0, v0, u1, v1 = gap.box_uv_mm
+    if tf_press_design is not None:
+        corners = np.array([[u0, v0, 0.0], [u1, v0, 0.0], [u1, v1, 0.0], [u0, v1, 0.0]])
+        xy = apply_tf(tf_press_design, comparison.design_frame.to_world(corners))[:, :2]
+        doc["corners_press_mm"] = [[round(float(x), 1), round(float(y), 1)] for x, y in xy]
+    else:
+        doc["corners_press_mm"] = None
+    return doc
+
+
+def rescan_uncovered(cycle_run, record, comparison) -> Measured:
+    """Rescan the areas not measured while that alone makes the cycle need review; the comparison to decide on.
+
+    Parameters
+    ----------
+    cycle_run : mppf.loop.cycle._Run
+        The loop's run (history, plate, press, settings, design, scanner, reporter, scan folder).
+    record : CycleRecord
+        The scanned cycle.
+    comparison : Comparison
+        Of its first scan.
+    """
+    run, settings, reporter = cycle_run, cycle_run.settings, cycle_run.reporter
+    scans = [{"path": str(record.scan_path), "sha256": record.scan_sha256, "rescan": 0,
+              "n_points": int(comparison.n_points), "merged": True}]
+    job = load_cycle_job(record)
+    for number in range(1, settings.rescans + 1):
+        verdict = comparison.verdict
+        if verdict is None or not verdict.only_uncovered:
+            return Measured(comparison, scans)
+        if not hasattr(run.scanner, "rescan"):
+            reporter.info(f"cycle {record.cycle}: the scanner cannot rescan; the areas not measured need review")
+            return Measured(comparison, scans)
+        # 1. say what happens; ask the station for the areas (request file, --on-pressed) and take the rescan
+        regions = [region_doc(g, comparison, job.tf_press_design) for g in comparison.coverage.regions]
+        reporter.info(f"cycle {record.cycle}: {len(regions)} area(s) not measured "
+                      f"({'; '.join(comparison.coverage.names())}): asking for rescan {number} of {settings.rescans}")
+        path = _take_rescan(run, record, job, number, regions, scans)
+        scan = {"path": str(path), "sha256": "", "rescan": number, "n_points": 0, "merged": False}
+        scans.append(scan)
+        # 2. the union of the scans so far, compared; merged only when the rescan agrees where they overlap
+        union, reason = _union(run, record, scans, scan, path)
+        if reason is None:
+            agreement = overlap_agreement(union, sum(s["n_points"] for s in scans[:-1]))
+            scan["agreement"] = agreement.to_dict()
+            if not agreement.agrees:
+                reason = (f"it disagrees with the earlier scans where they overlap ({agreement.describe()}): "
+                          "the plate or the scanner moved between the scans")
+        if reason is not None:
+            stopped = f"rescan {number} ({Path(path).name}) not merged: {reason}; the cycle needs review"
+            reporter.info(f"cycle {record.cycle}: {stopped}")
+            return Measured(comparison, scans, stopped)
+        scan["merged"] = True
+        comparison = union
+        merged = sum(1 for s in scans if s["merged"])
+        reporter.info(f"cycle {record.cycle}: rescan {number} merged ({agreement.describe()}); the union of "
+                      f"{merged} scans: {comparison.verdict.headline if comparison.verdict else ''}")
+    if comparison.verdict is not None and comparison.verdict.only_uncovered and settings.rescans:
+        reporter.info(f"cycle {record.cycle}: {len(comparison.coverage.regions)} area(s) still not measured after "
+                      f"{settings.rescans} rescan(s): the cycle needs review")
+    return Measured(comparison, scans)
+
+
+def _take_rescan(run, record, job, number: int, regions: list, scans: list) -> Path:
+    """The rescan file: the request posted, the file taken (never one taken before), the request withdrawn.
+
+    Raises
+    ------
+    InputError
+        No rescan came (the scanner's wait ended): the cycle stays "scanned", ``--resume`` asks again.
+    """
+    first = {"path": scans[0]["path"], "sha256": scans[0]["sha256"]}
+    request = post_request(run.plate, record, job, run.settings, run.scan_folder, run.reporter, rescan=number,
+                           regions=regions, first_scan=first)
+    try:
+        context = scan_context(run.history, run.plate, record, run.press, run.reporter)
+        taken = tuple(s["path"] for s in scans) + rescan_paths(run.history, run.plate.plate_id)
+        context = dataclasses.replace(context, used_paths=context.used_paths + taken)
+        path = Path(run.scanner.rescan(record.cycle, number, context)).resolve()
+    finally:
+        request.withdraw()
+    return path
+
+
+def _union(run, record, scans: list, scan: dict, path: Path):
+    """The comparison of the union with the new rescan (its sha256 and count filled in); (union, None) or
+    (None, why not)."""
+    try:
+        points = read_points(path)
+    except InputError as exc:
+        return None, f"it cannot be read ({exc.message})"
+    scan.update(sha256=points.sha256, n_points=int(points.points.shape[0]))
+    try:
+        union = compare_union(run.plate, record, run.design, run.settings, scans[1:])
+    except (GeometryError, AmbiguousStart) as exc:
+        return None, f"the union of the scans does not register onto the design ({exc.message})"
+    return union, None
+
+
+def _finite(value: float):
+    return None if not np.isfinite(value) else float(value)
