@@ -176,7 +176,10 @@ def _scanner(history, plate_id, press, flat_path):
     from mppf.sim.shop import SimulatedPlateScanner
 
     job = load_job(history.cycle(plate_id, 1).job_path)
-    return SimulatedPlateScanner.for_job(press, 20.0, job, read_points(flat_path).points, seed=1)
+    # the planner's own plate model: this scan only has to be a usable scan of the plate as pressed
+    # (the steel plate takes five times longer to press)
+    return SimulatedPlateScanner.for_job(press, 20.0, job, read_points(flat_path).points, seed=1,
+                                         plate_model="planner")
 
 
 # -- the press policy, shared with mppf press ------------------------------------------------------

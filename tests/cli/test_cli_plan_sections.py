@@ -40,6 +40,27 @@ def test_a_plate_longer_than_the_bed_is_planned_in_sections(planned, capsys):
     assert len(centres) == len(summary["sections"])
 
 
+def test_a_press_too_small_for_the_plate_plans_it_in_sections_not_refuses_it(hull_dir, tmp_path, capsys):
+    """Once refused with "does not fit on the bed": a 3 x 2 m hull plate on a press of 12 columns (1.8 m)."""
+    from mppf.geometry.read import read_points
+    from mppf.geometry.unfold import unfold
+    from mppf.geometry.write import write_points
+    from mppf.planning.press import example_press_path
+
+    design = hull_dir / "P2_bow_flare_smooth.csv"
+    flat = write_points(tmp_path / "P2_flat.csv", unfold(read_points(design).points).flat)
+    text = example_press_path().read_text()
+    assert "cols = 24" in text
+    press = tmp_path / "press.toml"
+    press.write_text(text.replace("cols = 24", "cols = 12"))
+    job_path = tmp_path / "job.json"
+    code = main(["plan", str(design), str(flat), "--press", str(press), "--thickness", "20", "-o", str(job_path),
+                 "--json"])
+    assert code == 0, capsys.readouterr().err
+    summary = json.loads(capsys.readouterr().out)
+    assert len(summary["sections"]) >= 2 and len(load_job(job_path).sections) == len(summary["sections"])
+
+
 @pytest.mark.parametrize("value", ["0", "-300", "nan"])
 def test_a_bad_transition_width_exits_2_before_planning(planned, value, capsys):
     job_path, folder = planned

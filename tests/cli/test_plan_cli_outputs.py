@@ -112,7 +112,6 @@ def test_flat_with_another_point_count_uses_icp(cylinder_files, capsys):
         (["--thickness", "16"], ("tip_radius_mm = 60.0", "tip_radus_mm = 60.0"),
          "unknown key(s) ['tip_radus_mm'] in [matrix]"),
         (["--thickness", "16"], ("pitch_x_mm = 150.0", "pitch_x_mm = 1e308"), "[matrix] pitch_x_mm must be above 0 and at most 1e+06 mm, got 1e+308"),
-        (["--thickness", "16"], ("rows = 16", "rows = 6"), "does not fit on the bed"),
         (["--thickness", "16"], ("max_mm = 300.0", "max_mm = 5.0", "-400.0", "-5.0"), "beyond the press limits"),
         (["--thickness", "16", "--steps", "1"], ("max_neighbour_diff_mm = 30.0", "max_neighbour_diff_mm = 2.0"),
          "dimpling limit 2"),
