@@ -320,6 +320,24 @@ def register_icp(
         return _register(cloud, tgt, init, settings, reporter)
 
 
+def converge_start(cloud: Cloud, target: RegistrationTarget, start_tf, settings: IcpSettings) -> np.ndarray:
+    """A start converged (4, 4): ``register_icp(cloud, target, init=start_tf, ...).tf`` for ``settings``
+    (``pin_outline=False, check_starts=False``) without the noise floor, verdict and uncertainty a start
+    fit does not use (about half of a fit on 2,000 points). ``cloud`` prepared, ``target`` built.
+    """
+    from threadpoolctl import threadpool_limits
+
+    if settings.pin_outline is not False:
+        raise ValueError("converge_start fits without the outline pin: give pin_outline=False")
+    notes: list[str] = []
+    matching, flat_vs_curved = stages.matching(cloud, target, settings, notes)
+    points = stages.subsamples(cloud, settings)
+    with threadpool_limits(limits=1, user_api="blas"):
+        fit = stages.fit(target, cloud, points, np.asarray(start_tf, dtype=float).copy(), matching, settings,
+                         flat_vs_curved, 0.0, notes, NULL_REPORTER)
+    return fit.fine.tf
+
+
 def _register(cloud: Cloud, target: RegistrationTarget, init, settings: IcpSettings, reporter: Reporter):
     """The steps of :func:`register_icp` on checked inputs."""
     notes: list[str] = []

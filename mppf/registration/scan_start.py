@@ -23,8 +23,8 @@ from scipy.spatial.transform import Rotation
 
 from mppf.core.errors import EXIT_PRESS, InputError, MppfError
 from mppf.core.transform import apply_tf, make_tf, rotation_angle_deg
-from mppf.registration.register import register_icp
-from mppf.registration.settings import ScanStart
+from mppf.registration.register import converge_start, register_icp
+from mppf.registration.settings import IcpSettings, ScanStart
 from mppf.registration.starts import evaluate, principal_candidates, rank
 from mppf.registration.target import Cloud, RegistrationTarget
 from mppf.registration.verdict import noise_floor_mm, plane_residuals, robust_scale_mm, sample_index, tie
@@ -237,10 +237,9 @@ def _map(fit, starts, settings: ScanStart) -> list:
 
 def _start_fit(scan, target, start, settings: ScanStart) -> np.ndarray:
     """A start converged by trimmed, Huber-weighted point-to-plane ICP on a subsample (measured -> design)."""
-    reg = register_icp(scan, target, method="plane", init=start, trim_fraction=settings.trim_fraction,
-                       robust="huber", pin_outline=False, max_points=settings.points,
-                       max_iterations=settings.iterations, check_starts=False)
-    return reg.tf
+    return converge_start(scan, target, start, IcpSettings(method="plane", trim_fraction=settings.trim_fraction,
+                                                           robust="huber", pin_outline=False, max_points=settings.points,
+                                                           max_iterations=settings.iterations, check_starts=False))
 
 
 def _held_starts(target, candidates, mark, sample, settings: ScanStart) -> list[np.ndarray]:
