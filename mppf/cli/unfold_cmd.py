@@ -133,11 +133,12 @@ def _job(job_path: str):
 
 def _drawing(result, design: str, cloud, margin_mm: float | None, job):
     """The cutter's drawing: margin from --margin, else the job's, else the example press's."""
-    from mppf.geometry.dxf import flat_drawing
+    from mppf.geometry.dxf import flat_drawing, section_marks_of
 
-    tf_press_flat, punches = None, None
+    tf_press_flat, punches, marks = None, None, []
     if job is not None:
         tf_press_flat, punches = _job_placement(job, result, cloud)
+        marks = section_marks_of(job)
         if margin_mm is None and job.layout is not None:
             margin_mm = job.layout.margin_mm
     if margin_mm is None:
@@ -147,7 +148,7 @@ def _drawing(result, design: str, cloud, margin_mm: float | None, job):
     width, height = result.to_dict()["flat_size_mm"]
     label = f"{Path(design).stem}  {width:.0f} x {height:.0f} mm net, margin {margin_mm:g} mm"
     return flat_drawing(result.flat[:, :2], result.faces, margin_mm, tf_press_flat=tf_press_flat,
-                        punches_press_mm=punches, label=label)
+                        punches_press_mm=punches, label=label, section_marks=marks)
 
 
 def _job_placement(job, result, cloud):
@@ -176,7 +177,7 @@ def _drawing_report(drawing) -> dict:
     return {"cut_area_mm2": area(drawing.cut_mm), "cut_perimeter_mm": perimeter(drawing.cut_mm),
             "net_area_mm2": area(drawing.net_mm[0]), "net_perimeter_mm": perimeter(drawing.net_mm[0]),
             "margin_mm": drawing.margin_mm, "reference_corner_mm": drawing.mark_mm.tolist(),
-            "n_punches": int(drawing.punches_mm.shape[0])}
+            "n_punches": int(drawing.punches_mm.shape[0]), "n_section_marks": len(drawing.section_marks)}
 
 
 def _print_report(report: dict) -> None:

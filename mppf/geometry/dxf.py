@@ -8,8 +8,10 @@ Layers (see ``docs/file-formats.md``, "Flat plate for the cutter"):
            press; with no margin, the net outline itself)
 ``NET``    the net outline: the boundary of the unfolded plate (the design's edge)
 ``MARK``   the reference mark: a point on the reference corner of the cut outline and
-           a circle with a cross just inside it
-``TEXT``   ``REF`` beside the mark; the plate's name, size and margin at its centre
+           a circle with a cross just inside it; a plate formed in sections also has each
+           section's two placement marks (a point with a cross)
+``TEXT``   ``REF`` beside the mark; the plate's name, size and margin at its centre; the
+           section marks' names (``S2.1``: section 2, its first mark)
 ``PUNCH``  optional: the punch centres of a job (circles), in the flat's coordinates
 =========  ======================================================================
 
@@ -61,6 +63,9 @@ class FlatDrawing:
     punches_mm : (p, 2) float
         Punch centres to mark (may be empty).
     label : str
+    section_marks : tuple of (str, (2,) float)
+        A plate formed in sections: each section's placement marks, named ("S2.1", "S2.2":
+        section 2's first and second mark) and where they lie on the flat (empty otherwise).
     """
 
     cut_mm: np.ndarray
@@ -70,10 +75,11 @@ class FlatDrawing:
     mark_centre_mm: np.ndarray
     punches_mm: np.ndarray
     label: str = ""
+    section_marks: tuple = ()
 
 
 def flat_drawing(flat_xy, faces, margin_mm: float, *, tf_press_flat=None, punches_press_mm=None,
-                 label: str = "") -> FlatDrawing:
+                 label: str = "", section_marks=()) -> FlatDrawing:
     """The cut and net outlines, the reference mark and punch marks of an unfolded plate.
 
     Parameters
@@ -90,6 +96,9 @@ def flat_drawing(flat_xy, faces, margin_mm: float, *, tf_press_flat=None, punche
     punches_press_mm : (p, 2) float, optional
         Punch axes on the press to mark (needs ``tf_press_flat``).
     label : str
+    section_marks : sequence of (str, (2,) float), optional
+        Named placement marks of a sectional job, in the flat's coordinates
+        (:func:`section_marks_of`).
     """
     xy = np.asarray(flat_xy, dtype=float)[:, :2]
     if not (np.isfinite(margin_mm) and margin_mm >= 0):
@@ -108,8 +117,20 @@ def flat_drawing(flat_xy, faces, margin_mm: float, *, tf_press_flat=None, punche
     if punches_press_mm is not None:
         p = np.asarray(punches_press_mm, dtype=float).reshape(-1, 2)
         punches = apply_tf(invert_tf(tf), np.column_stack([p, np.zeros(len(p))]))[:, :2]
+    marks = tuple((str(name), np.asarray(xy, dtype=float)[:2].copy()) for name, xy in section_marks)
     return FlatDrawing(cut_mm=cut, net_mm=tuple(loops), margin_mm=float(margin_mm), mark_mm=cut[corner].copy(),
-                       mark_centre_mm=_inside_corner(cut, corner, MARK_INSET_MM), punches_mm=punches, label=label)
+                       mark_centre_mm=_inside_corner(cut, corner, MARK_INSET_MM), punches_mm=punches, label=label,
+                       section_marks=marks)
+
+
+def section_marks_of(job) -> list[tuple[str, np.ndarray]]:
+    """The placement marks of a job planned in sections, named "S<section>.<1|2>", on its flat (mm).
+
+    ``job.sections[k].marks_flat_mm`` are in the coordinates of the flat file the job was
+    planned from (the flat of ``mppf unfold``); a job in one piece has none.
+    """
+    return [(f"S{s.index}.{k + 1}", np.asarray(s.marks_flat_mm, dtype=float)[k, :2])
+            for s in (job.sections or []) for k in range(len(s.marks_flat_mm))]
 
 
 def write_flat_dxf(path, drawing: FlatDrawing) -> Path:
@@ -152,7 +173,15 @@ def write_flat_dxf(path, drawing: FlatDrawing) -> Path:
     # 3. punch centres
     for x, y in drawing.punches_mm:
         msp.add_circle((float(x), float(y)), PUNCH_RADIUS_MM, dxfattribs={"layer": "PUNCH"})
-    # 4. audit, then write
+    # 4. the placement marks of the sections: a point, a cross and its name
+    for name, (x, y) in drawing.section_marks:
+        msp.add_point((float(x), float(y)), dxfattribs={"layer": "MARK"})
+        for dx, dy in ((1.0, 0.0), (0.0, 1.0)):
+            msp.add_line((x - 1.5 * MARK_RADIUS_MM * dx, y - 1.5 * MARK_RADIUS_MM * dy),
+                         (x + 1.5 * MARK_RADIUS_MM * dx, y + 1.5 * MARK_RADIUS_MM * dy), dxfattribs={"layer": "MARK"})
+        msp.add_text(name, height=TEXT_HEIGHT_MM / 2, dxfattribs={"layer": "TEXT"}).set_placement(
+            (float(x) + 2 * MARK_RADIUS_MM, float(y) + 2 * MARK_RADIUS_MM), align=TextEntityAlignment.BOTTOM_LEFT)
+    # 5. audit, then write
     auditor = doc.audit()
     if auditor.has_errors:
         raise InputError(f"the drawing for {path} fails ezdxf's audit: {auditor.errors[0]}",
