@@ -11,7 +11,7 @@ Layers (see ``docs/file-formats.md``, "Flat plate for the cutter"):
            a circle with a cross just inside it; a plate formed in sections also has each
            section's two placement marks (a point with a cross)
 ``TEXT``   ``REF`` beside the mark; the plate's name, size and margin at its centre; the
-           section marks' names (``S2.1``: section 2, its first mark)
+           section marks' names (``2a``, ``2b``: section 2's marks)
 ``PUNCH``  optional: the punch centres of a job (circles), in the flat's coordinates
 =========  ======================================================================
 
@@ -64,8 +64,8 @@ class FlatDrawing:
         Punch centres to mark (may be empty).
     label : str
     section_marks : tuple of (str, (2,) float)
-        A plate formed in sections: each section's placement marks, named ("S2.1", "S2.2":
-        section 2's first and second mark) and where they lie on the flat (empty otherwise).
+        A plate formed in sections: each section's placement marks, named ("2a", "2b":
+        section 2's two marks, as the placement instruction names them) and where they lie on the flat (empty otherwise).
     """
 
     cut_mm: np.ndarray
@@ -124,12 +124,13 @@ def flat_drawing(flat_xy, faces, margin_mm: float, *, tf_press_flat=None, punche
 
 
 def section_marks_of(job) -> list[tuple[str, np.ndarray]]:
-    """The placement marks of a job planned in sections, named "S<section>.<1|2>", on its flat (mm).
+    """The placement marks of a job planned in sections, named "<section>a" and "<section>b" as the placement instruction names them
+    (:func:`mppf.planning.sections.placement_text`), on its flat (mm).
 
     ``job.sections[k].marks_flat_mm`` are in the coordinates of the flat file the job was
     planned from (the flat of ``mppf unfold``); a job in one piece has none.
     """
-    return [(f"S{s.index}.{k + 1}", np.asarray(s.marks_flat_mm, dtype=float)[k, :2])
+    return [(f"{s.index}{'ab'[k]}", np.asarray(s.marks_flat_mm, dtype=float)[k, :2])
             for s in (job.sections or []) for k in range(len(s.marks_flat_mm))]
 
 

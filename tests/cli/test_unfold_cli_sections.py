@@ -27,8 +27,8 @@ def test_the_flat_dxf_of_a_sectional_job_marks_every_section(tmp_path, capsys):
     msp = ezdxf.readfile(dxf).modelspace()
     (cut,) = [np.array(e.get_points("xy")) for e in msp.query('LWPOLYLINE[layer=="CUT"]')]
     points = np.array([p.dxf.location for p in msp.query('POINT[layer=="MARK"]')])[:, :2]
-    names = sorted(t.dxf.text for t in msp.query('TEXT[layer=="TEXT"]') if t.dxf.text.startswith("S"))
-    expected = {f"S{s.index}.{k + 1}": s.marks_flat_mm[k, :2] for s in job.sections for k in range(2)}
+    expected = {f"{s.index}{'ab'[k]}": s.marks_flat_mm[k, :2] for s in job.sections for k in range(2)}
+    names = sorted(t.dxf.text for t in msp.query('TEXT[layer=="TEXT"]') if t.dxf.text in expected)
     assert names == sorted(expected)
     assert points.shape[0] == 1 + len(expected)  # the reference mark and the sections' marks
     for xy in expected.values():  # each section mark is drawn where the job puts it, on the plate
