@@ -122,7 +122,8 @@ class _Panel:
         return RedirectResponse("/live", status_code=303)
 
     async def place(self, request):
-        ctx = await run_in_threadpool(views.place, self.cfg, request.query_params.get("plate"))
+        ctx = await run_in_threadpool(views.place, self.cfg, request.query_params.get("plate"),
+                                      request.query_params.get("section"))
         return self.page(request, "place.html", ctx)
 
     async def live(self, request):

@@ -57,10 +57,15 @@ def press_of(cfg: PanelConfig, reader: HistoryReader):
     return None if current is None else press_from_dict(current[0].press, source="the plate history")
 
 
-def place(cfg: PanelConfig, plate_id: str | None = None) -> dict:
-    """"Lay the plate": the bed, the plate as cut, the corners, for the cycle about to be pressed."""
+def place(cfg: PanelConfig, plate_id: str | None = None, section: str | None = None) -> dict:
+    """"Lay the plate": the bed, the plate as cut, the corners, for the cycle about to be pressed.
+
+    A job planned in sections shows one section at a time (``section``, 1-based, default 1):
+    its placement, its marks and the punches they go over, and links to the others.
+    """
     reader = HistoryReader(cfg.history_path)
-    ctx = {"view": "place", "plate": None, "cycle": None, "job_path": None, "error": "", "rows": [], "bed": ""}
+    ctx = {"view": "place", "plate": None, "cycle": None, "job_path": None, "error": "", "rows": [], "bed": "",
+           "section": None}
     if cfg.job_path is not None:
         ctx["job_path"] = str(cfg.job_path)
         job, ctx["error"] = read_job(cfg.job_path)
@@ -76,14 +81,38 @@ def place(cfg: PanelConfig, plate_id: str | None = None) -> dict:
         step = min(cycle.steps_done, len(cycle.steps) - 1)
     if job is None:
         return ctx
-    if job.layout is None:
+    layout, steps = job.layout, job.steps
+    if job.sections:
+        chosen, ctx["section"], ctx["error"] = _section(job, section, cfg.base)
+        layout, steps = chosen.layout, chosen.steps
+    if layout is None:
         return {**ctx, "error": "the job has no plate outline (planned by an old mppf): re-plan it"}
-    placement = placement_of(job.layout)
-    step = min(step, len(job.steps) - 1)
+    placement = placement_of(layout)
+    step = min(step, len(steps) - 1)
     return {**ctx, "rows": placement.rows(), "mark": placement.mark_mm.tolist(), "margin_mm": placement.margin_mm,
-            "job_press": job.press.name, "step": step + 1, "n_steps": len(job.steps),
+            "job_press": job.press.name, "step": step + 1, "n_steps": len(steps),
             "size_mm": np.ptp(placement.cut_corners_mm, axis=0).tolist(),
-            "bed": bed_svg(job.press, placement, active=job.steps[step].active, base=cfg.base)}
+            "bed": bed_svg(job.press, placement, active=steps[step].active, base=cfg.base)}
+
+
+def _section(job, asked: str | None, base: int):
+    """(the section shown, its context, an error text): ``asked`` 1-based, section 1 when absent or unknown."""
+    from mppf.planning.sections import placement_text
+
+    n, error, k = len(job.sections), "", 1
+    if asked:
+        try:
+            k = int(asked)
+        except ValueError:
+            k = 0
+        if not 1 <= k <= n:
+            error, k = f"section {asked!r} does not exist: the job has sections 1 to {n} (section 1 shown)", 1
+    chosen = job.sections[k - 1]
+    previous = job.sections[k - 2] if k > 1 else None
+    instruction = placement_text(chosen, previous, label=lambda r, c: f"R{r + base} C{c + base}")
+    marks = [{"name": f"{k}{'ab'[i]}", "x_mm": float(x), "y_mm": float(y)}
+             for i, (x, y) in enumerate(np.asarray(chosen.marks_press_mm, dtype=float)[:, :2])]
+    return chosen, {"index": k, "count": n, "instruction": instruction, "marks": marks}, error
 
 
 def live(cfg: PanelConfig, press) -> dict:
