@@ -13,6 +13,14 @@ threads) may append at the same time. Default location: ``$MPPF_HOME/audit.sqlit
 ``MPPF_HOME`` is set, else ``~/.local/share/mppf/audit.sqlite``. A log of schema version 1
 (no outcome time) is upgraded in place when opened.
 
+A row that cannot be written (disk full, read-only file, locked past the busy timeout) stops
+the request it was for: :meth:`AuditLog.intent` raises :class:`~mppf.core.errors.InputError`
+(exit 2) before it is sent, **except for STOP and the release of ownership**, which are sent
+whether or not their row can be written (the press stops first). An outcome or a one-shot row that cannot be written
+(the request already went out, or nothing is sent) leaves the intent row as it is and is
+counted in :attr:`AuditLog.unwritten`, so that a failing log never cuts a motion short
+without its STOP.
+
 Master heartbeat writes are not recorded (several a second would drown the log); each
 connection (or failed attempt to connect) is.
 """
@@ -28,10 +36,13 @@ from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 
-from mppf.core.db import open_sqlite
+from mppf.core.db import Transaction, open_sqlite
+from mppf.core.errors import InputError
 from mppf.core.paths import data_dir
 
 SCHEMA_VERSION = 2
+ALWAYS_SENT = ("stop", "release")
+"""Requests sent whether or not their audit row can be written: they only make the press safer."""
 INTENT = "intent"
 """The outcome of a row whose request was about to be sent and whose outcome never came."""
 _SCHEMA = """
@@ -107,34 +118,64 @@ class AuditLog:
         _upgrade_v1(self.path)
         self._db = open_sqlite(self.path, "the audit log", _SCHEMA, SCHEMA_VERSION, threads=True,
                                hint="give a writable path with --audit or set MPPF_HOME")
+        self.unwritten = 0
+        """Outcomes and one-shot rows that could not be written (see the module docstring)."""
+
+    def _write(self, sql: str, params: tuple, what: str):
+        """One statement in its own transaction; a failed write as an InputError naming the log."""
+        with self._lock, Transaction(self._db, f"the audit log {self.path}",
+                                     hint=f"{what}; free disk space or give a writable --audit path (or set "
+                                          "MPPF_HOME), then run again"):
+            return self._db.execute(sql, params)
+
+    def _write_or_count(self, sql: str, params: tuple) -> None:
+        """A write whose failure must not stop what follows: counted in :attr:`unwritten`."""
+        try:
+            self._write(sql, params, "")
+        except InputError:
+            self.unwritten += 1
 
     def _insert(self, plc: str, action: str, outcome: str, outcome_time_s, job_sha256, sequence, detail) -> int:
         now = time.time()
         stamp = datetime.fromtimestamp(now, tz=timezone.utc).isoformat(timespec="microseconds")
         row = (stamp, now, self._host, self._user, os.getpid(), str(plc), job_sha256, sequence, action, outcome,
                detail, now if outcome_time_s else None)
-        with self._lock:
-            cur = self._db.execute(
-                "INSERT INTO audit (time_utc, time_s, host, user, pid, plc, job_sha256, sequence, "
-                "action, outcome, detail, outcome_time_s) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                row,
-            )
-            return int(cur.lastrowid)
+        sql = ("INSERT INTO audit (time_utc, time_s, host, user, pid, plc, job_sha256, sequence, "
+               "action, outcome, detail, outcome_time_s) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)")
+        if outcome != INTENT:
+            self._write_or_count(sql, row)
+            return -1
+        if action in ALWAYS_SENT:  # STOP and the release go out whether or not their row can be written
+            try:
+                return int(self._write(sql, row, "").lastrowid)
+            except InputError:
+                self.unwritten += 1
+                return -1
+        return int(self._write(sql, row, f"the {action} was not sent to the PLC {plc}").lastrowid)
 
     def intent(self, plc: str, action: str, *, job_sha256: str | None = None, sequence: int | None = None,
                detail: str = "") -> int:
-        """Commit a row for a request about to be sent (outcome ``intent``); return its id."""
+        """Commit a row for a request about to be sent (outcome ``intent``); return its id (-1: a STOP or
+        release whose row could not be written).
+
+        Raises
+        ------
+        InputError
+            The row cannot be written (disk full, read-only): the request must not be sent.
+        """
         return self._insert(plc, action, INTENT, False, job_sha256, sequence, detail)
 
     def outcome(self, row: int, outcome: str, detail: str = "") -> None:
         """Record the outcome of row ``row`` (committed at once); ``detail`` is added to the intent's."""
-        with self._lock:
-            self._db.execute(
-                "UPDATE audit SET outcome = ?, outcome_time_s = ?, "
-                "detail = CASE WHEN ? = '' THEN detail WHEN detail = '' THEN ? ELSE detail || '; ' || ? END "
-                "WHERE id = ?",
-                (outcome, time.time(), detail, detail, detail, int(row)),
-            )
+        if row < 0:  # its intent could not be written (a STOP or a release)
+            self.unwritten += 1
+            return
+        self._write_or_count(
+            "UPDATE audit SET outcome = ?, outcome_time_s = ?, "
+            "detail = CASE WHEN ? = '' THEN detail WHEN detail = '' THEN ? ELSE detail || '; ' || ? END "
+            "WHERE id = ?",
+            (outcome, time.time(), detail, detail, detail, int(row)),
+        )
 
     def record(
         self,
@@ -147,7 +188,7 @@ class AuditLog:
         detail: str = "",
     ) -> None:
         """Append one row with its outcome, in one commit (for what is not sent to the PLC: a connection,
-        a refusal before writing)."""
+        a refusal before writing); a row that cannot be written is counted in :attr:`unwritten`."""
         self._insert(plc, action, outcome, True, job_sha256, sequence, detail)
 
     def entries(self, limit: int | None = None) -> list[AuditEntry]:

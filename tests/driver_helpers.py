@@ -149,3 +149,20 @@ class RawMaster:
         n = shape[0] * shape[1]
         words = self._read(self.map[f"{side}_actuals"].address, 2 * n)
         return codec.counts_to_mm(codec.decode_int32(words, self.word_order)).reshape(shape)
+
+
+def fill_up_audit(path, monkeypatch):
+    """The log at ``path`` with its last page nearly full, and every log opened from now on unable to grow."""
+    from mppf.core.db import open_sqlite
+    from mppf.drivers import audit as audit_module
+    from mppf.drivers.audit import AuditLog
+
+    with AuditLog(path) as log:
+        log.record("tcp://plc:502", "connect", "ok", detail="x" * 3500)
+
+    def full(*args, **kwargs):
+        db = open_sqlite(*args, **kwargs)
+        db.execute(f"PRAGMA max_page_count = {db.execute('PRAGMA page_count').fetchone()[0]}")
+        return db
+
+    monkeypatch.setattr(audit_module, "open_sqlite", full)
