@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from mppf.core.polygon import contains
+from mppf.core.polygon import contains, convex_outline, offset_convex
 from mppf.core.validate import check_number
 from mppf.geometry.write import write_points
 from mppf.measure.mark import MARK_SUFFIX
@@ -78,6 +78,10 @@ class ScanSample:
     n_blobs: int
     hidden_xy_mm: np.ndarray
     mark_mm: np.ndarray | None = None
+
+
+AIM_MARGIN_SPACINGS = 3.0
+"""An aimed take (a rescan of listed areas) scans this many point spacings around each area too."""
 
 
 class SimulatedScanner:
@@ -128,7 +132,7 @@ class SimulatedScanner:
         self.seed = seed
         self._rng = np.random.default_rng(seed)
 
-    def sample(self, formed: FormedPlate, mark_xy_mm=None, tf_scan_press=None) -> ScanSample:
+    def sample(self, formed: FormedPlate, mark_xy_mm=None, tf_scan_press=None, aim_xy_mm=()) -> ScanSample:
         """Scan ``formed`` and return the points with their ground truth.
 
         Parameters
@@ -140,6 +144,10 @@ class SimulatedScanner:
         tf_scan_press : (4, 4) float, optional
             The pose to scan in (a fixed station's take in the frame of an earlier one);
             default a random pose. The random draws are the same either way.
+        aim_xy_mm : sequence of (k, 2) float, optional
+            A take aimed at these areas (press x, y corners, e.g. a rescan request's): only the
+            plate within :data:`AIM_MARGIN_SPACINGS` point spacings of their convex outlines is
+            scanned (the occlusion, if any, applies to that part).
 
         Returns
         -------
@@ -151,6 +159,13 @@ class SimulatedScanner:
         xy = xy + rng.uniform(-0.5, 0.5, xy.shape) * self.spacing_mm
         # the jitter must not carry a point past the plate's edge (there is no plate there)
         xy = xy[contains(formed.outline_xy_mm, xy)]
+        if len(aim_xy_mm):  # an aimed take: the listed areas and a rim around them
+            grow = AIM_MARGIN_SPACINGS * self.spacing_mm
+            aimed = np.zeros(len(xy), dtype=bool)
+            for corners in aim_xy_mm:
+                aimed |= contains(offset_convex(convex_outline(np.asarray(corners, dtype=float), "an aimed area"),
+                                                grow), xy)
+            xy = xy[aimed]
         # 2. occlusion: drop the points nearest to one or two random blob centres
         keep, n_blobs = self._occlusion_mask(xy, rng)
         occluded = 1.0 - keep.mean()
@@ -217,19 +232,20 @@ class SimulatedScanner:
         """Scan ``formed``; (n, 3) float points in the scanner's coordinates, mm."""
         return self.sample(formed).points
 
-    def scan(self, formed: FormedPlate, path, mark_xy_mm=None, tf_scan_press=None) -> Path:
+    def scan(self, formed: FormedPlate, path, mark_xy_mm=None, tf_scan_press=None, aim_xy_mm=()) -> Path:
         """Scan ``formed`` and write the points to ``path`` (.ply binary, .csv, .txt, .xyz).
 
         With ``mark_xy_mm`` (press x, y of the reference-corner mark) the mark picked in
         the scan is also written to ``<path>.mark.json`` as ``{"reference_mark_mm": [x, y, z]}``
-        in the scan's coordinates. ``tf_scan_press``: the pose (see :meth:`sample`).
+        in the scan's coordinates. ``tf_scan_press``: the pose, ``aim_xy_mm``: the areas of an aimed take
+        (see :meth:`sample`).
 
         Returns
         -------
         Path
             The file written.
         """
-        sample = self.sample(formed, mark_xy_mm, tf_scan_press)
+        sample = self.sample(formed, mark_xy_mm, tf_scan_press, aim_xy_mm)
         header = (f"simulated scan: noise {self.noise_mm} mm, occlusion {sample.occluded_fraction:.3f}, "
                   f"outliers {int(sample.is_outlier.sum())}, seed {self.seed}")
         written = write_points(path, sample.points, header=header)

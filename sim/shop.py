@@ -22,8 +22,10 @@ driven over loopback Modbus by the real driver (``mppf loop`` without ``--plc``,
 ``mppf demo``), or the in-process press (:class:`mppf.sim.plc.link.InProcessPress`).
 Each cycle's scan uses its own seed (``seed * 1000 + cycle``), so a scan repeated after a
 resume is the same scan. A rescan of the cycle (:meth:`SimulatedPlateScanner.rescan`: a fixed
-station scans the plate again where it lies) is a new take with its own occlusion blobs,
-noise and outliers (seeded by ``[seed, cycle, rescan]``), in the pose of the cycle's first take.
+station scans the plate again where it lies) is a new take with its own noise and outliers
+(seeded by ``[seed, cycle, rescan]``), in the pose of the cycle's first take: aimed at the areas
+the rescan request lists on the press (the station set up for them: seen whole, no occlusion
+blobs), else of the whole plate with its own occlusion blobs.
 """
 
 from __future__ import annotations
@@ -179,15 +181,21 @@ class SimulatedPlateScanner:
                                       self.mark_xy_mm)
 
     def rescan(self, cycle: int, number: int, context: ScanContext) -> Path:
-        """The plate of the cycle scanned again where it lies: a new take (its own occlusion blobs, noise and
-        outliers) in the pose of the cycle's first take, without a mark (the first take's places it)."""
+        """The plate of the cycle scanned again where it lies, in the pose of the cycle's first take, without a
+        mark (the first take's places it): its own noise and outliers (seeded by ``[seed, cycle, number]``).
+
+        Aimed at the request's areas where it lists them on the press (``context.regions``' corners): the
+        station is set up for them, so they are seen whole (no occlusion blobs); else the whole plate again,
+        with its own occlusion blobs.
+        """
         context.reporter.info(f"cycle {cycle}: simulated rescan {number}")
         formed = self._formed(cycle, context)
         pose = self._take(cycle).sample(formed, self.mark_xy_mm).tf_scan_press  # the first take, drawn again
-        take = SimulatedScanner(noise_mm=self.noise_mm, occlusion_fraction=self.occlusion_fraction,
+        aim = [r["corners_press_mm"] for r in context.regions if r.get("corners_press_mm")]
+        take = SimulatedScanner(noise_mm=self.noise_mm, occlusion_fraction=0.0 if aim else self.occlusion_fraction,
                                 outlier_fraction=self.outlier_fraction, seed=[self.seed, int(cycle), int(number)])
         return take.scan(formed, context.work_dir / f"scan-cycle-{cycle:02d}-rescan-{number}{self.suffix}",
-                         tf_scan_press=pose)
+                         tf_scan_press=pose, aim_xy_mm=aim)
 
     def _take(self, cycle: int) -> SimulatedScanner:
         """The scanner of the cycle's first take (its seed)."""

@@ -67,6 +67,9 @@ class ScanContext:
         their read-back tips, an interrupted one last (``complete=False``).
     reporter : Reporter
         Progress of a long wait.
+    regions : tuple of dict
+        A rescan: the areas it is asked for (the rescan request's ``regions``: ``kind``,
+        ``corners_press_mm`` where the press pose is known, ...); empty for a cycle's first scan.
     """
 
     plate_id: str
@@ -78,6 +81,7 @@ class ScanContext:
     used_paths: tuple[str, ...] = ()
     steps: tuple[PressedStep, ...] = ()
     reporter: Reporter = field(default=NULL_REPORTER)
+    regions: tuple = ()
 
 
 class Scanner(Protocol):

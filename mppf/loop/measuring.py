@@ -6,9 +6,11 @@ another one. A scan of this plate far from its design (its outline and shape are
 design's, its point count the previous cycle's scan's) is not rejected: it is judged, badly
 formed, and the loop stops there (:mod:`mppf.measure.identity`, ``Decision.BADLY_FORMED``).
 Every file the loop reads back (design, scan, job) is checked against the SHA-256 recorded
-for it. A cycle rescanned where areas were not measured (:mod:`mppf.loop.rescanning`) is
-compared as the union of its scans, in the first scan's frame; the files are listed in its
-stored comparison (``scans``), and :func:`compare_recorded` compares the same union.
+for it. A cycle rescanned where areas were not measured or set-aside points lie beyond the
+tolerance (:mod:`mppf.loop.rescanning`) is compared as the union of its scans, in the first
+scan's frame, knowing the scan of each point (a set-aside point another scan measured within
+the tolerance is cleared); the files are listed in its stored comparison (``scans``), and
+:func:`compare_recorded` compares the same union.
 """
 
 from __future__ import annotations
@@ -142,14 +144,17 @@ def _expected_points(history: History, record: CycleRecord) -> int | None:
 def _compare(plate: PlateRecord, record: CycleRecord, design: PointCloud, settings: LoopSettings,
              expected_points: int | None = None, extra: list = ()):
     scan = read_checked(record.scan_path, record.scan_sha256, "scan")
-    points = np.vstack([scan.points] + [read_checked(s["path"], s["sha256"], "rescan").points for s in extra])
+    clouds = [scan.points] + [read_checked(s["path"], s["sha256"], "rescan").points for s in extra]
+    points = np.vstack(clouds)
+    # the scan of each point (0 the first, K the K-th rescan): a rescan clears the artefacts it re-measured
+    scan_index = np.concatenate([np.full(c.shape[0], i) for i, c in enumerate(clouds)]) if extra else None
     job = load_cycle_job(record)
     offset_mm = plate.thickness_mm / 2.0 if settings.offset_mm is None else settings.offset_mm
     # the same keywords as ``mppf compare --job``: the same scan gets the same verdict
     options = job_compare_options(job, design.points, record.scan_path, offset_mm=offset_mm)
     return compare(design.points, points, tolerance_mm=settings.tolerance_mm,
                    rms_tolerance_mm=settings.rms_tolerance_mm, expected_points=None if extra else expected_points,
-                   **options)
+                   scan_index=scan_index, **options)
 
 
 def comparison_summary(comparison, scans: list | None = None, rescan_stopped: str | None = None) -> dict:

@@ -1,12 +1,16 @@
-"""Rescans: areas of the net plate not measured are scanned again, and the union of the scans is compared.
+"""Rescans: areas not measured and spots of set-aside points are scanned again, the union of the scans compared.
 
 A compared cycle whose verdict needs review only because areas of the net plate were not
-measured (:attr:`mppf.measure.decision.Verdict.only_uncovered`: the limits met, no artefact
-beyond the tolerance) is not stopped at once: the loop asks the station for a rescan of those
-areas (a scan request with ``rescan`` K and the ``regions``, :mod:`mppf.loop.scan_request`;
+measured and / or points set aside as scanner artefacts lie beyond the tolerance
+(:attr:`mppf.measure.decision.Verdict.only_rescannable`: the limits met, not badly formed, no
+point confirmed by two scans) is not stopped at once: the loop asks the station for a rescan of
+those areas and spots (a scan request with ``rescan`` K and the ``regions``, ``kind``
+"uncovered" or "artefacts": :func:`artefact_spots`; :mod:`mppf.loop.scan_request`;
 ``--on-pressed`` runs for it too), up to ``LoopSettings.rescans`` times per cycle, and compares
 the union of the scans. A rescan is taken in the frame of the cycle's first scan (a fixed
-station: the plate and the scanner have not moved), so its points are simply added.
+station: the plate and the scanner have not moved), so its points are simply added; the union is
+compared knowing the scan of each point, so a set-aside point another scan measured within the
+tolerance is cleared (:func:`mppf.measure.outliers.clear_by_rescans`).
 
 **The guard** (:func:`overlap_agreement`): where the rescan overlaps the earlier scans, the
 union's normal deviations of its points must agree with those of the nearest earlier point
@@ -31,6 +35,7 @@ from mppf.core.transform import apply_tf
 from mppf.geometry.read import read_points
 from mppf.loop.measuring import compare_union, load_cycle_job, rescan_paths
 from mppf.loop.pressing import scan_context
+from mppf.measure.decision import OUT_OF_TOLERANCE, REVIEW_ARTEFACTS
 from mppf.loop.scan_request import post_request
 from mppf.registration.scan_start import AmbiguousStart
 
@@ -42,6 +47,15 @@ AGREE_FLOOR_MM = 0.1
 
 MIN_OVERLAP = 30
 """Fewest rescan points beside earlier ones for the agreement to be judged (fewer: not merged)."""
+
+SPOT_SPACINGS = 2.0
+"""An artefact spot of a rescan request: a disc of this many point spacings about each point (merged when touching)."""
+
+SPOT_MIN_RADIUS_MM = 10.0
+"""... at least this radius (mm)."""
+
+SPOTS_LISTED = 200
+"""Most artefact spots a rescan request lists (the largest |deviation| first; the total is given)."""
 
 
 @dataclass(frozen=True)
@@ -130,19 +144,97 @@ def region_doc(gap, comparison, tf_press_design) -> dict:
     ``corners_press_mm``: the (u, v) box's corners on the press (the design frame's plane placed by
     ``tf_press_design``: about where the area lies, for the station to aim at).
     """
-    doc = gap.to_dict()
-    u0, v0, u1, v1 = gap.box_uv_mm
-    if tf_press_design is not None:
-        corners = np.array([[u0, v0, 0.0], [u1, v0, 0.0], [u1, v1, 0.0], [u0, v1, 0.0]])
-        xy = apply_tf(tf_press_design, comparison.design_frame.to_world(corners))[:, :2]
-        doc["corners_press_mm"] = [[round(float(x), 1), round(float(y), 1)] for x, y in xy]
-    else:
-        doc["corners_press_mm"] = None
+    doc = {"kind": "uncovered", **gap.to_dict()}
+    doc["corners_press_mm"] = _corners_press(gap.box_uv_mm, comparison, tf_press_design)
     return doc
 
 
+def artefact_spots(comparison, tf_press_design) -> list[dict]:
+    """The spots of the set-aside points beyond the tolerance not cleared by a rescan, for the rescan request.
+
+    Each point's disc (:data:`SPOT_SPACINGS` point spacings, at least :data:`SPOT_MIN_RADIUS_MM`), merged where
+    discs overlap; each spot: ``kind`` "artefacts", ``centroid_uv_mm``, ``box_uv_mm`` (the discs' box),
+    ``radius_mm``, ``count``, ``max_abs_mm``, ``press_xy_mm`` and ``corners_press_mm`` (None without the press
+    pose); the largest |deviation| first (all of them: the request lists :data:`SPOTS_LISTED`).
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    dev = np.asarray(comparison.deviation_mm, dtype=float)
+    net = ~np.asarray(comparison.is_outside) & ~np.asarray(comparison.in_margin)
+    beyond = np.asarray(comparison.is_outlier) & ~np.asarray(comparison.is_cleared) & net
+    beyond &= np.abs(np.nan_to_num(dev)) > comparison.tolerance_mm
+    rows = np.flatnonzero(beyond)
+    if not rows.size:
+        return []
+    spacing = comparison.set_aside.spacing_mm if comparison.set_aside is not None else float("nan")
+    radius = max(SPOT_SPACINGS * spacing, SPOT_MIN_RADIUS_MM) if np.isfinite(spacing) else SPOT_MIN_RADIUS_MM
+    uv = np.asarray(comparison.measured_uv_mm, dtype=float)[rows]
+    # 1. discs that overlap belong to one spot
+    pairs = cKDTree(uv).query_pairs(2.0 * radius, output_type="ndarray")
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(rows.size, rows.size))
+    _, label = connected_components(graph, directed=False)
+    spots = []
+    for spot in range(label.max() + 1):
+        member = label == spot
+        low, high = uv[member].min(axis=0) - radius, uv[member].max(axis=0) + radius
+        box = [float(low[0]), float(low[1]), float(high[0]), float(high[1])]
+        centre = uv[member].mean(axis=0)
+        press = None
+        if tf_press_design is not None:
+            press = apply_tf(tf_press_design, comparison.design_frame.to_world(np.r_[centre, 0.0][None]))[0, :2]
+        spots.append({"kind": "artefacts", "centroid_uv_mm": [float(v) for v in centre], "box_uv_mm": box,
+                      "radius_mm": float(radius), "count": int(member.sum()),
+                      "max_abs_mm": float(np.abs(dev[rows[member]]).max()),
+                      "press_xy_mm": None if press is None else [round(float(v), 1) for v in press],
+                      "corners_press_mm": _corners_press(box, comparison, tf_press_design)})
+    return sorted(spots, key=lambda s: -s["max_abs_mm"])
+
+
+def _corners_press(box_uv_mm, comparison, tf_press_design):
+    """The (u, v) box's four corners on the press, ``[x, y]`` rounded to 0.1 mm (None without the press pose)."""
+    if tf_press_design is None:
+        return None
+    u0, v0, u1, v1 = box_uv_mm
+    corners = np.array([[u0, v0, 0.0], [u1, v0, 0.0], [u1, v1, 0.0], [u0, v1, 0.0]])
+    xy = apply_tf(tf_press_design, comparison.design_frame.to_world(corners))[:, :2]
+    return [[round(float(x), 1), round(float(y), 1)] for x, y in xy]
+
+
+def _rescannable(verdict) -> bool:
+    """A rescan can decide the cycle or mend what it measured: it needs review only for areas not measured and / or
+    set-aside points beyond the tolerance, or it is out of tolerance with areas not measured (the correction would
+    otherwise guess the plate there); never with a point confirmed by two scans (a real defect) or a badly formed
+    plate."""
+    if verdict is None or verdict.figures.confirmed_beyond or verdict.figures.badly_formed:
+        return False
+    return verdict.only_rescannable or (verdict.kind == OUT_OF_TOLERANCE and verdict.figures.n_gaps > 0)
+
+
+def _spots(comparison, tf_press_design) -> list:
+    """The artefact spots worth a rescan: only while the artefacts stand in the way of the verdict (within the limits)."""
+    if comparison.verdict is None or REVIEW_ARTEFACTS not in comparison.verdict.review_causes:
+        return []
+    return artefact_spots(comparison, tf_press_design)
+
+
+def _asking(comparison, spots: list) -> str:
+    """What the rescan is for, in words: the artefact spots, the areas not measured."""
+    parts = []
+    if spots:
+        points = sum(s["count"] for s in spots)
+        parts.append(f"{points} set-aside point(s) beyond the tolerance at {len(spots)} spot(s) not re-measured "
+                     f"within it (largest |deviation| {spots[0]['max_abs_mm']:.2f} mm)")
+    if comparison.coverage is not None and comparison.coverage.regions:
+        parts.append(f"{len(comparison.coverage.regions)} area(s) not measured "
+                     f"({'; '.join(comparison.coverage.names())})")
+    return "; ".join(parts)
+
+
 def rescan_uncovered(cycle_run, record, comparison) -> Measured:
-    """Rescan the areas not measured while that alone makes the cycle need review; the comparison to decide on.
+    """Rescan the areas not measured and the artefact spots while they alone make the cycle need review; the
+    comparison to decide on.
 
     Parameters
     ----------
@@ -158,17 +250,17 @@ def rescan_uncovered(cycle_run, record, comparison) -> Measured:
               "n_points": int(comparison.n_points), "merged": True}]
     job = load_cycle_job(record)
     for number in range(1, settings.rescans + 1):
-        verdict = comparison.verdict
-        if verdict is None or not verdict.only_uncovered:
+        if not _rescannable(comparison.verdict):
             return Measured(comparison, scans)
         if not hasattr(run.scanner, "rescan"):
-            reporter.info(f"cycle {record.cycle}: the scanner cannot rescan; the areas not measured need review")
+            reporter.info(f"cycle {record.cycle}: the scanner cannot rescan; the cycle needs review")
             return Measured(comparison, scans)
-        # 1. say what happens; ask the station for the areas (request file, --on-pressed) and take the rescan
+        # 1. say what happens; ask the station for the areas and spots (request file, --on-pressed), take the rescan
+        spots = _spots(comparison, job.tf_press_design)
         regions = [region_doc(g, comparison, job.tf_press_design) for g in comparison.coverage.regions]
-        reporter.info(f"cycle {record.cycle}: {len(regions)} area(s) not measured "
-                      f"({'; '.join(comparison.coverage.names())}): asking for rescan {number} of {settings.rescans}")
-        path = _take_rescan(run, record, job, number, regions, scans)
+        reporter.info(f"cycle {record.cycle}: {_asking(comparison, spots)}: asking for rescan {number} of "
+                      f"{settings.rescans}")
+        path = _take_rescan(run, record, job, number, regions + spots[:SPOTS_LISTED], scans, len(spots))
         scan = {"path": str(path), "sha256": "", "rescan": number, "n_points": 0, "merged": False}
         scans.append(scan)
         # 2. the union of the scans so far, compared; merged only when the rescan agrees where they overlap
@@ -188,13 +280,17 @@ def rescan_uncovered(cycle_run, record, comparison) -> Measured:
         merged = sum(1 for s in scans if s["merged"])
         reporter.info(f"cycle {record.cycle}: rescan {number} merged ({agreement.describe()}); the union of "
                       f"{merged} scans: {comparison.verdict.headline if comparison.verdict else ''}")
-    if comparison.verdict is not None and comparison.verdict.only_uncovered and settings.rescans:
-        reporter.info(f"cycle {record.cycle}: {len(comparison.coverage.regions)} area(s) still not measured after "
-                      f"{settings.rescans} rescan(s): the cycle needs review")
+    if _rescannable(comparison.verdict) and settings.rescans:
+        points = sum(s["count"] for s in _spots(comparison, None))
+        areas = len(comparison.coverage.regions) if comparison.coverage is not None else 0
+        still = [f"{points} set-aside point(s) beyond the tolerance still not re-measured within it"] if points else []
+        still += [f"{areas} area(s) still not measured"] if areas else []
+        reporter.info(f"cycle {record.cycle}: {' and '.join(still)} after {settings.rescans} rescan(s): "
+                      "the cycle needs review")
     return Measured(comparison, scans)
 
 
-def _take_rescan(run, record, job, number: int, regions: list, scans: list) -> Path:
+def _take_rescan(run, record, job, number: int, regions: list, scans: list, spots: int) -> Path:
     """The rescan file: the request posted, the file taken (never one taken before), the request withdrawn.
 
     Raises
@@ -204,11 +300,11 @@ def _take_rescan(run, record, job, number: int, regions: list, scans: list) -> P
     """
     first = {"path": scans[0]["path"], "sha256": scans[0]["sha256"]}
     request = post_request(run.plate, record, job, run.settings, run.scan_folder, run.reporter, rescan=number,
-                           regions=regions, first_scan=first)
+                           regions=regions, first_scan=first, spots_total=spots)
     try:
         context = scan_context(run.history, run.plate, record, run.press, run.reporter)
         taken = tuple(s["path"] for s in scans) + rescan_paths(run.history, run.plate.plate_id)
-        context = dataclasses.replace(context, used_paths=context.used_paths + taken)
+        context = dataclasses.replace(context, used_paths=context.used_paths + taken, regions=tuple(regions))
         path = Path(run.scanner.rescan(record.cycle, number, context)).resolve()
     finally:
         request.withdraw()

@@ -93,7 +93,7 @@ def scan_name(plate_id: str, cycle: int, rescan: int = 0) -> str:
 
 def build_request(plate: PlateRecord, record: CycleRecord, job: Job, settings: LoopSettings, folder,
                   *, mark_required: bool | None = None, now: datetime | None = None, rescan: int = 0,
-                  regions: list | None = None, first_scan: dict | None = None) -> dict:
+                  regions: list | None = None, first_scan: dict | None = None, spots_total: int = 0) -> dict:
     """The request document of a pressed cycle (see ``docs/scanner-station.md`` for every key).
 
     Parameters
@@ -111,8 +111,13 @@ def build_request(plate: PlateRecord, record: CycleRecord, job: Job, settings: L
         Whether the loop compares a scan of this plate only with its mark (None: not decided).
     rescan : int
         0: the cycle's scan; K >= 1: its K-th rescan (of at most ``settings.rescans``), of the
-        ``regions`` not measured (dicts of :meth:`mppf.loop.rescanning.region_doc`), in the frame of
-        ``first_scan`` (``{"path", "sha256"}``): the union of the scans is compared.
+        ``regions`` (dicts with a ``kind``: "uncovered", areas not measured,
+        :func:`mppf.loop.rescanning.region_doc`; "artefacts", spots of set-aside points beyond the
+        tolerance, :func:`mppf.loop.rescanning.artefact_spots`), in the frame of ``first_scan``
+        (``{"path", "sha256"}``): the union of the scans is compared.
+    spots_total : int
+        How many artefact spots there are (the request lists at most
+        :data:`mppf.loop.rescanning.SPOTS_LISTED` of them): ``artefact_spots``.
     """
     folder = Path(folder).resolve()
     scan_path = folder / scan_name(plate.plate_id, record.cycle, rescan)
@@ -153,6 +158,7 @@ def build_request(plate: PlateRecord, record: CycleRecord, job: Job, settings: L
         "rescan": int(rescan),
         "rescans": int(settings.rescans),
         "regions": list(regions or []),
+        "artefact_spots": int(spots_total),
         "first_scan": first_scan,
     }
     if rescan:  # the rescan is placed by the first scan's frame: no mark of its own
@@ -230,7 +236,7 @@ def run_on_pressed(command: str, request_path, reporter: Reporter, timeout_s: fl
 
 def post_request(plate: PlateRecord, record: CycleRecord, job: Job, settings: LoopSettings, folder, reporter: Reporter,
                  *, mark_required: bool | None = None, rescan: int = 0, regions: list | None = None,
-                 first_scan: dict | None = None) -> PostedRequest:
+                 first_scan: dict | None = None, spots_total: int = 0) -> PostedRequest:
     """Write the pressed cycle's request (or its ``rescan``-th rescan's) into ``folder``, say so, and run the
     ``on_pressed`` command.
 
@@ -241,7 +247,7 @@ def post_request(plate: PlateRecord, record: CycleRecord, job: Job, settings: Lo
 
     # 1. the request, atomically, where the station looks
     doc = build_request(plate, record, job, settings, folder, mark_required=mark_required, rescan=rescan,
-                        regions=regions, first_scan=first_scan)
+                        regions=regions, first_scan=first_scan, spots_total=spots_total)
     what = f"rescan {rescan} of {settings.rescans} asked" if rescan else "pressed"
     try:
         posted = write_request(folder, doc)
@@ -251,8 +257,11 @@ def post_request(plate: PlateRecord, record: CycleRecord, job: Job, settings: Lo
         return PostedRequest(Path(folder) / request_name(plate.plate_id, record.cycle, rescan),
                              Path(doc["scan"]["path"]), Path(doc["mark"]["path"]), written=False)
     if rescan:
-        reporter.info(f"cycle {record.cycle}: {what}; scan request {posted.path}: scan the {len(doc['regions'])} "
-                      f"area(s) to {posted.scan_path.name}, in the frame of the first scan")
+        kinds = [r.get("kind", "uncovered") for r in doc["regions"]]
+        listed = [f"{kinds.count('uncovered')} area(s)"] if "uncovered" in kinds else []
+        listed += [f"{kinds.count('artefacts')} artefact spot(s)"] if "artefacts" in kinds else []
+        reporter.info(f"cycle {record.cycle}: {what}; scan request {posted.path}: scan the {' and '.join(listed)} "
+                      f"to {posted.scan_path.name}, in the frame of the first scan")
     else:
         reporter.info(f"cycle {record.cycle}: pressed; scan request {posted.path}: scan to {posted.scan_path.name}, "
                       f"its mark to {posted.mark_path.name}")

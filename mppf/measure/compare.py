@@ -27,6 +27,10 @@ The steps of :func:`compare` (the math is in ``docs/compare.md``):
    Every set-aside point is reported (``Comparison.set_aside``); points whose foot point
    falls outside the design are left out too.
    Smooth shape errors (a dent, springback) are never set aside: their neighbours agree.
+   With ``scan_index`` (a union of scans in one frame) each scan is tested on its own points
+   (:func:`mppf.measure.outliers.find_outliers_by_scan`), and a set-aside point beyond the tolerance
+   that another scan re-measured within it is cleared, one another scan confirms never is
+   (:func:`mppf.measure.outliers.clear_by_rescans`).
 6. Statistics of the inliers (RMS, largest absolute, mean, histogram:
    :mod:`mppf.measure.statistics`; the share within the tolerance of every measured net
    point, set-aside ones included), the form deviation with its smoothing scale from the
@@ -56,6 +60,7 @@ from dataclasses import replace
 import numpy as np
 
 from mppf.core.defaults import RMS_TOLERANCE_MM
+from mppf.core.errors import InputError
 from mppf.core.transform import apply_tf, as_points
 from mppf.geometry.surface import fit_plate
 from mppf.measure import checks
@@ -64,7 +69,7 @@ from mppf.measure.decision import Figures, Limits, verdict
 from mppf.measure.deviations import DesignSkin, normal_sign
 from mppf.measure.form import form_of
 from mppf.measure.localfit import spatial_query
-from mppf.measure.outliers import SetAside, find_outliers
+from mppf.measure.outliers import SetAside, clear_by_rescans, find_outliers_by_scan
 from mppf.measure.punches import edge_at_punches, nearest_punch, punch_deviations
 from mppf.measure.result import Comparison
 from mppf.measure.statistics import statistics
@@ -102,6 +107,7 @@ def compare(
     gap_mm: float = GAP_MM,
     max_gap_mm: float = MAX_GAP_MM,
     expected_points: int | None = None,
+    scan_index=None,
 ) -> Comparison:
     """Register a scan onto its design and measure the deviation of every point.
 
@@ -171,6 +177,11 @@ def compare(
         How many points a scan of this plate has (the loop: the previous cycle's); one piece
         of the evidence that a scan far from its design is this plate, badly formed
         (:mod:`mppf.measure.identity`).
+    scan_index : (n,) int, optional
+        For a union of scans of the plate in one frame (the loop's rescans): the scan each measured
+        point came from (0 the first scan, K its K-th rescan). A set-aside point beyond the tolerance
+        that another scan measured within it is cleared (reported, not deciding); one another scan
+        confirms never is (:func:`mppf.measure.outliers.clear_by_rescans`). Default: one scan.
 
     Returns
     -------
@@ -232,7 +243,9 @@ def compare(
     start.require_settled()
 
     # 5. set aside only certain scanner artefacts (the margin's points are neighbours too)
-    artefacts = find_outliers(dev.uv, dev.deviation_mm, ~dev.outside)
+    index = _scan_index(scan_index, measured.shape[0])
+    artefacts = find_outliers_by_scan(dev.uv, dev.deviation_mm, ~dev.outside, index)
+    clearing = clear_by_rescans(dev.uv, dev.deviation_mm, artefacts.mask, ~dev.outside, index, tolerance_mm)
     set_aside = artefacts.mask
     inlier = ~dev.outside & ~set_aside & ~dev.in_margin
     measured_ok = ~dev.outside & ~set_aside  # net and margin: the punch deviations
@@ -243,7 +256,8 @@ def compare(
     net = ~dev.outside & ~dev.in_margin
     within_pct = float(100.0 * np.mean(np.abs(dev.deviation_mm[net]) <= tolerance_mm))
     form, field = form_of(dev.uv, dev.deviation_mm, inlier, measured_ok, dev.in_margin)
-    aside = _set_aside(set_aside & net, dev, artefacts, tolerance_mm, tf_press_design, punch_xy_mm, punch_label_base)
+    aside = _set_aside(set_aside & net, dev, artefacts, tolerance_mm, tf_press_design, punch_xy_mm, punch_label_base,
+                       clearing, net)
     notes += [field.describe(), aside.describe(tolerance_mm), *_left_out(set_aside, dev, margin_mm)]
     # what of the net plate was not measured (occlusions, rim bands): gaps wider than allowed
     covered = coverage(skin.outline, _nearest(artefacts, dev), artefacts.spacing_mm, gap_mm, max_gap_mm,
@@ -261,7 +275,8 @@ def compare(
     form_max = float(abs(field.peak_mm))
     decided = verdict(Figures(form_max, stats.rms_mm, aside.count, aside.beyond_tolerance, aside.max_abs_mm,
                               covered.names(), len(covered.regions), covered.allowed_gap_mm,
-                              "" if badly is None else badly.describe()), limits)
+                              "" if badly is None else badly.describe(), aside.cleared,
+                              aside.cleared_text() if aside.cleared else "", aside.confirmed), limits)
     return Comparison(
         rms_mm=stats.rms_mm, max_abs_mm=stats.max_abs_mm, mean_mm=stats.mean_mm, std_mm=stats.std_mm,
         within_tolerance_pct=within_pct, tolerance_mm=float(tolerance_mm),
@@ -275,6 +290,7 @@ def compare(
         punch_interpolated=punch_interp, punch_edge_mm=punch_edge, notes=notes, margin_mm=margin_mm, in_margin=dev.in_margin,
         rms_tolerance_mm=float(rms_tolerance_mm), verdict=decided, set_aside=aside, form=field.to_dict(),
         punch_label_base=int(punch_label_base), coverage=covered, identity=badly,
+        is_cleared=clearing.cleared & set_aside,
     )
 
 
@@ -307,9 +323,12 @@ def _register(scan, target, skin: DesignSkin, init, stages: ScanStages = STAGES)
         "design (the shapes differ much)")
 
 
-def _set_aside(mask, dev, artefacts, tolerance_mm: float, tf_press_design, punch_xy_mm, label_base: int) -> SetAside:
-    """The report of the set-aside points of the net plate: count, largest, where (press, nearest punch)."""
+def _set_aside(mask, dev, artefacts, tolerance_mm: float, tf_press_design, punch_xy_mm, label_base: int,
+               clearing, net) -> SetAside:
+    """The report of the set-aside points of the net plate: count, largest, where (press, nearest punch), how many
+    a rescan cleared (by which scan) and how many another scan confirmed."""
     share, spacing = artefacts.dense_fraction, artefacts.spacing_mm
+    confirmed = int((clearing.confirmed & mask).sum())
     if not mask.any():
         return SetAside(0, 0.0, 0, None, None, None, spacing, share)
     absolute = np.abs(dev.deviation_mm[mask])
@@ -319,8 +338,22 @@ def _set_aside(mask, dev, artefacts, tolerance_mm: float, tf_press_design, punch
         press_xy = apply_tf(np.asarray(tf_press_design, dtype=float), dev.moved[worst][None])[0, :2]
         if punch_xy_mm is not None:
             punch = nearest_punch(np.asarray(punch_xy_mm, dtype=float), press_xy, label_base)
-    return SetAside(int(mask.sum()), float(absolute.max()), int(np.sum(absolute > tolerance_mm)), dev.uv[worst].copy(),
-                    press_xy, punch, spacing, share)
+    cleared = clearing.cleared & mask
+    by = dict(zip(*(v.tolist() for v in np.unique(clearing.cleared_by[cleared], return_counts=True))))
+    beyond = int(np.sum(absolute > tolerance_mm)) - int(cleared.sum())
+    return SetAside(int(mask.sum()), float(absolute.max()), beyond, dev.uv[worst].copy(), press_xy, punch, spacing,
+                    share, int(cleared.sum()), by, confirmed)
+
+
+def _scan_index(scan_index, n: int) -> np.ndarray:
+    """The (n,) int scan of each measured point (all 0 without ``scan_index``); InputError for another shape."""
+    if scan_index is None:
+        return np.zeros(n, dtype=int)
+    index = np.asarray(scan_index)
+    if index.shape != (n,) or not np.issubdtype(index.dtype, np.integer):
+        raise InputError(f"scan_index must be ({n},) integers, one per measured point; got {index.shape} {index.dtype}",
+                         hint="give the scan number (0, 1, ...) of each point, or leave it out")
+    return index.astype(int)
 
 
 def _nearest(artefacts, dev):

@@ -10,7 +10,10 @@
   this plate: :mod:`mppf.measure.identity`; the loop stops there);
 - else **needs review** when any point set aside as a scanner artefact
   (:mod:`mppf.measure.outliers`) lies beyond the tolerance (the inspection cannot be sure it
-  was an artefact and not the plate), or when part of the net plate was not measured: an
+  was an artefact and not the plate) and no other scan of the plate re-measured its spot within
+  the tolerance (*cleared*, :func:`mppf.measure.outliers.clear_by_rescans`; cleared points are
+  reported, they do not decide; one another scan confirmed, measured so twice, never is),
+  or when part of the net plate was not measured: an
   empty gap wider than the allowed gap (:mod:`mppf.measure.coverage`; the plate cannot be
   passed on what was not measured);
 - else **in tolerance**.
@@ -64,7 +67,7 @@ class Figures:
     set_aside : int
         Points set aside as scanner artefacts.
     set_aside_beyond : int
-        How many of them lie beyond the tolerance.
+        How many of them lie beyond the tolerance, not cleared by a rescan (they decide).
     set_aside_max_mm : float
         Their largest absolute deviation (0 when none).
     gaps : tuple of str
@@ -76,6 +79,12 @@ class Figures:
         The allowed gap (NaN: coverage not judged).
     badly_formed : str
         Empty, or why a scan far from its design is this plate (badly formed: out of tolerance).
+    set_aside_cleared : int
+        Set-aside points beyond the tolerance another scan re-measured within it (reported only).
+    cleared_by : str
+        Which scans cleared them, in words ("cleared by rescan 1 (80)").
+    confirmed_beyond : int
+        Of ``set_aside_beyond``, those another scan confirmed (measured so twice: no rescan clears them).
     """
 
     form_max_mm: float
@@ -87,6 +96,9 @@ class Figures:
     n_gaps: int = 0
     allowed_gap_mm: float = float("nan")
     badly_formed: str = ""
+    set_aside_cleared: int = 0
+    cleared_by: str = ""
+    confirmed_beyond: int = 0
 
 
 @dataclass(frozen=True)
@@ -122,7 +134,8 @@ class Verdict:
         """Why the verdict needs review: :data:`REVIEW_ARTEFACTS`, :data:`REVIEW_UNCOVERED`, both, or () (no review)."""
         if self.kind != NEEDS_REVIEW:
             return ()
-        causes = ((REVIEW_ARTEFACTS, bool(self.figures.set_aside_beyond)), (REVIEW_UNCOVERED, bool(self.figures.n_gaps)))
+        f = self.figures
+        causes = ((REVIEW_ARTEFACTS, bool(f.set_aside_beyond)), (REVIEW_UNCOVERED, bool(f.n_gaps)))
         return tuple(name for name, present in causes if present)
 
     @property
@@ -130,6 +143,12 @@ class Verdict:
         """Needs review only because areas of the net plate were not measured (the limits met, no artefact beyond
         the tolerance): measuring those areas again can decide it."""
         return self.review_causes == (REVIEW_UNCOVERED,)
+
+    @property
+    def only_rescannable(self) -> bool:
+        """Needs review only because of areas not measured and / or set-aside points beyond the tolerance (the
+        limits met, not badly formed): a rescan of those areas and spots can decide it."""
+        return bool(self.review_causes) and set(self.review_causes) <= {REVIEW_ARTEFACTS, REVIEW_UNCOVERED}
 
     @property
     def label(self) -> str:
@@ -147,6 +166,7 @@ class Verdict:
         return {"kind": self.kind, "headline": self.headline, "reasons": list(self.reasons),
                 "form_max_mm": f.form_max_mm, "rms_mm": f.rms_mm, "set_aside": f.set_aside,
                 "set_aside_beyond_tolerance": f.set_aside_beyond, "set_aside_max_mm": f.set_aside_max_mm,
+                "set_aside_cleared": f.set_aside_cleared, "confirmed_beyond_tolerance": f.confirmed_beyond,
                 "uncovered_regions": f.n_gaps, "allowed_gap_mm": f.allowed_gap_mm, "badly_formed": self.badly_formed,
                 "tolerance_mm": lim.tolerance_mm, "rms_tolerance_mm": lim.rms_tolerance_mm}
 
@@ -169,9 +189,13 @@ def verdict(figures: Figures, limits: Limits) -> Verdict:
             failed.insert(0, f"badly formed: {f.badly_formed}")
         return Verdict(OUT_OF_TOLERANCE, tuple(failed), f, lim)
     review = []
+    cleared = f"; {f.set_aside_cleared} more {f.cleared_by or 'cleared by a rescan'}" if f.set_aside_cleared else ""
     if f.set_aside_beyond:
         review.append(f"{f.set_aside_beyond} of {f.set_aside} point(s) set aside as scanner artefacts lie beyond "
-                      f"{lim.tolerance_mm:g} mm (largest |deviation| {f.set_aside_max_mm:.2f} mm): check them")
+                      f"{lim.tolerance_mm:g} mm (largest |deviation| {f.set_aside_max_mm:.2f} mm): check them{cleared}")
+    if f.confirmed_beyond:
+        review.append(f"{f.confirmed_beyond} of them measured so by two scans (confirmed, not cleared): check the "
+                      "plate there")
     if f.n_gaps:
         more = f"; and {f.n_gaps - len(f.gaps)} more" if f.n_gaps > len(f.gaps) else ""
         review.append(f"{f.n_gaps} area(s) of the net plate not measured (gaps wider than {f.allowed_gap_mm:.0f} mm): "
@@ -180,6 +204,9 @@ def verdict(figures: Figures, limits: Limits) -> Verdict:
         return Verdict(NEEDS_REVIEW, (*review, form, rms), f, lim)
     aside = ("no point set aside" if not f.set_aside
              else f"{f.set_aside} point(s) set aside, none beyond {lim.tolerance_mm:g} mm")
+    if f.set_aside_cleared:
+        aside = (f"{f.set_aside} point(s) set aside, {f.set_aside_cleared} beyond {lim.tolerance_mm:g} mm "
+                 f"{f.cleared_by or 'cleared by a rescan'} (re-measured within the tolerance)")
     reasons = (form, rms, aside)
     if np.isfinite(f.allowed_gap_mm):
         reasons += (f"the whole net plate measured (no gap wider than {f.allowed_gap_mm:.0f} mm)",)

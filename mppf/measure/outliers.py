@@ -18,11 +18,22 @@ apart) one point IS the dent. So a point is set aside only when all of these hol
 3. and by more than :data:`FLOOR_MM`.
 
 Positions in the design plane, mm.
+
+**Cleared by a rescan** (:func:`clear_by_rescans`; the union of several scans of one plate in one frame,
+each point knowing its scan): a set-aside point beyond the tolerance is *cleared* when another scan
+measured the same spot within the tolerance: at least :data:`CLEAR_MIN_POINTS` of its points that are
+not set aside lie within :data:`CLEAR_RADIUS_SPACINGS` of its local point spacings (at least
+:data:`CLEAR_RADIUS_FLOOR_MM`) of the point, all within the tolerance. Re-measurement is the proof
+that it was an artefact. It is *confirmed* instead when another scan has a point within
+:data:`CONFIRM_RADIUS_SPACINGS` spacings beyond the tolerance on the same side, within
+:data:`CONFIRM_FRACTION` of its deviation (measured so twice: a real defect, or two artefacts at one
+spot, which no rule can tell apart): never cleared (it keeps the verdict from "in tolerance" and a
+person looks). With one scan nothing is cleared or confirmed: issue 13's rule holds exactly.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -48,6 +59,21 @@ SIGMAS = 6.0
 FLOOR_MM = 1.0
 """... and by more than this."""
 
+CLEAR_MIN_POINTS = 3
+"""Fewest points of another scan, within the tolerance, that clear a set-aside point beyond it."""
+
+CLEAR_RADIUS_SPACINGS = 2.0
+"""Their radius about the point, in the other scan's local point spacings ..."""
+
+CLEAR_RADIUS_FLOOR_MM = 5.0
+"""... and at least this (mm)."""
+
+CONFIRM_RADIUS_SPACINGS = 1.0
+"""Another scan's point within this many of its local spacings (at least :data:`CLEAR_RADIUS_FLOOR_MM`) ..."""
+
+CONFIRM_FRACTION = 0.3
+"""... beyond the tolerance on the same side, within this share of the deviation, confirms it."""
+
 
 
 @dataclass(frozen=True, eq=False)
@@ -60,7 +86,8 @@ class SetAside:
     max_abs_mm : float
         Their largest absolute deviation (0 when none).
     beyond_tolerance : int
-        How many lie beyond the tolerance (any: the verdict is "needs review").
+        How many lie beyond the tolerance and are not cleared by a rescan (any: the verdict is
+        "needs review").
     worst_uv_mm : (2,) float or None
         Where the largest one is (design plane).
     worst_press_xy_mm : (2,) float or None
@@ -71,6 +98,14 @@ class SetAside:
         The scan's median local point spacing.
     dense_fraction : float
         Share of the points dense enough to be tested at all.
+    cleared : int
+        Set-aside points beyond the tolerance that another scan measured within it (:func:`clear_by_rescans`):
+        still reported, they no longer make the verdict "needs review".
+    cleared_by : dict
+        ``{scan number: how many it cleared}`` (1: the first rescan; 0: the first scan cleared a rescan's).
+    confirmed : int
+        Set-aside points beyond the tolerance another scan confirmed (measured so twice): never cleared,
+        counted in ``beyond_tolerance``.
     """
 
     count: int
@@ -81,6 +116,9 @@ class SetAside:
     worst_punch: str | None
     spacing_mm: float
     dense_fraction: float
+    cleared: int = 0
+    cleared_by: dict = field(default_factory=dict)
+    confirmed: int = 0
 
     def to_dict(self) -> dict:
         """JSON-able summary."""
@@ -88,19 +126,97 @@ class SetAside:
         return {"count": self.count, "max_abs_mm": self.max_abs_mm, "beyond_tolerance": self.beyond_tolerance,
                 "worst_uv_mm": as_list(self.worst_uv_mm), "worst_press_xy_mm": as_list(self.worst_press_xy_mm),
                 "worst_punch": self.worst_punch, "spacing_mm": self.spacing_mm,
-                "dense_fraction": self.dense_fraction}
+                "dense_fraction": self.dense_fraction, "cleared": self.cleared,
+                "cleared_by": {str(k): int(v) for k, v in self.cleared_by.items()}, "confirmed": self.confirmed}
 
     def describe(self, tolerance_mm: float) -> str:
         """One line for the notes and the headline."""
+        confirmed = (f"; {self.confirmed} of them confirmed by another scan (measured so twice: the plate?)"
+                     if self.confirmed else "")
         if not self.count:
             return (f"set aside: none (point spacing {self.spacing_mm:.0f} mm; "
-                    f"{100 * self.dense_fraction:.0f} % of the points dense enough to test for scanner artefacts)")
+                    f"{100 * self.dense_fraction:.0f} % of the points dense enough to test for scanner artefacts)"
+                    + confirmed)
         where = f"at u, v = {self.worst_uv_mm[0]:.0f}, {self.worst_uv_mm[1]:.0f} mm"
         if self.worst_press_xy_mm is not None:
             where += f" (press x, y = {self.worst_press_xy_mm[0]:.0f}, {self.worst_press_xy_mm[1]:.0f} mm"
             where += f", near punch {self.worst_punch})" if self.worst_punch else ")"
-        return (f"set aside as scanner artefacts: {self.count} point(s), largest |deviation| {self.max_abs_mm:.2f} mm "
+        text = (f"set aside as scanner artefacts: {self.count} point(s), largest |deviation| {self.max_abs_mm:.2f} mm "
                 f"{where}; {self.beyond_tolerance} beyond the tolerance +-{tolerance_mm:g} mm")
+        if self.cleared:
+            text += f" not cleared, {self.cleared} beyond it {self.cleared_text()}"
+        return text + confirmed
+
+    def cleared_text(self) -> str:
+        """"cleared by rescan 1 (80), the first scan (37)": which scans re-measured them within the tolerance."""
+        names = [("the first scan" if int(k) == 0 else f"rescan {int(k)}", v)
+                 for k, v in sorted(self.cleared_by.items())]
+        return "cleared by " + ", ".join(f"{name} ({count})" for name, count in names)
+
+
+@dataclass(frozen=True, eq=False)
+class Clearing:
+    """The result of :func:`clear_by_rescans` (all (n,) arrays).
+
+    Attributes
+    ----------
+    cleared : (n,) bool
+        Set-aside points beyond the tolerance that another scan measured within it.
+    cleared_by : (n,) int
+        The scan that cleared each (the first of them; -1 where not cleared).
+    confirmed : (n,) bool
+        Set-aside points beyond the tolerance another scan confirms (never cleared).
+    """
+
+    cleared: np.ndarray
+    cleared_by: np.ndarray
+    confirmed: np.ndarray
+
+
+def clear_by_rescans(uv: np.ndarray, deviation: np.ndarray, set_aside: np.ndarray, valid: np.ndarray,
+                     scan_index: np.ndarray, tolerance_mm: float) -> Clearing:
+    """Which set-aside points beyond the tolerance other scans clear or confirm (see the module docstring).
+
+    Parameters
+    ----------
+    uv : (n, 2) float, mm
+        Foot points in the design plane (the union of the scans).
+    deviation : (n,) float, mm
+    set_aside : (n,) bool
+        The points set aside (:func:`find_outliers`).
+    valid : (n,) bool
+        Points measured (foot point on the design).
+    scan_index : (n,) int
+        The scan each point came from (0: the first scan, K: its K-th rescan).
+    tolerance_mm : float
+    """
+    n = deviation.shape[0]
+    cleared, confirmed = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+    cleared_by = np.full(n, -1, dtype=int)
+    beyond = set_aside & valid & (np.abs(np.nan_to_num(deviation)) > tolerance_mm)
+    scans = np.unique(scan_index[valid])
+    if scans.size < 2 or not beyond.any():
+        return Clearing(cleared, cleared_by, confirmed)
+    for scan in scans:
+        own = np.flatnonzero(valid & (scan_index == scan))
+        rows = np.flatnonzero(beyond & (scan_index != scan))
+        if own.size <= MIN_NEIGHBOURS or not rows.size:
+            continue
+        tree = cKDTree(uv[own])
+        dist, _ = spatial_query(tree, uv[own], MIN_NEIGHBOURS + 1)
+        spacing = float(np.median(local_spacing_mm(dist)))
+        radius = max(CLEAR_RADIUS_SPACINGS * spacing, CLEAR_RADIUS_FLOOR_MM)
+        close = max(CONFIRM_RADIUS_SPACINGS * spacing, CLEAR_RADIUS_FLOOR_MM)
+        for row, near in zip(rows, tree.query_ball_point(uv[rows], radius)):
+            near = own[np.asarray(near, dtype=int)]
+            d, mine = deviation[near], deviation[row]
+            at = np.linalg.norm(uv[near] - uv[row], axis=1) <= close
+            confirmed[row] |= bool(np.any(at & (np.abs(d) > tolerance_mm) & (np.sign(d) == np.sign(mine))
+                                          & (np.abs(d - mine) <= CONFIRM_FRACTION * abs(mine))))
+            if np.sum(~set_aside[near] & (np.abs(d) <= tolerance_mm)) >= CLEAR_MIN_POINTS and cleared_by[row] < 0:
+                cleared_by[row] = scan
+    cleared = beyond & (cleared_by >= 0) & ~confirmed
+    return Clearing(cleared, np.where(cleared, cleared_by, -1), confirmed)
 
 
 def local_spacing_mm(dist: np.ndarray) -> np.ndarray:
@@ -148,6 +264,25 @@ def find_outliers(uv: np.ndarray, deviation: np.ndarray, valid: np.ndarray) -> A
         artefact = np.abs(miss) > np.maximum(SIGMAS * np.maximum(scatter, noise), FLOOR_MM)
         out[idx[rows[artefact]]] = True
     return ArtefactTest(out, float(dense.mean()), float(np.median(local_spacing_mm(dist))), tree)
+
+
+def find_outliers_by_scan(uv: np.ndarray, deviation: np.ndarray, valid: np.ndarray,
+                          scan_index: np.ndarray) -> ArtefactTest:
+    """:func:`find_outliers` of each scan of a union on its own (a scan's artefact is judged by that scan's
+    neighbours: another scan's points, a little offset, would blur the test), the masks joined; the dense
+    share of the first scan, the spacing and the k-d tree of the union's tested points."""
+    scans = np.unique(scan_index[valid])
+    if scans.size < 2:
+        return find_outliers(uv, deviation, valid)
+    out = np.zeros(deviation.shape[0], dtype=bool)
+    first = None
+    for scan in scans:
+        test = find_outliers(uv, deviation, valid & (scan_index == scan))
+        out |= test.mask
+        first = test if first is None else first
+    tree = cKDTree(uv[valid])
+    spacing = float(np.median(local_spacing_mm(spatial_query(tree, uv[valid], MIN_NEIGHBOURS + 1)[0])))
+    return ArtefactTest(out, first.dense_fraction, spacing, tree)
 
 
 def _dense(dist: np.ndarray, nb: np.ndarray) -> np.ndarray:

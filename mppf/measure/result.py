@@ -101,6 +101,9 @@ class Comparison:
     identity : Evidence or None
         Set when the plate is badly formed: the evidence that a scan far from its design is
         this plate (:mod:`mppf.measure.identity`).
+    is_cleared : (n,) bool or None
+        Set-aside points beyond the tolerance that another scan of the union re-measured within it
+        (:func:`mppf.measure.outliers.clear_by_rescans`); default (None given): all False.
     """
 
     rms_mm: float
@@ -141,10 +144,12 @@ class Comparison:
     punch_label_base: int = 1
     coverage: Coverage | None = None
     identity: Evidence | None = None
+    is_cleared: np.ndarray | None = None
 
     def __post_init__(self):
-        if self.in_margin is None:
-            object.__setattr__(self, "in_margin", np.zeros(self.deviation_mm.shape[0], dtype=bool))
+        for name in ("in_margin", "is_cleared"):
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, np.zeros(self.deviation_mm.shape[0], dtype=bool))
 
     @property
     def n_points(self) -> int:

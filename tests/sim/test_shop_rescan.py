@@ -64,3 +64,25 @@ def test_a_given_pose_changes_nothing_else(tmp_path):
     in_press = np.linalg.solve(free.tf_scan_press, np.c_[free.points, np.ones(len(free.points))].T).T[:, :3]
     np.testing.assert_allclose(posed.points, in_press, atol=1e-6)
     np.testing.assert_array_equal(posed.is_outlier, free.is_outlier)
+
+
+def test_a_rescan_aimed_at_listed_areas_sees_them_whole_and_little_else(tmp_path):
+    import dataclasses
+
+    press = load_press(example_press_path())
+    scanner = SimulatedPlateScanner(press, T, OUTLINE, seed=5, plate_model="planner", outlier_fraction=0.0)
+    context = _context(press, tmp_path)
+    first = read_points(scanner.acquire(1, context)).points
+    area = [[-300.0, -200.0], [100.0, -200.0], [100.0, 150.0], [-300.0, 150.0]]
+    aimed = dataclasses.replace(context, regions=({"kind": "uncovered", "corners_press_mm": area},))
+    rescan = read_points(scanner.rescan(1, 1, aimed)).points
+    tf = SimulatedScanner(outlier_fraction=0.0, seed=5 * 1000 + 1).sample(scanner.last_formed).tf_scan_press
+    xy = np.linalg.solve(tf, np.c_[rescan, np.ones(len(rescan))].T).T[:, :2]
+    # every point lies in the area or the rim of 3 spacings (60 mm) around it ...
+    assert xy[:, 0].min() > -300 - 61 and xy[:, 0].max() < 100 + 61 and xy[:, 1].min() > -200 - 61
+    assert xy[:, 1].max() < 150 + 61
+    # (taken back to the press by the first take's pose: the same frame) and the area is seen whole, with no
+    # occlusion blob in an aimed take, wherever the first take's blobs were
+    grid = np.stack(np.meshgrid(np.arange(-290, 91, 20.0), np.arange(-190, 141, 20.0)), axis=-1).reshape(-1, 2)
+    assert cKDTree(xy).query(grid)[0].max() < 25.0
+    assert len(rescan) < 0.2 * len(first)
