@@ -88,3 +88,22 @@ def test_the_overlap_guard():
                           is_outside=np.zeros(2010, bool), measured_uv_mm=np.r_[uv[:2000], uv[:10] + 5000.0])
     lonely = overlap_agreement(far, 2000)
     assert lonely.overlap < MIN_OVERLAP and not lonely.agrees and "cannot be checked" in lonely.describe()
+
+
+def test_what_a_rescan_is_asked_for():
+    from mppf.loop.rescanning import _rescannable
+    from mppf.measure.decision import Figures, Limits, verdict
+
+    limits = Limits(2.5, 1.0)
+    gaps = dict(gaps=("0.5 m^2 on the rim",), n_gaps=1, allowed_gap_mm=100.0)
+    # within the limits, only areas not measured or artefacts in the way: a rescan decides it
+    assert _rescannable(verdict(Figures(1.0, 0.4, **gaps), limits))
+    assert _rescannable(verdict(Figures(1.0, 0.4, set_aside=3, set_aside_beyond=2, set_aside_max_mm=9.0), limits))
+    # out of tolerance with areas not measured: the correction needs the plate there
+    assert _rescannable(verdict(Figures(4.0, 1.5, **gaps), limits))
+    # out of tolerance, all of it measured; a badly formed plate; a point measured so twice: no rescan
+    assert not _rescannable(verdict(Figures(4.0, 1.5), limits))
+    assert not _rescannable(verdict(Figures(40.0, 20.0, badly_formed="this plate, 36.8 mm RMS off", **gaps), limits))
+    assert not _rescannable(verdict(Figures(1.0, 0.4, set_aside=3, set_aside_beyond=1, set_aside_max_mm=7.0,
+                                            confirmed_beyond=1), limits))
+    assert not _rescannable(verdict(Figures(1.0, 0.4), limits)) and not _rescannable(None)
