@@ -11,6 +11,10 @@ the request's ``scan.path`` (by a temporary name renamed into place) and the ref
 - ``header``: in the scan's header (a PLY ``comment reference_mark_mm X Y Z`` line), no mark file;
 - ``none``: no mark at all.
 
+``--bend F`` scans the plate bent F times as much as designed (its heights about its own best
+plane multiplied by F: a plate a correction has badly over-formed), ``--scale S`` writes the
+scan in other units (S = 0.001: metres).
+
 It handles ``--requests`` requests (default 1), prints one line per step on stdout
 (``request ...``, ``scan ...``, ``mark ...``, ``gone ...`` once the loop removed the request),
 then exits.
@@ -27,14 +31,22 @@ from pathlib import Path
 import numpy as np
 
 
-def plate_in_press(design_path: Path, job_path: Path, thickness_mm: float) -> np.ndarray:
-    """The design's top skin in press coordinates (the mid-surface lifted by t/2: a shallow plate)."""
+def plate_in_press(design_path: Path, job_path: Path, thickness_mm: float, bend: float = 1.0) -> np.ndarray:
+    """The design's top skin in press coordinates (the mid-surface lifted by t/2: a shallow plate), its heights about
+    its own best plane multiplied by ``bend``."""
     from mppf.core.transform import apply_tf
+    from mppf.geometry.frame import fit_frame
     from mppf.geometry.read import read_points
     from mppf.planning.job import load_job
 
     job = load_job(job_path)
-    mid = apply_tf(job.tf_press_design, read_points(design_path).points)
+    design = read_points(design_path).points
+    if bend != 1.0:
+        frame = fit_frame(design)
+        local = frame.to_local(design)
+        local[:, 2] *= bend
+        design = frame.to_world(local)
+    mid = apply_tf(job.tf_press_design, design)
     return mid + [0.0, 0.0, thickness_mm / 2.0]
 
 
@@ -48,17 +60,19 @@ def write_ply(path: Path, points: np.ndarray, comments=()) -> None:
     tmp.replace(path)
 
 
-def serve(folder: Path, design: Path, mode: str, delay_s: float, seed: int) -> None:
+def serve(folder: Path, design: Path, mode: str, delay_s: float, seed: int, bend: float = 1.0,
+          scale: float = 1.0) -> None:
     """Answer one scan request in ``folder``."""
     request_path = _wait(lambda: sorted(folder.glob("*.scan-request.json")))[0]
     request = json.loads(request_path.read_text())
     print(f"request {request_path.name} cycle {request['cycle']}", flush=True)
-    top = plate_in_press(design, Path(request["job"]["path"]), request["plate"]["thickness_mm"])
+    top = plate_in_press(design, Path(request["job"]["path"]), request["plate"]["thickness_mm"], bend)
     rng = np.random.default_rng(seed + request["cycle"])
     scan = top + rng.normal(0.0, 0.2, top.shape)
     corner = np.asarray(request["mark"]["corner_press_mm"], dtype=float)
     nearest = top[np.argmin(np.linalg.norm(top[:, :2] - corner, axis=1))]
-    mark = [float(corner[0]), float(corner[1]), float(nearest[2])]
+    mark = [scale * float(corner[0]), scale * float(corner[1]), scale * float(nearest[2])]
+    scan = scale * scan
     scan_path, mark_path = Path(request["scan"]["path"]), Path(request["mark"]["path"])
     if mode == "early":
         mark_path.write_text(json.dumps({"reference_mark_mm": mark}))
@@ -93,9 +107,11 @@ def main() -> None:
     parser.add_argument("--delay", type=float, default=2.0)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--requests", type=int, default=1)
+    parser.add_argument("--bend", type=float, default=1.0)
+    parser.add_argument("--scale", type=float, default=1.0)
     args = parser.parse_args()
     for _ in range(args.requests):
-        serve(args.folder, args.design, args.mode, args.delay, args.seed)
+        serve(args.folder, args.design, args.mode, args.delay, args.seed, args.bend, args.scale)
 
 
 if __name__ == "__main__":

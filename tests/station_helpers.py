@@ -35,10 +35,12 @@ def plate_files(folder: Path, name: str, points: np.ndarray) -> tuple[Path, Path
             write_points(folder / f"{name}.flat.csv", unfold(points).flat))
 
 
-def start_station(folder: Path, design: Path, mode: str, *, delay_s: float = 2.0) -> subprocess.Popen:
+def start_station(folder: Path, design: Path, mode: str, *, delay_s: float = 2.0, bend: float = 1.0,
+                  scale: float = 1.0) -> subprocess.Popen:
     """The outside scanner station, watching ``folder`` (see tests/scan_station.py)."""
     return subprocess.Popen([sys.executable, str(STATION), str(folder), str(design), "--mode", mode,
-                             "--delay", str(delay_s)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                             "--delay", str(delay_s), "--bend", str(bend), "--scale", str(scale)],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
 
 def station_log(station: subprocess.Popen, timeout_s: float = 30.0) -> list[str]:

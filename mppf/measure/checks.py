@@ -58,8 +58,21 @@ def check_size(uv_design: np.ndarray, measured_local: np.ndarray, margin_mm: flo
     scan_mm = float(np.ptp(measured_local[:, 0]))
     if not SIZE_RATIO[0] * design_mm <= scan_mm <= SIZE_RATIO[1] * (design_mm + 2.0 * margin_mm):
         raise GeometryError(
-            f"the scan is {scan_mm:.0f} mm long, the design {design_mm:.0f} mm: not the same plate",
+            f"the scan is {scan_mm:.3g} mm long, the design {design_mm:.0f} mm: not the same plate{_units(scan_mm, design_mm)}",
             hint="check the files and the --units (a scan in metres read as millimetres is 1000 times too small)")
+
+
+def _units(scan_mm: float, design_mm: float) -> str:
+    """"; 1000 times smaller: a scan in metres read as millimetres?" when the lengths differ by a unit's factor."""
+    if scan_mm <= 0 or design_mm <= 0:
+        return ""
+    ratio = design_mm / scan_mm
+    for name, factor in (("metres", 1000.0), ("centimetres", 10.0), ("inches", 25.4)):
+        for shown, wrong in ((ratio, f"a scan in {name} read as millimetres"),
+                             (1.0 / ratio, f"a scan in millimetres read as {name}")):
+            if abs(np.log(shown / factor)) < np.log(1.15):
+                return f" ({factor:g} times {'smaller' if shown is ratio else 'larger'}: {wrong}? other units)"
+    return ""
 
 
 def gross_mm(tolerance_mm: float, depth_mm: float) -> float:
