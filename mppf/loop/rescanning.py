@@ -260,7 +260,12 @@ def rescan_uncovered(cycle_run, record, comparison) -> Measured:
         regions = [region_doc(g, comparison, job.tf_press_design) for g in comparison.coverage.regions]
         reporter.info(f"cycle {record.cycle}: {_asking(comparison, spots)}: asking for rescan {number} of "
                       f"{settings.rescans}")
-        path = _take_rescan(run, record, job, number, regions + spots[:SPOTS_LISTED], scans, len(spots))
+        try:
+            path = _take_rescan(run, record, job, number, regions + spots[:SPOTS_LISTED], scans, len(spots))
+        except InputError as exc:  # no rescan came in the scan timeout: decided on the scans taken
+            reporter.info(f"cycle {record.cycle}: no rescan came ({exc.message}); the cycle is decided on the "
+                          f"{len(scans)} scan(s) taken")
+            return Measured(comparison, scans)
         scan = {"path": str(path), "sha256": "", "rescan": number, "n_points": 0, "merged": False}
         scans.append(scan)
         # 2. the union of the scans so far, compared; merged only when the rescan agrees where they overlap

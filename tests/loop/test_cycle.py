@@ -58,7 +58,9 @@ def test_a_refused_step_is_not_started_and_is_pressed_on_resume(planned_plate, t
             link.program.release_estop()
             link.reset()
             result = run_loop(history, "R1", link, scanner)
-        assert result.status in ("in_tolerance", "max_cycles") and result.resumed_state == "planned"
+        # the resumed loop pressed the cycle and judged it (needs review when two scans measured one of the
+        # simulated scanner's spikes at one spot: no rule tells that from a narrow dent)
+        assert result.status in ("in_tolerance", "max_cycles", "needs_review") and result.resumed_state == "planned"
         gos = _gos(audit)
         assert len(gos) == len(result.cycles[0].steps)
 
