@@ -35,6 +35,18 @@ def plate_files(folder: Path, name: str, points: np.ndarray) -> tuple[Path, Path
             write_points(folder / f"{name}.flat.csv", unfold(points).flat))
 
 
+def planned_plate(folder: Path, name: str, points: np.ndarray, settings) -> tuple:
+    """A small plate written as files, read back and planned for its first cycle: (design, flat, press, job)."""
+    from mppf.geometry.read import read_points
+    from mppf.loop.plate import plan_first_cycle
+    from mppf.planning.press import example_press_path, load_press
+
+    design_path, flat_path = plate_files(folder, name, points)
+    design, flat = read_points(design_path), read_points(flat_path)
+    press = load_press(example_press_path())
+    return design, flat, press, plan_first_cycle(design, flat, press, 20.0, settings=settings)
+
+
 def start_station(folder: Path, design: Path, mode: str, *, delay_s: float = 2.0, bend: float = 1.0,
                   scale: float = 1.0) -> subprocess.Popen:
     """The outside scanner station, watching ``folder`` (see tests/scan_station.py)."""

@@ -14,29 +14,23 @@ import sys
 import numpy as np
 import pytest
 from driver_helpers import HookReporter
-from station_helpers import asymmetric_points, plate_files, start_station, station_log, symmetric_points
+from station_helpers import asymmetric_points, planned_plate, start_station, station_log, symmetric_points
 
 from mppf.drivers.audit import AuditLog
 from mppf.loop.cycle import run_loop
 from mppf.loop.history import History
 from mppf.loop.marks import MarkMissing, needs_mark
-from mppf.loop.plate import plan_first_cycle, record_plate
+from mppf.loop.plate import record_plate
 from mppf.loop.scan_request import REQUEST_FORMAT, REQUEST_VERSION, build_request, post_request, run_on_pressed
 from mppf.loop.scanners import DirectoryScanner
 from mppf.loop.settings import LoopSettings
-from mppf.planning.press import example_press_path, load_press
 from mppf.sim.plc.link import InProcessPress
 
 SETTINGS = dict(max_cycles=1, margin_mm=0.0, mark_settle_s=1.0, mark_timeout_s=8.0)
 
 
 def _planned(tmp_path_factory, name, points):
-    from mppf.geometry.read import read_points
-
-    design_path, flat_path = plate_files(tmp_path_factory.mktemp(name), name, points)
-    design, flat = read_points(design_path), read_points(flat_path)
-    press = load_press(example_press_path())
-    return design, flat, press, plan_first_cycle(design, flat, press, 20.0, settings=LoopSettings(**SETTINGS))
+    return planned_plate(tmp_path_factory.mktemp(name), name, points, LoopSettings(**SETTINGS))
 
 
 @pytest.fixture(scope="module")

@@ -8,16 +8,15 @@ from __future__ import annotations
 
 import pytest
 from driver_helpers import HookReporter
-from station_helpers import asymmetric_points, plate_files, start_station, station_log
+from station_helpers import asymmetric_points, planned_plate, start_station, station_log
 
 from mppf.core.errors import MppfError
 from mppf.drivers.audit import AuditLog
 from mppf.loop.cycle import run_loop
 from mppf.loop.history import History
-from mppf.loop.plate import plan_first_cycle, record_plate
+from mppf.loop.plate import record_plate
 from mppf.loop.scanners import DirectoryScanner
 from mppf.loop.settings import LoopSettings
-from mppf.planning.press import example_press_path, load_press
 from mppf.sim.plc.link import InProcessPress
 
 SETTINGS = dict(max_cycles=2, margin_mm=0.0, mark_settle_s=1.0, mark_timeout_s=8.0)
@@ -26,12 +25,7 @@ SETTINGS = dict(max_cycles=2, margin_mm=0.0, mark_settle_s=1.0, mark_timeout_s=8
 @pytest.fixture(scope="module")
 def bump(tmp_path_factory):
     """The asymmetric plate (1400 x 900 mm, a 60 mm bump), planned: (design, flat, press, job)."""
-    from mppf.geometry.read import read_points
-
-    design_path, flat_path = plate_files(tmp_path_factory.mktemp("bump"), "bump", asymmetric_points())
-    design, flat = read_points(design_path), read_points(flat_path)
-    press = load_press(example_press_path())
-    return design, flat, press, plan_first_cycle(design, flat, press, 20.0, settings=LoopSettings(**SETTINGS))
+    return planned_plate(tmp_path_factory.mktemp("bump"), "bump", asymmetric_points(), LoopSettings(**SETTINGS))
 
 
 def _run(tmp_path, plate, **station):
