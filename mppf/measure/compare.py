@@ -60,22 +60,22 @@ from dataclasses import replace
 import numpy as np
 
 from mppf.core.defaults import RMS_TOLERANCE_MM
-from mppf.core.errors import InputError
 from mppf.core.transform import apply_tf, as_points
 from mppf.geometry.surface import fit_plate
 from mppf.measure import checks
 from mppf.measure.coverage import GAP_MM, MAX_GAP_MM, check_gaps, coverage
 from mppf.measure.decision import Figures, Limits, verdict
 from mppf.measure.deviations import DesignSkin, normal_sign
+from mppf.measure.aside import left_out_notes, scan_index_of, set_aside_report
 from mppf.measure.form import form_of
 from mppf.measure.localfit import spatial_query
-from mppf.measure.outliers import SetAside, clear_by_rescans, find_outliers_by_scan
+from mppf.measure.outliers import clear_by_rescans, find_outliers_by_scan
 from mppf.measure.punches import edge_at_punches, nearest_punch, punch_deviations
 from mppf.measure.result import Comparison
 from mppf.measure.statistics import statistics
 from mppf.registration.outline_fit import refit_outline
 from mppf.registration.register import register_icp
-from mppf.registration.scan_start import choose_start
+from mppf.registration.scan_start import choose_start, known_start
 from mppf.registration.settings import ScanStages
 from mppf.registration.target import build_target, prepare
 from mppf.registration.verdict import sample_index
@@ -108,6 +108,7 @@ def compare(
     max_gap_mm: float = MAX_GAP_MM,
     expected_points: int | None = None,
     scan_index=None,
+    start_tf=None,
 ) -> Comparison:
     """Register a scan onto its design and measure the deviation of every point.
 
@@ -182,6 +183,11 @@ def compare(
         point came from (0 the first scan, K its K-th rescan). A set-aside point beyond the tolerance
         that another scan measured within it is cleared (reported, not deciding); one another scan
         confirms never is (:func:`mppf.measure.outliers.clear_by_rescans`). Default: one scan.
+    start_tf : (4, 4) float, optional
+        A start already known (measured -> design), e.g. the registration of the first of a union of
+        scans in one frame (the loop's rescans): the choice of a start is skipped (the turn is the one
+        that comparison settled) and the registration refines it. Default: chosen
+        (:func:`mppf.registration.scan_start.choose_start`).
 
     Returns
     -------
@@ -220,7 +226,8 @@ def compare(
 
     # 3. the start (principal axes, converged; the reference mark or the hint settle the turn),
     #    point-to-point then point-to-plane ICP (pinned where free), the signed deviation of every point
-    start = choose_start(scan, target, rotation_hint, reference_mark, skin.length_mm)
+    start = (choose_start(scan, target, rotation_hint, reference_mark, skin.length_mm) if start_tf is None
+             else known_start(start_tf))
     reg, dev, reg_note = _register(scan, target, skin, start.tf)
     reg = replace(reg, ambiguous_start=start.ambiguous, init={**reg.init, **start.info()})
     notes = [f"{start.note}; {reg_note}"]
@@ -243,7 +250,7 @@ def compare(
     start.require_settled()
 
     # 5. set aside only certain scanner artefacts (the margin's points are neighbours too)
-    index = _scan_index(scan_index, measured.shape[0])
+    index = scan_index_of(scan_index, measured.shape[0])
     artefacts = find_outliers_by_scan(dev.uv, dev.deviation_mm, ~dev.outside, index)
     clearing = clear_by_rescans(dev.uv, dev.deviation_mm, artefacts.mask, ~dev.outside, index, tolerance_mm)
     set_aside = artefacts.mask
@@ -256,9 +263,9 @@ def compare(
     net = ~dev.outside & ~dev.in_margin
     within_pct = float(100.0 * np.mean(np.abs(dev.deviation_mm[net]) <= tolerance_mm))
     form, field = form_of(dev.uv, dev.deviation_mm, inlier, measured_ok, dev.in_margin)
-    aside = _set_aside(set_aside & net, dev, artefacts, tolerance_mm, tf_press_design, punch_xy_mm, punch_label_base,
+    aside = set_aside_report(set_aside & net, dev, artefacts, tolerance_mm, tf_press_design, punch_xy_mm, punch_label_base,
                        clearing, net)
-    notes += [field.describe(), aside.describe(tolerance_mm), *_left_out(set_aside, dev, margin_mm)]
+    notes += [field.describe(), aside.describe(tolerance_mm), *left_out_notes(set_aside, dev, margin_mm)]
     # what of the net plate was not measured (occlusions, rim bands): gaps wider than allowed
     covered = coverage(skin.outline, _nearest(artefacts, dev), artefacts.spacing_mm, gap_mm, max_gap_mm,
                        _on_press(skin, tf_press_design, punch_xy_mm, punch_label_base))
@@ -323,37 +330,8 @@ def _register(scan, target, skin: DesignSkin, init, stages: ScanStages = STAGES)
         "design (the shapes differ much)")
 
 
-def _set_aside(mask, dev, artefacts, tolerance_mm: float, tf_press_design, punch_xy_mm, label_base: int,
-               clearing, net) -> SetAside:
-    """The report of the set-aside points of the net plate: count, largest, where (press, nearest punch), how many
-    a rescan cleared (by which scan) and how many another scan confirmed."""
-    share, spacing = artefacts.dense_fraction, artefacts.spacing_mm
-    confirmed = int((clearing.confirmed & mask).sum())
-    if not mask.any():
-        return SetAside(0, 0.0, 0, None, None, None, spacing, share)
-    absolute = np.abs(dev.deviation_mm[mask])
-    worst = int(np.flatnonzero(mask)[np.argmax(absolute)])
-    press_xy = punch = None
-    if tf_press_design is not None:
-        press_xy = apply_tf(np.asarray(tf_press_design, dtype=float), dev.moved[worst][None])[0, :2]
-        if punch_xy_mm is not None:
-            punch = nearest_punch(np.asarray(punch_xy_mm, dtype=float), press_xy, label_base)
-    cleared = clearing.cleared & mask
-    by = dict(zip(*(v.tolist() for v in np.unique(clearing.cleared_by[cleared], return_counts=True))))
-    beyond = int(np.sum(absolute > tolerance_mm)) - int(cleared.sum())
-    return SetAside(int(mask.sum()), float(absolute.max()), beyond, dev.uv[worst].copy(), press_xy, punch, spacing,
-                    share, int(cleared.sum()), by, confirmed)
 
 
-def _scan_index(scan_index, n: int) -> np.ndarray:
-    """The (n,) int scan of each measured point (all 0 without ``scan_index``); InputError for another shape."""
-    if scan_index is None:
-        return np.zeros(n, dtype=int)
-    index = np.asarray(scan_index)
-    if index.shape != (n,) or not np.issubdtype(index.dtype, np.integer):
-        raise InputError(f"scan_index must be ({n},) integers, one per measured point; got {index.shape} {index.dtype}",
-                         hint="give the scan number (0, 1, ...) of each point, or leave it out")
-    return index.astype(int)
 
 
 def _nearest(artefacts, dev):
@@ -381,12 +359,3 @@ def _on_press(skin: DesignSkin, tf_press_design, punch_xy_mm, label_base: int):
 
     return where
 
-
-def _left_out(set_aside, dev, margin_mm: float) -> list[str]:
-    """Notes on the points left out of the statistics."""
-    notes = [f"{int(set_aside.sum())} point(s) set aside and {int(dev.outside.sum())} point(s) outside the design "
-             "left out of the statistics (the share within the tolerance counts the set-aside ones)"]
-    if margin_mm > 0:
-        notes.append(f"{int(dev.in_margin.sum())} point(s) in the trim margin ({margin_mm:g} mm) left out of the "
-                     "statistics")
-    return notes

@@ -62,8 +62,9 @@ class StartChoice:
     ambiguous : bool
         The best two different poses tie (:func:`start_tie`), however it was then settled.
     settled_by : str
-        "fit" (the best fit, no tie), "mark", "held mark", "fit (mark not found)", "hint", or
-        "none" (a tie nothing settled: :meth:`require_settled` raises).
+        "fit" (the best fit, no tie), "mark", "held mark", "fit (mark not found)", "hint",
+        "earlier scan" (:func:`known_start`), or "none" (a tie nothing settled: :meth:`require_settled`
+        raises).
     candidates : list of dict
         The four converged starts: ``name``, ``residual_mm`` (robust normal residual of the
         common sample), ``turn_deg`` from the chosen one.
@@ -106,7 +107,7 @@ class StartChoice:
     def info(self) -> dict:
         """JSON-able summary (``Registration.init`` of a comparison)."""
         return {"kind": "scan start", "settled_by": self.settled_by, "ambiguous": self.ambiguous,
-                "candidates": self.candidates, "floor_mm": self.floor_mm,
+                "candidates": self.candidates, "floor_mm": self.floor_mm if np.isfinite(self.floor_mm) else None,
                 "design_asymmetry_mm": self.design_asymmetry_mm}
 
 
@@ -172,6 +173,20 @@ def choose_start(scan: Cloud, target: RegistrationTarget, rotation_hint, referen
                            asymmetry, (best, second))
     return StartChoice(fits[best], f"start: best converged fit; converged residual {scored} mm", False, "fit",
                        summary(best), floor, asymmetry)
+
+
+def known_start(tf) -> StartChoice:
+    """The start of a scan already registered in another comparison (measured -> design, (4, 4) float).
+
+    For a union of scans taken in one frame (the loop's rescans): the first scan's registration
+    settled the turn; it is refined, not chosen again. InputError for a malformed transform.
+    """
+    start = np.asarray(tf, dtype=float)
+    if start.shape != (4, 4) or not np.all(np.isfinite(start)):
+        raise InputError(f"start_tf must be a finite (4, 4) transform, got shape {start.shape}",
+                         hint="give the transform of the comparison the scans share, or leave it out")
+    return StartChoice(start, "start: the registration of the scan this one shares its frame with", False,
+                       "earlier scan")
 
 
 def start_tie(target: RegistrationTarget, best, other, floor_mm: float) -> tuple[bool, float | None]:
@@ -275,10 +290,9 @@ def _held_fit(scan, target, start, mark, sample, settings: ScanStart) -> tuple[n
     tf = np.array(start, dtype=float)
     for _ in range(settings.hold_rounds):
         tf[:3, 3] += mark[1] - apply_tf(tf, mark[0][None])[0]
-        reg = register_icp(scan, target, method="point", init=tf, trim_fraction=settings.trim_fraction,
-                           pin_outline=False, max_points=settings.points,
-                           max_iterations=max(settings.iterations // settings.hold_rounds, 1), check_starts=False)
-        tf = np.array(reg.tf, dtype=float)
+        tf = np.array(converge_start(scan, target, tf, IcpSettings(
+            method="point", trim_fraction=settings.trim_fraction, pin_outline=False, max_points=settings.points,
+            max_iterations=max(settings.iterations // settings.hold_rounds, 1), check_starts=False)), dtype=float)
     tf[:3, 3] += mark[1] - apply_tf(tf, mark[0][None])[0]
     return tf, _nearest_rms(target, sample, tf)
 

@@ -177,9 +177,9 @@ def _scanner(history, plate_id, press, flat_path):
 
     job = load_job(history.cycle(plate_id, 1).job_path)
     # the planner's own plate model: this scan only has to be a usable scan of the plate as pressed
-    # (the steel plate takes five times longer to press)
+    # (the steel plate takes five times longer to press), seen whole without stray returns (no rescan is asked for)
     return SimulatedPlateScanner.for_job(press, 20.0, job, read_points(flat_path).points, seed=1,
-                                         plate_model="planner")
+                                         plate_model="planner", occlusion_fraction=0.0, outlier_fraction=0.0)
 
 
 # -- the press policy, shared with mppf press ------------------------------------------------------

@@ -34,9 +34,11 @@ def _record(tmp_path, planned_plate, history, plate_id, max_cycles=1):
 
 def _scanner(history, plate_id, press, planned_plate):
     """The plate and its scanner: the planner's own plate model, since these tests are of the state machine
-    (what is pressed, recorded and resumed), not of the forming; the steel plate takes five times longer to press."""
+    (what is pressed, recorded and resumed), not of the forming; the steel plate takes five times longer to press.
+    The scanner sees the whole plate without stray returns: no rescans (they have their own tests)."""
     job = load_job(history.cycle(plate_id, 1).job_path)
-    return SimulatedPlateScanner.for_job(press, 20.0, job, planned_plate[1].points, seed=1, plate_model="planner")
+    return SimulatedPlateScanner.for_job(press, 20.0, job, planned_plate[1].points, seed=1, plate_model="planner",
+                                         occlusion_fraction=0.0, outlier_fraction=0.0)
 
 
 def _gos(audit, outcome="ok"):

@@ -64,3 +64,20 @@ def test_the_mark_file_beside_the_scan_and_the_design_corner(tmp_path):
     # given on the command line, it wins over the file
     measured, _ = reference_mark(scan, design, None, mark_mm=[1.0, 2.0, 3.0])
     assert np.allclose(measured, [1.0, 2.0, 3.0])
+
+
+def test_a_scan_registered_from_a_known_start_keeps_its_turn_and_skips_the_choice():
+    """A union of rescans in the frame of a compared scan (the loop's): registered from that scan's transform, the
+    symmetric plate is judged without its mark, in the same pose; a malformed start is refused."""
+    from mppf.core.errors import InputError
+
+    design, sample, mark = _symmetric_case()
+    first = compare(design, sample.points, offset_mm=sh.THICKNESS_MM / 2, reference_mark=(sample.mark_mm, mark))
+    again = compare(design, sample.points, offset_mm=sh.THICKNESS_MM / 2, start_tf=first.transform)
+    assert "shares its frame" in again.notes[0] and again.registration.init["settled_by"] == "earlier scan"
+    assert rotation_angle_deg(again.transform @ np.linalg.inv(first.transform)) < 0.05
+    assert np.linalg.norm(again.transform[:3, 3] - first.transform[:3, 3]) < 1.0
+    assert again.verdict.kind == first.verdict.kind
+    assert again.rms_mm == pytest.approx(first.rms_mm, abs=0.02)
+    with pytest.raises(InputError, match="start_tf"):
+        compare(design, sample.points, start_tf=np.eye(3))
