@@ -93,6 +93,8 @@ def _print_summary(summary: dict, output) -> None:
     console.print(corners)
     if summary.get("sections"):
         _print_sections(summary["sections"])
+    for warning in summary.get("warnings", []):
+        console.print(f"warning: {warning}", style="yellow", markup=False, soft_wrap=True)
     if output:
         console.print(f"job written to {output}", markup=False, soft_wrap=True)
 
@@ -194,6 +196,7 @@ def plan_command(design, flat, press_path, thickness_mm, steps, springback, marg
     summary = plan_summary(job)
     if job.sections:
         summary["sections"] = sections_summary(job)
+        summary["warnings"] = list(job.extra["sectional"].get("warnings", []))
     if output:
         summary["job"] = {"path": output, "sha256": job.sha256()}
     if as_json:

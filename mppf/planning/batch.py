@@ -256,6 +256,8 @@ def summary_row(plate: Plate, job, strain_pct, warnings, seconds: float, cpu_sec
     size = (sectional or job.extra).get("plate_size_mm") or [None, None]
     steps = sectional["n_steps_total"] if sectional else len(job.steps)
     travel = sectional["max_travel_mm"] if sectional else job.extra.get("pose", {}).get("max_travel_mm")
+    if sectional and sectional.get("warnings"):
+        warnings = [*warnings, *sectional["warnings"]]
     if job.extra.get("registration", {}).get("ambiguous_start"):
         warnings = [*warnings, "nearly symmetric plate: check which way round it lies"]
     return {"plate": plate.name, "status": "planned", "length_mm": _round(size[0]), "width_mm": _round(size[1]),

@@ -285,6 +285,24 @@ def _border_steps(press, fitted, planned) -> list[float]:
     return steps
 
 
+BORDER_STEP_LIMIT_MM = 1.0
+"""A section whose recovered design steps more than this (mm) at its border with the plate formed before it
+is warned of: the press would leave a step or kink there (see ``docs/sections.md``, "Not yet done")."""
+
+
+def border_warnings(border_mm, springback: bool) -> list[str]:
+    """The warnings of a sectional plan whose sections step at their borders (one per such section)."""
+    out = []
+    for index, step in enumerate(border_mm, start=1):
+        if step > BORDER_STEP_LIMIT_MM:
+            why = (" (the sections' springback over-bends disagree where they overlap: plan without --springback "
+                   "and let the loop correct, or check the section order)") if springback else ""
+            out.append(f"section {index}: its strokes step by {step:.1f} mm at its border with the plate formed "
+                       f"before it (limit {BORDER_STEP_LIMIT_MM:g} mm): the press would leave a step or kink "
+                       f"there{why}")
+    return out
+
+
 def _assemble(planned, border, split, zone, fitted, registration, belongs, placement, inputs, springback_report,
               press, t, margin, material) -> Job:
     """The sectional job: section 1 as the job's own steps and layout, every section in ``sections``."""
@@ -310,6 +328,7 @@ def _assemble(planned, border, split, zone, fitted, registration, belongs, place
         "n_steps_total": int(sum(len(s.steps) for s in sections)),
         "max_travel_mm": float(max(s.extra["pose"]["max_travel_mm"] for s in sections)),
         "max_border_step_mm": float(max(border)),
+        "warnings": border_warnings(border, bool(springback_report["enabled"])),
     }
     return Job(press=press, thickness_mm=t, steps=s1.steps, tf_press_design=s1.tf_press_design,
                tf_press_flat=s1.tf_press_flat, layout=s1.layout, extra=extra, sections=sections)
