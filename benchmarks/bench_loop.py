@@ -137,7 +137,8 @@ def run_direct(press, planned: Planned, plate, max_cycles: int, use_edge: bool =
     job = planned.job
     final = job.steps[-1]
     active = final.active
-    steps, cycles, row = job.steps, [], {"max": [], "rms": [], "decisions": [], "ok_at": None, "verdict": None}
+    steps, cycles = job.steps, []
+    row = {"max": [], "rms": [], "decisions": [], "ok_at": None, "verdict": None, "trust": [], "predicted": []}
     predicted = [None]
     started = time.monotonic()
     for cycle in range(1, max_cycles + 1):
@@ -161,6 +162,7 @@ def run_direct(press, planned: Planned, plate, max_cycles: int, use_edge: bool =
                                      final.upper_mm, final.lower_mm, active, trust=trust,
                                      edge_mm=edge if use_edge else None)
         predicted.append(learned.predicted_rms_mm)
+        row["trust"].append(trust), row["predicted"].append(learned.predicted_rms_mm)
         verdict = convergence_verdict(row["rms"], learned.predicted_rms_mm, RMS_TOL_MM,
                                       clipped=int(learned.clipped.sum()), unreached=int(learned.unreached.sum()),
                                       max_mm=row["max"], tolerance_mm=TOL_MM)
@@ -220,6 +222,8 @@ def report(title: str, rows: list[dict]) -> dict:
     for r in rows:
         print(f"{r['plate']:26s} {r['seed']:4d} {str(r['ok_at']):>5s}  {_series(r['max']):30s} {_series(r['rms']):30s} "
               f"{' '.join(r['decisions'])}")
+        if r.get("trust"):
+            print(f"{'':38s}trust region per correction {_series(r['trust'])}; predicted RMS {_series(r['predicted'])}")
         if r.get("verdict"):
             print(f"{'':38s}verdict: {r['verdict']}")
     n = len(rows)

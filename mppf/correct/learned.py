@@ -195,7 +195,10 @@ def trust_region(rms_mm, predicted_rms_mm, rms_tolerance_mm: float | None = None
         the first cycle, or when unknown), same length.
     rms_tolerance_mm : float, optional
         With it, the region is halved once the RMS is within it (only the largest deviation
-        is out): near the tolerance a bold step costs more than a careful one.
+        is out: near the tolerance a bold step costs more than a careful one), unless the last
+        correction delivered what it promised (its ratio at least :data:`TRUST_GOOD`): a model
+        just shown right is followed at full size (a halved aim leaves a third of a last edge
+        or corner error where the plate answers a small step less than a large one).
     max_mm : sequence of float, optional
         Largest (form) deviation of the same cycles (mm), with ``tolerance_mm`` and
         ``rms_tolerance_mm``: when the last cycle's excess over the tolerances (the larger of
@@ -205,9 +208,10 @@ def trust_region(rms_mm, predicted_rms_mm, rms_tolerance_mm: float | None = None
     tolerance_mm : float, optional
         The tolerance of the largest deviation (mm).
     """
-    trust = 1.0
+    trust, ratio = 1.0, None
     for before, after, predicted in zip(rms_mm, rms_mm[1:], predicted_rms_mm[1:]):
         if predicted is None or not np.isfinite(predicted) or before <= predicted:
+            ratio = None
             continue
         ratio = (before - after) / (before - predicted)
         if ratio < 0.0:  # it made the plate worse
@@ -221,7 +225,7 @@ def trust_region(rms_mm, predicted_rms_mm, rms_tolerance_mm: float | None = None
         excess = [max(r / rms_tolerance_mm, m / tolerance_mm) for r, m in zip(rms_mm, max_mm)]
         if excess[-1] > WORSE_THAN_BEST * min(excess[:-1]):
             trust *= 0.25
-    if rms_tolerance_mm is not None and rms_mm[-1] <= rms_tolerance_mm:
+    if rms_tolerance_mm is not None and rms_mm[-1] <= rms_tolerance_mm and (ratio is None or ratio < TRUST_GOOD):
         trust *= 0.5
     return max(trust, MIN_TRUST)
 

@@ -135,3 +135,12 @@ def test_a_cycle_much_worse_than_the_best_seen_quarters_the_trust_region():
                         tolerance_mm=2.5) == 0.25
     # without the largest deviations the rule does not apply
     assert trust_region([4.0, 1.2, 1.1], [None, 1.2, 1.1], 1.0) == 1.0
+
+
+def test_near_the_tolerance_the_trust_region_halves_unless_the_last_correction_delivered():
+    from mppf.correct.learned import trust_region
+
+    # the RMS is within its tolerance, only the largest deviation is out
+    assert trust_region([4.0, 0.9], [None, 0.8], 1.0) == 1.0  # delivered 3.1 of the 3.2 mm promised: full size
+    assert trust_region([4.0, 2.0, 0.9], [None, 1.9, 0.3], 1.0) == 0.5  # the last gave 1.1 of 1.7 mm: careful
+    assert trust_region([4.0, 0.9], [None, None], 1.0) == 0.5  # no promise to judge it by: careful
