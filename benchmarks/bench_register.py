@@ -1,39 +1,85 @@
-"""Benchmark: mppf registration beside Open3D point-to-point and small_gicp point-to-plane (issue 19).
+"""Benchmark: ``mppf register`` beside Open3D point-to-point and small_gicp point-to-plane (issue 19).
 
 Cases: three surfaces (an asymmetric doubly curved plate 3 x 1.5 m, a shallow saddle 4 mm
 deep, a cylinder R 3 m), each as an EXACT moved copy (the same points, 0.3 mm noise on the
 copy) and as a DIFFERENTLY SAMPLED scan (independent random points, 0.5 mm noise), at 10k,
 100k and 200k source points (the target twice as dense when sampled apart), in a known pose,
-from the principal-axes start and from the identity. Errors are against the known truth
-(rotation deg, displacement at the source's centre mm); times are whole-process CPU times of
-a fresh process for mppf (``import`` + ``register_icp``, as ``mppf register`` pays them) and the
-anchors' registration call; each row's time is also given as a ratio to the anchor's from
-alternating runs (mppf, anchor, mppf, anchor ...; the median ratio).
+from the principal-axes start and from the identity. Both clouds are written as CSV files.
 
-The anchors are optional (``pip install open3d small_gicp``): absent, only mppf's rows are
-printed, and the table says so.
+Every tool runs as a whole fresh process on the same two files, and its CPU time (user +
+system, imports and file reading included) is what is compared:
+
+- mppf: the command ``mppf register SOURCE TARGET --method plane --init START`` as an operator
+  runs it (its table printed); one more run with ``--json`` (not timed) gives the transform,
+  the verdict and the ambiguity flag;
+- the anchors: a Python process that imports numpy and the anchor only, reads the two files
+  with ``numpy.loadtxt`` and registers (small_gicp ``PLANE_ICP``, every point, one thread, 100
+  iterations at most; Open3D point-to-point, 500 at most), from the identity or from the
+  principal-axes candidate nearest the truth (computed here, handed over in a file: the
+  anchors get the right one of the four).
+
+Runs alternate (mppf, anchor, ..., mppf, anchor, ...); each row gives the median CPU time, the
+ratio of the medians to small_gicp's, and the range of the run-by-run ratios (the scatter of
+a shared machine). Errors are against the known truth (rotation deg, displacement at the
+source's centre mm). The anchors are optional (``pip install open3d small_gicp``, not in the
+test environment: Open3D pulls dash, whose pytest plugin breaks it); absent, only mppf's rows
+are printed.
 
 Run:  python benchmarks/bench_register.py [--sizes 10000,100000,200000] [--repeats 3]
       [--surfaces plate,saddle,cylinder] [--kinds copy,sampled] [--starts principal,identity]
+      [--tools small_gicp,open3d]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import resource
+import shutil
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from mppf.core.transform import apply_tf, invert_tf, make_tf, rotation_angle_deg
+from mppf.core.transform import (
+    apply_tf,
+    invert_tf,
+    make_tf,
+    rotation_angle_deg,
+    rotvec_to_matrix,
+)
 
-POSE = make_tf(Rotation.from_euler("xyz", [12.0, -8.0, 20.0], degrees=True).as_matrix(), [250.0, -150.0, 400.0])
-"""Known pose of the scan relative to the design (moderate, so that an identity start can work)."""
+POSE = make_tf(rotvec_to_matrix(np.radians([0.0, 0.0, 20.0])) @ rotvec_to_matrix(np.radians([0.0, -8.0, 0.0]))
+               @ rotvec_to_matrix(np.radians([12.0, 0.0, 0.0])), [250.0, -150.0, 400.0])
+"""Known pose of the scan relative to the design: turns 12 / -8 / 20 degrees about x, y, z (in that order)
+and 0.5 m off (moderate, so that an identity start can work)."""
+
+ANCHOR_CODE = {
+    "small_gicp": """
+import sys, json
+import numpy as np
+import small_gicp
+source, target = (np.loadtxt(p, delimiter=",") for p in sys.argv[1:3])
+reg = small_gicp.align(target, source, np.loadtxt(sys.argv[3]), registration_type="PLANE_ICP",
+                       max_correspondence_distance=1000.0, max_iterations=100, num_threads=1)
+print(json.dumps({"tf": np.asarray(reg.T_target_source).tolist(), "note": f"converged {reg.converged}"}))
+""",
+    "open3d": """
+import sys, json
+import numpy as np
+import open3d as o3d
+source, target = (o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.loadtxt(p, delimiter=",")))
+                  for p in sys.argv[1:3])
+reg = o3d.pipelines.registration.registration_icp(
+    source, target, 1000.0, np.loadtxt(sys.argv[3]),
+    o3d.pipelines.registration.TransformationEstimationPointToPoint(),
+    o3d.pipelines.registration.ICPConvergenceCriteria(max_iteration=500))
+print(json.dumps({"tf": np.asarray(reg.transformation).tolist(), "note": f"fitness {reg.fitness:.2f}"}))
+""",
+}
+"""Each anchor's whole process: numpy and the anchor imported, the two CSV files read, one registration."""
 
 
 def surface(name: str, n: int, rng: np.random.Generator) -> np.ndarray:
@@ -64,43 +110,11 @@ def case(name: str, kind: str, n: int, seed: int = 0) -> tuple[np.ndarray, np.nd
 
 def errors(tf: np.ndarray, source: np.ndarray) -> tuple[float, float]:
     """(rotation error deg, displacement error at the source's centre mm) against :data:`POSE`."""
-    centre = source.mean(axis=0)
-    return rotation_angle_deg(tf @ invert_tf(POSE)), float(np.linalg.norm(apply_tf(tf, centre[None])[0]
-                                                                            - apply_tf(POSE, centre[None])[0]))
+    centre = source.mean(axis=0)[None]
+    return rotation_angle_deg(tf @ invert_tf(POSE)), float(np.linalg.norm(apply_tf(tf, centre) - apply_tf(POSE, centre)))
 
 
-def run_one(tool: str, path: Path, start: str) -> dict:
-    """One registration in this process (the child of :func:`timed`)."""
-    cpu = time.process_time()
-    data = np.load(path)
-    source, target = data["source"], data["target"]
-    if tool == "mppf":
-        from mppf.registration.register import register_icp
-
-        result = register_icp(source, target, method="plane", init=start)
-        tf, note = result.tf, result.verdict + (" (ambiguous start: symmetric)" if result.ambiguous_start else "")
-    elif tool == "open3d":
-        import open3d as o3d
-
-        src, tgt = (o3d.geometry.PointCloud(o3d.utility.Vector3dVector(a)) for a in (source, target))
-        init = np.eye(4) if start == "identity" else _principal(source, target)
-        reg = o3d.pipelines.registration.registration_icp(
-            src, tgt, 1000.0, init, o3d.pipelines.registration.TransformationEstimationPointToPoint(),
-            o3d.pipelines.registration.ICPConvergenceCriteria(max_iteration=500))
-        tf, note = np.asarray(reg.transformation), f"fitness {reg.fitness:.2f}"
-    else:
-        import small_gicp
-
-        init = np.eye(4) if start == "identity" else _principal(source, target)
-        # full clouds (a 0.25 mm voxel keeps every point of a mm cloud), one thread as mppf's CPU time is counted
-        reg = small_gicp.align(target, source, init, registration_type="PLANE_ICP", max_correspondence_distance=1000.0,
-                               max_iterations=100)
-        tf, note = np.asarray(reg.T_target_source), f"converged {reg.converged}"
-    rot, shift = errors(tf, source)
-    return {"cpu_s": time.process_time() - cpu, "rot_deg": rot, "shift_mm": shift, "note": note}
-
-
-def _principal(source, target) -> np.ndarray:
+def principal_nearest_truth(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     """The principal-axes start nearest the truth (the anchors get the right one of the four)."""
     from mppf.geometry.frame import fit_frame
     from mppf.registration.starts import principal_candidates
@@ -109,22 +123,54 @@ def _principal(source, target) -> np.ndarray:
     return min(starts, key=lambda tf: rotation_angle_deg(tf @ invert_tf(POSE)))
 
 
-def timed(tool: str, path: Path, start: str) -> dict:
-    """One registration in a fresh process: its errors and note (its CPU time: :func:`_child_cpu`)."""
-    out = subprocess.run([sys.executable, __file__, "--child", tool, str(path), start], check=True, text=True,
-                         stdout=subprocess.PIPE).stdout
-    return json.loads(out.strip().splitlines()[-1])
+def mppf_command(files: dict, start: str, as_json: bool) -> list[str]:
+    """The ``mppf register`` command line of one case (the ``mppf`` next to this Python)."""
+    exe = shutil.which("mppf", path=str(Path(sys.executable).parent)) or shutil.which("mppf")
+    if exe is None:
+        raise SystemExit("the mppf command is not installed next to this Python (pip install -e .)")
+    return [exe, "register", files["source"], files["target"], "--method", "plane", "--init", start,
+            *(["--json"] if as_json else [])]
 
 
-def available() -> list[str]:
+def child_cpu(command: list[str]) -> tuple[float, str]:
+    """Run one fresh process; (its CPU seconds, user + system, imports included; its stdout)."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    out = subprocess.run(command, check=True, text=True, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL).stdout
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), out
+
+
+def available(wanted: list[str]) -> list[str]:
+    """The anchors of ``wanted`` that this Python can import."""
     tools = []
-    for tool, module in (("open3d", "open3d"), ("small_gicp", "small_gicp")):
+    for tool in wanted:
         try:
-            __import__(module)
+            __import__(tool)
             tools.append(tool)
         except ImportError:
             pass
     return tools
+
+
+def run_case(files: dict, source: np.ndarray, start: str, anchors: list[str], repeats: int) -> dict:
+    """Times (alternating runs) and errors of every tool on one case: {tool: {"cpu": [...], ...}}."""
+    commands = {"mppf": mppf_command(files, start, as_json=False)}
+    for tool in anchors:
+        commands[tool] = [sys.executable, "-c", ANCHOR_CODE[tool], files["source"], files["target"], files[start]]
+    rows = {tool: {"cpu": []} for tool in commands}
+    for _ in range(repeats):
+        for tool, command in commands.items():
+            cpu, out = child_cpu(command)
+            rows[tool]["cpu"].append(cpu)
+            if tool != "mppf":
+                rows[tool]["result"] = json.loads(out.strip().splitlines()[-1])
+    _, out = child_cpu(mppf_command(files, start, as_json=True))
+    data = json.loads(out)
+    rows["mppf"]["result"] = {"tf": data["transform"], "note": data["verdict"][:40]
+                              + (" (ambiguous start: symmetric)" if data["ambiguous_start"] else "")}
+    for row in rows.values():
+        row["rot_deg"], row["shift_mm"] = errors(np.asarray(row["result"]["tf"]), source)
+    return rows
 
 
 def main() -> None:
@@ -133,59 +179,50 @@ def main() -> None:
     parser.add_argument("--surfaces", default="plate,saddle,cylinder")
     parser.add_argument("--kinds", default="copy,sampled")
     parser.add_argument("--starts", default="principal,identity")
+    parser.add_argument("--tools", default="small_gicp,open3d", help="anchors to run when importable")
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--child", nargs=3, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
-    if args.child:
-        print(json.dumps(run_one(args.child[0], Path(args.child[1]), args.child[2])))
-        return
     from rich.console import Console
     from rich.table import Table
 
-    anchors = available()
-    table = Table(title="registration: mppf (point-to-plane, its pin where free) beside the anchors")
-    for column in ("surface", "kind", "points", "start", "tool", "CPU s", "time / anchor", "rot err deg",
-                   "shift err mm", "verdict / note"):
+    anchors = available([t for t in args.tools.split(",") if t])
+    table = Table(title="registration, whole processes: mppf register (point-to-plane, its pin where free) "
+                        "beside the anchors")
+    for column in ("surface", "kind", "points", "start", "tool", "CPU s", "/ small_gicp", "run ratios",
+                   "rot err deg", "shift err mm", "verdict / note"):
         table.add_column(column, justify="right")
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.surfaces.split(","):
             for kind in args.kinds.split(","):
                 for n in (int(s) for s in args.sizes.split(",") if s):
-                    path = Path(tmp) / f"{name}-{kind}-{n}.npz"
                     source, target = case(name, kind, n)
-                    np.savez(path, source=source, target=target)
+                    files = {role: str(Path(tmp) / f"{name}-{kind}-{n}-{role}.csv") for role in ("source", "target")}
+                    np.savetxt(files["source"], source, delimiter=",", fmt="%.4f")
+                    np.savetxt(files["target"], target, delimiter=",", fmt="%.4f")
+                    for start, tf0 in (("principal", principal_nearest_truth(source, target)), ("identity", np.eye(4))):
+                        files[start] = str(Path(tmp) / f"{name}-{kind}-{n}-{start}.txt")
+                        np.savetxt(files[start], tf0)
                     for start in args.starts.split(","):
-                        _rows(table, name, kind, n, start, path, anchors, args.repeats)
-    Console(width=200).print(table)
+                        _add_rows(table, (name, kind, f"{n:,}", start), run_case(files, source, start, anchors,
+                                                                                 args.repeats))
+    Console(width=220).print(table)
     if not anchors:
-        Console(width=200).print("Open3D and small_gicp are not importable here: only mppf's rows (pip install open3d "
-                        "small_gicp to compare).")
+        Console(width=220).print("Open3D and small_gicp are not importable here: only mppf's rows (pip install "
+                                 "open3d small_gicp to compare).")
 
 
-def _rows(table, name, kind, n, start, path, anchors, repeats) -> None:
-    """mppf's row and the anchors' rows of one case; times from alternating runs."""
-    runs = {tool: [] for tool in ["mppf", *anchors]}
-    for _ in range(repeats):
-        for tool in runs:  # alternating: mppf, anchor, anchor, mppf, ...
-            runs[tool].append(_child_cpu(tool, path, start))
-    base = min(anchors, key=lambda t: np.median([r["cpu_s"] for r in runs[t]])) if anchors else None
-    for tool, rows in runs.items():
-        cpu = float(np.median([r["cpu_s"] for r in rows]))
-        ratio = "-" if base is None else f"{cpu / float(np.median([r['cpu_s'] for r in runs[base]])):.2f}"
-        last = rows[-1]
-        table.add_row(name, kind, f"{n:,}", start, tool, f"{cpu:.2f}", ratio, f"{last['rot_deg']:.4f}",
-                      f"{last['shift_mm']:.3f}", str(last["note"])[:60])
-
-
-def _child_cpu(tool: str, path: Path, start: str) -> dict:
-    """One fresh-process run; its whole CPU time (user + system of the child, imports included)."""
-    import resource
-
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    row = timed(tool, path, start)
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    row["cpu_s"] = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    return row
+def _add_rows(table, labels: tuple, rows: dict) -> None:
+    """One table row per tool; ratios to small_gicp (of the medians, and the range run by run)."""
+    base = rows.get("small_gicp")
+    for tool, row in rows.items():
+        cpu = float(np.median(row["cpu"]))
+        ratio = scatter = "-"
+        if base is not None:
+            ratio = f"{cpu / float(np.median(base['cpu'])):.2f}"
+            runs = np.array(row["cpu"]) / np.array(base["cpu"])
+            scatter = f"{runs.min():.2f} - {runs.max():.2f}"
+        table.add_row(*labels, tool, f"{cpu:.2f}", ratio, scatter, f"{row['rot_deg']:.4f}", f"{row['shift_mm']:.3f}",
+                      str(row["result"]["note"])[:60])
 
 
 if __name__ == "__main__":

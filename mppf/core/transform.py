@@ -87,6 +87,50 @@ def quaternion_to_matrix(q) -> np.ndarray:
     )
 
 
+def matrix_to_quaternion(rotation) -> np.ndarray:
+    """Unit quaternion ``(q0, q1, q2, q3)``, scalar first and ``q0 >= 0``, of a (3, 3) rotation matrix.
+
+    The inverse of :func:`quaternion_to_matrix`, by Shepperd's method (the largest of the
+    four squared components is taken from the diagonal, the others from the off-diagonal
+    terms): accurate for every angle, including half turns.
+    """
+    r = np.asarray(rotation, dtype=float)[:3, :3]
+    trace = r[0, 0] + r[1, 1] + r[2, 2]
+    pick = int(np.argmax([trace, r[0, 0], r[1, 1], r[2, 2]]))
+    if pick == 0:
+        q = np.array([1.0 + trace, r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]])
+    else:
+        i, j, k = pick - 1, pick % 3, (pick + 1) % 3
+        q = np.empty(4)
+        q[0] = r[k, j] - r[j, k]
+        q[1 + i] = 1.0 - trace + 2.0 * r[i, i]
+        q[1 + j] = r[j, i] + r[i, j]
+        q[1 + k] = r[k, i] + r[i, k]
+    q /= np.linalg.norm(q)
+    return -q if q[0] < 0 else q
+
+
+def _half_sinc(angle: float) -> float:
+    """sin(angle / 2) / angle, by its series near 0 (rad)."""
+    if angle < 1e-4:
+        return 0.5 - angle * angle / 48.0
+    return float(np.sin(0.5 * angle) / angle)
+
+
+def rotvec_to_matrix(rotvec) -> np.ndarray:
+    """Rotation matrix (3, 3) of a rotation vector (3,): axis times angle in rad (right hand)."""
+    v = np.asarray(rotvec, dtype=float).reshape(3)
+    angle = float(np.sqrt(v @ v))
+    return quaternion_to_matrix(np.concatenate([[np.cos(0.5 * angle)], _half_sinc(angle) * v]))
+
+
+def matrix_to_rotvec(rotation) -> np.ndarray:
+    """Rotation vector (3,) of a (3, 3) rotation matrix: axis times angle in rad, angle in [0, pi]."""
+    q = matrix_to_quaternion(rotation)
+    angle = 2.0 * float(np.arctan2(np.sqrt(q[1:] @ q[1:]), q[0]))
+    return q[1:] / _half_sinc(angle)
+
+
 def rotation_angle_deg(rotation) -> float:
     """Angle in degrees of a (3, 3) rotation matrix (0 for identity)."""
     rot = np.asarray(rotation, dtype=float)

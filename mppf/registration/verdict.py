@@ -68,14 +68,14 @@ def quadric_scatter_mm(points: np.ndarray, tree, sample: np.ndarray) -> float:
     _, nb = query(tree, points[sample], k=k)
     hood = points[nb] - points[sample][:, None, :]                       # (m, k, 3), the point first
     centred = hood - hood.mean(axis=1, keepdims=True)
-    _, vec = np.linalg.eigh(np.einsum("mki,mkj->mij", centred, centred))
-    local = np.einsum("mki,mij->mkj", hood, vec)                          # column 0 along the normal
+    _, vec = np.linalg.eigh(np.matmul(centred.transpose(0, 2, 1), centred))
+    local = np.matmul(hood, vec)                                          # column 0 along the normal
     radius = np.maximum(np.abs(local[..., 1:]).max(axis=(1, 2)), 1e-9)[:, None]
     x, y, z = local[..., 2] / radius, local[..., 1] / radius, local[..., 0]
     design = np.stack([np.ones_like(x), x, y, x * x, x * y, y * y], axis=-1)
-    normal = np.einsum("mki,mkj->mij", design, design) + 1e-12 * np.eye(6)
+    normal = np.matmul(design.transpose(0, 2, 1), design) + 1e-12 * np.eye(6)
     inverse = np.linalg.inv(normal)
-    coef = np.einsum("mij,mkj,mk->mi", inverse, design, z)
+    coef = np.matmul(inverse, np.matmul(design.transpose(0, 2, 1), z[..., None]))[..., 0]
     row = design[:, 0, :]
     residual = z[:, 0] - np.einsum("mi,mi->m", row, coef)
     leverage = np.clip(np.einsum("mi,mij,mj->m", row, inverse, row), 0.0, 0.95)

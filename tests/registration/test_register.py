@@ -8,15 +8,27 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from registration_helpers import (
+    PLATE_POSE,
+    asymmetric_surface,
+    motion_error,
+    random_motion,
+    sampled_scan,
+)
 from scipy.spatial.transform import Rotation
 
 from mppf.core.errors import GeometryError, InputError
 from mppf.core.rigid import fit_rigid
+from mppf.core.transform import (
+    apply_tf,
+    make_tf,
+    matrix_to_rotvec,
+    quaternion_to_matrix,
+    rotvec_to_matrix,
+)
 from mppf.geometry.frame import fit_frame
 from mppf.geometry.read import read_points
 from mppf.registration.register import register_icp, register_paired
-from mppf.core.transform import apply_tf, make_tf, quaternion_to_matrix
-from registration_helpers import PLATE_POSE, asymmetric_surface, motion_error, random_motion, sampled_scan
 
 HULL_FILES = [
     "P1_midbody_bilge.csv", "P1_midbody_bilge_smooth.csv", "P2_bow_flare.csv",
@@ -42,6 +54,18 @@ def test_quaternion_step_gives_the_standard_rotation_not_the_transpose():
     assert tf[1, 0] > 0  # sin(30 deg) below the diagonal: the standard matrix
     q = Rotation.from_matrix(rot).as_quat()  # scalar last
     assert np.allclose(quaternion_to_matrix([q[3], q[0], q[1], q[2]]), rot, atol=1e-12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3).filter(lambda v: np.linalg.norm(v) > 1e-3),
+       st.sampled_from([1e-12, 1e-7, 1e-4, 0.3, 1.0, 3.0, np.pi - 1e-9]))
+def test_rotation_vector_helpers_agree_with_scipy_at_every_angle(direction, angle):
+    # the ICP steps turn by them: tiny increments (the stop test at 1e-5 rad) up to half turns
+    rotvec = np.asarray(direction) / np.linalg.norm(direction) * angle
+    rot = Rotation.from_rotvec(rotvec).as_matrix()
+    assert np.abs(rotvec_to_matrix(rotvec) - rot).max() < 1e-14
+    back = matrix_to_rotvec(rot)
+    assert np.abs(back - rotvec).max() <= (1e-7 if angle > 3.1 else 2e-15 * angle)  # relative, also for tiny turns
 
 
 def test_paired_recovers_a_known_motion_noise_free(hull):
