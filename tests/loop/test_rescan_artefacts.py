@@ -26,7 +26,7 @@ from mppf.loop.settings import LoopSettings
 from mppf.planning.job import load_job
 from mppf.planning.press import example_press_path, load_press
 
-SETTINGS = {"max_cycles": 1, "margin_mm": 0.0}
+SETTINGS = {"max_cycles": 1, "margin_mm": 0.0, "mark_settle_s": 0.0}  # the station writes no mark; the plate needs none
 THICKNESS_MM = 20.0
 
 
