@@ -141,3 +141,17 @@ def test_bundled_long_plates_are_the_analytic_ones_and_plan_in_a_batch(tmp_path)
     assert all(r["border_step_mm"] < 0.2 for r in rows)
     # the real hull plate (cut from the KCS model): about 9.4 x 2.5 m unfolded, truly curved
     assert rows[2]["length_mm"] > 9000.0 and rows[2]["max_travel_mm"] > 50.0 and rows[2]["strain_pct"] < 0.5
+
+
+def test_a_plan_that_steps_at_its_section_borders_is_a_warning_in_the_summary():
+    from types import SimpleNamespace
+
+    from mppf.planning.batch import Plate, summary_row
+
+    warning = "section 2: its strokes step by 5.5 mm at its border with the plate formed before it (limit 1 mm)"
+    sectional = {"plate_size_mm": [4200.0, 2400.0], "n_steps_total": 4, "max_travel_mm": 120.0,
+                 "max_border_step_mm": 5.5, "warnings": [warning]}
+    job = SimpleNamespace(extra={"sectional": sectional}, sections=[object(), object()], steps=[])
+    row = summary_row(Plate(name="p", design="p.csv", flat=None, thickness_mm=20.0), job, 0.01, ["flat: fine"], 1.0,
+                      1.0)
+    assert row["warnings"] == f"flat: fine; {warning}" and row["border_step_mm"] == 5.5 and row["sections"] == 2
