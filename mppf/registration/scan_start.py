@@ -246,7 +246,11 @@ def _map(fit, starts, settings: ScanStart) -> list:
     """``[fit(start) for start in starts]``, on ``settings.workers`` threads (the fits are independent)."""
     if settings.workers <= 1:
         return [fit(start) for start in starts]
-    with ThreadPoolExecutor(max_workers=settings.workers) as pool:
+    from threadpoolctl import threadpool_limits
+
+    # one BLAS thread set once here, for both threads: each fit's own limit then sets and restores the same
+    # value (BLAS's thread count is process-wide; restored by one thread while the other computes, it would not be)
+    with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(max_workers=settings.workers) as pool:
         return list(pool.map(fit, starts))
 
 

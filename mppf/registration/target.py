@@ -138,7 +138,8 @@ class RegistrationTarget(Cloud):
 
     def normals(self, idx: np.ndarray) -> np.ndarray:
         """Unit normals (k, 3) of target points ``idx`` by local PCA (computed once each)."""
-        missing = idx[np.isnan(self._normals[idx, 0])]
+        # every component: another thread may be writing a row (NaN -> its value) while this one looks
+        missing = idx[np.isnan(self._normals[idx]).any(axis=1)]
         if missing.size:
             missing = np.unique(missing)
             k = min(NORMAL_NEIGHBOURS, self.n_points)

@@ -37,6 +37,16 @@ def test_normals_are_computed_once_and_are_unit_pca_normals():
     np.testing.assert_array_equal(target._normals, cached)  # nothing computed again
 
 
+def test_a_normal_another_thread_is_still_writing_is_computed_again_not_returned_half_written():
+    """The start fits share the target on two threads; numpy may release the GIL while a thread writes its rows,
+    so another can see a row whose first component is written and the rest still NaN (not computed)."""
+    design, _ = sampled_scan(3000, 10, seed=5)
+    target = build_target(design)
+    whole = target.normals(np.arange(3000)).copy()
+    target._normals[7] = [whole[7, 0], np.nan, np.nan]  # row 7 half written
+    np.testing.assert_allclose(target.normals(np.array([7, 8])), whole[[7, 8]], atol=1e-12)
+
+
 def test_target_checks_its_points():
     with pytest.raises(InputError, match="NaN or infinite"):
         build_target([[0.0, 0.0, 0.0], [1.0, 0.0, np.nan], [0.0, 1.0, 0.0]], "the design skin")
