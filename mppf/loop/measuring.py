@@ -114,19 +114,19 @@ def compare_recorded(plate: PlateRecord, record: CycleRecord, design: PointCloud
 
 
 def compare_union(plate: PlateRecord, record: CycleRecord, design: PointCloud, settings: LoopSettings, rescans: list,
-                  start_tf=None):
+                  start_from=None):
     """The comparison of the union of the cycle's scan and ``rescans`` (``{"path", "sha256"}`` dicts, the
     same frame); nothing recorded, nothing rejected.
 
-    ``start_tf``: the registration (measured -> design) of the comparison the scans share their frame
-    with (the cycle's first scan's): refined, not chosen again.
+    ``start_from``: the comparison whose frame the scans share (the cycle's first scan's, or the union
+    so far): its registration is refined, not chosen again.
 
     Raises
     ------
     GeometryError, AmbiguousStart
         The union does not register onto the design.
     """
-    return _compare(plate, record, design, settings, extra=rescans, start_tf=start_tf)
+    return _compare(plate, record, design, settings, extra=rescans, start_from=start_from)
 
 
 def rescan_paths(history: History, plate_id: str) -> tuple[str, ...]:
@@ -146,7 +146,7 @@ def _expected_points(history: History, record: CycleRecord) -> int | None:
 
 
 def _compare(plate: PlateRecord, record: CycleRecord, design: PointCloud, settings: LoopSettings,
-             expected_points: int | None = None, extra: list = (), start_tf=None):
+             expected_points: int | None = None, extra: list = (), start_from=None):
     scan = read_checked(record.scan_path, record.scan_sha256, "scan")
     clouds = [scan.points] + [read_checked(s["path"], s["sha256"], "rescan").points for s in extra]
     points = np.vstack(clouds)
@@ -158,7 +158,7 @@ def _compare(plate: PlateRecord, record: CycleRecord, design: PointCloud, settin
     options = job_compare_options(job, design.points, record.scan_path, offset_mm=offset_mm)
     return compare(design.points, points, tolerance_mm=settings.tolerance_mm,
                    rms_tolerance_mm=settings.rms_tolerance_mm, expected_points=None if extra else expected_points,
-                   scan_index=scan_index, start_tf=start_tf, **options)
+                   scan_index=scan_index, start_from=start_from, **options)
 
 
 def comparison_summary(comparison, scans: list | None = None, rescan_stopped: str | None = None) -> dict:

@@ -269,7 +269,7 @@ def rescan_uncovered(cycle_run, record, comparison) -> Measured:
         scan = {"path": str(path), "sha256": "", "rescan": number, "n_points": 0, "merged": False}
         scans.append(scan)
         # 2. the union of the scans so far, compared; merged only when the rescan agrees where they overlap
-        union, reason = _union(run, record, scans, scan, path, comparison.transform)
+        union, reason = _union(run, record, scans, scan, path, comparison)
         if reason is None:
             agreement = overlap_agreement(union, sum(s["n_points"] for s in scans[:-1]))
             scan["agreement"] = agreement.to_dict()
@@ -316,16 +316,16 @@ def _take_rescan(run, record, job, number: int, regions: list, scans: list, spot
     return path
 
 
-def _union(run, record, scans: list, scan: dict, path: Path, start_tf):
+def _union(run, record, scans: list, scan: dict, path: Path, start_from):
     """The comparison of the union with the new rescan (its sha256 and count filled in), registered from
-    ``start_tf`` (the last comparison's: the scans share its frame); (union, None) or (None, why not)."""
+    ``start_from`` (the last comparison: the scans share its frame); (union, None) or (None, why not)."""
     try:
         points = read_points(path)
     except InputError as exc:
         return None, f"it cannot be read ({exc.message})"
     scan.update(sha256=points.sha256, n_points=int(points.points.shape[0]))
     try:
-        union = compare_union(run.plate, record, run.design, run.settings, scans[1:], start_tf)
+        union = compare_union(run.plate, record, run.design, run.settings, scans[1:], start_from)
     except (GeometryError, AmbiguousStart) as exc:
         return None, f"the union of the scans does not register onto the design ({exc.message})"
     return union, None

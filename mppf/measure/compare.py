@@ -108,7 +108,7 @@ def compare(
     max_gap_mm: float = MAX_GAP_MM,
     expected_points: int | None = None,
     scan_index=None,
-    start_tf=None,
+    start_from=None,
 ) -> Comparison:
     """Register a scan onto its design and measure the deviation of every point.
 
@@ -183,11 +183,11 @@ def compare(
         point came from (0 the first scan, K its K-th rescan). A set-aside point beyond the tolerance
         that another scan measured within it is cleared (reported, not deciding); one another scan
         confirms never is (:func:`mppf.measure.outliers.clear_by_rescans`). Default: one scan.
-    start_tf : (4, 4) float, optional
-        A start already known (measured -> design), e.g. the registration of the first of a union of
-        scans in one frame (the loop's rescans): the choice of a start is skipped (the turn is the one
-        that comparison settled) and the registration refines it. Default: chosen
-        (:func:`mppf.registration.scan_start.choose_start`).
+    start_from : Comparison or (4, 4) float, optional
+        A start already known: the comparison of a scan in the same frame (the loop's union of rescans
+        starts from the first scan's), or its transform measured -> design. The choice of a start is
+        skipped (the turn is the one that comparison settled, and its notes say how) and the
+        registration refines it. Default: chosen (:func:`mppf.registration.scan_start.choose_start`).
 
     Returns
     -------
@@ -226,8 +226,8 @@ def compare(
 
     # 3. the start (principal axes, converged; the reference mark or the hint settle the turn),
     #    point-to-point then point-to-plane ICP (pinned where free), the signed deviation of every point
-    start = (choose_start(scan, target, rotation_hint, reference_mark, skin.length_mm) if start_tf is None
-             else known_start(start_tf))
+    start = (choose_start(scan, target, rotation_hint, reference_mark, skin.length_mm) if start_from is None
+             else known_start(start_from))
     reg, dev, reg_note = _register(scan, target, skin, start.tf)
     reg = replace(reg, ambiguous_start=start.ambiguous, init={**reg.init, **start.info()})
     notes = [f"{start.note}; {reg_note}"]

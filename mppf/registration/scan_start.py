@@ -74,6 +74,8 @@ class StartChoice:
         RMS misfit of the design onto itself under the turn between the best two poses.
     tied_pair : (int, int) or None
         Indices in ``candidates`` of the two tied poses (when nothing settled the tie).
+    first_settled_by : str or None
+        With "earlier scan": how the turn was settled in the comparison of the first scan.
     """
 
     tf: np.ndarray
@@ -84,6 +86,7 @@ class StartChoice:
     floor_mm: float = float("nan")
     design_asymmetry_mm: float | None = None
     tied_pair: tuple | None = None
+    first_settled_by: str | None = None
 
     @property
     def settled(self) -> bool:
@@ -108,7 +111,8 @@ class StartChoice:
         """JSON-able summary (``Registration.init`` of a comparison)."""
         return {"kind": "scan start", "settled_by": self.settled_by, "ambiguous": self.ambiguous,
                 "candidates": self.candidates, "floor_mm": self.floor_mm if np.isfinite(self.floor_mm) else None,
-                "design_asymmetry_mm": self.design_asymmetry_mm}
+                "design_asymmetry_mm": self.design_asymmetry_mm,
+                **({"first_settled_by": self.first_settled_by} if self.first_settled_by else {})}
 
 
 def choose_start(scan: Cloud, target: RegistrationTarget, rotation_hint, reference_mark,
@@ -175,18 +179,27 @@ def choose_start(scan: Cloud, target: RegistrationTarget, rotation_hint, referen
                        summary(best), floor, asymmetry)
 
 
-def known_start(tf) -> StartChoice:
-    """The start of a scan already registered in another comparison (measured -> design, (4, 4) float).
+SETTLED = {"fit": "the best fit", "mark": "the reference mark", "held mark": "the reference mark held in place",
+           "fit (mark not found)": "the best fit (the mark not found)", "hint": "the rotation hint"}
+"""How a start was settled (``StartChoice.settled_by``), in words."""
+
+
+def known_start(start_from) -> StartChoice:
+    """The start of a scan in the frame of one already compared: its Comparison, or its (4, 4) transform.
 
     For a union of scans taken in one frame (the loop's rescans): the first scan's registration
-    settled the turn; it is refined, not chosen again. InputError for a malformed transform.
+    settled the turn; it is refined, not chosen again, and the note says how it was settled there
+    (``first_settled_by`` in :meth:`StartChoice.info`). InputError for a malformed transform.
     """
-    start = np.asarray(tf, dtype=float)
+    init = getattr(getattr(start_from, "registration", None), "init", None) or {}
+    first = init.get("first_settled_by") or init.get("settled_by")
+    start = np.asarray(getattr(start_from, "transform", start_from), dtype=float)
     if start.shape != (4, 4) or not np.all(np.isfinite(start)):
-        raise InputError(f"start_tf must be a finite (4, 4) transform, got shape {start.shape}",
-                         hint="give the transform of the comparison the scans share, or leave it out")
-    return StartChoice(start, "start: the registration of the scan this one shares its frame with", False,
-                       "earlier scan")
+        raise InputError(f"start_from must be a comparison or a finite (4, 4) transform, got shape {start.shape}",
+                         hint="give the comparison (or transform) of the scan these share their frame with")
+    how = f" (its turn settled there by {SETTLED.get(first, first)})" if first else ""
+    return StartChoice(start, f"start: the registration of the scan this one shares its frame with{how}", False,
+                       "earlier scan", first_settled_by=first)
 
 
 def start_tie(target: RegistrationTarget, best, other, floor_mm: float) -> tuple[bool, float | None]:

@@ -73,11 +73,18 @@ def test_a_scan_registered_from_a_known_start_keeps_its_turn_and_skips_the_choic
 
     design, sample, mark = _symmetric_case()
     first = compare(design, sample.points, offset_mm=sh.THICKNESS_MM / 2, reference_mark=(sample.mark_mm, mark))
-    again = compare(design, sample.points, offset_mm=sh.THICKNESS_MM / 2, start_tf=first.transform)
-    assert "shares its frame" in again.notes[0] and again.registration.init["settled_by"] == "earlier scan"
+    again = compare(design, sample.points, offset_mm=sh.THICKNESS_MM / 2, start_from=first)
+    assert "shares its frame" in again.notes[0] and "settled there by the reference mark" in again.notes[0]
+    init = again.registration.init
+    assert init["settled_by"] == "earlier scan" and init["first_settled_by"] in ("mark", "held mark")
+    # a union of three starts from the union of two: how the first scan was settled is kept
+    third = compare(design, sample.points, offset_mm=sh.THICKNESS_MM / 2, start_from=again)
+    assert third.registration.init["first_settled_by"] == init["first_settled_by"]
+    from_tf = compare(design, sample.points, offset_mm=sh.THICKNESS_MM / 2, start_from=first.transform)
+    np.testing.assert_allclose(from_tf.transform, again.transform, atol=1e-9)
     assert rotation_angle_deg(again.transform @ np.linalg.inv(first.transform)) < 0.05
     assert np.linalg.norm(again.transform[:3, 3] - first.transform[:3, 3]) < 1.0
     assert again.verdict.kind == first.verdict.kind
     assert again.rms_mm == pytest.approx(first.rms_mm, abs=0.02)
-    with pytest.raises(InputError, match="start_tf"):
-        compare(design, sample.points, start_tf=np.eye(3))
+    with pytest.raises(InputError, match="start_from"):
+        compare(design, sample.points, start_from=np.eye(3))
