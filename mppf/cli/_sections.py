@@ -83,6 +83,9 @@ def press_sections(plc, job, *, job_name: str, dry_run: bool, yes: bool, timeout
 
     chosen = select_sections(job, section)
     label = job.press.punch_label
+    # the plan's own warnings (a section that steps at its border with the plate formed before it) first
+    for warning in (job.extra or {}).get("sectional", {}).get("warnings", []):
+        echo(f"warning: {warning}")
     plan = [(s, _steps_of(s, step)) for s in chosen]
     # every setpoint is checked before anything moves
     for s, ks in plan:
