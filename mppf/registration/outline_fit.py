@@ -24,12 +24,11 @@ from collections.abc import Callable
 
 import numpy as np
 from scipy.spatial import cKDTree
-from scipy.spatial.transform import Rotation
 
 from mppf.core.grid import best_plane
 from mppf.core.polygon import area, closest_on_segments, convex_inset, convex_outline, inward_normals, offset_convex
 from mppf.core.rigid import fit_rigid
-from mppf.core.transform import apply_rotation, apply_tf, make_tf
+from mppf.core.transform import apply_rotation, apply_tf, make_tf, rotvec_to_matrix
 from mppf.registration.settings import OutlineFit
 
 Heights = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
@@ -91,7 +90,7 @@ def refit_outline(measured, tf, *, frame, design_uv, skin_world, tf_press_design
             n_z = apply_rotation(view, normals)[:, 2]  # the deviation along the normal as a height along z
             at = apply_tf(view, points)[:, :2]
             a, b, c = best_plane(at[:, 0], at[:, 1], deviation / np.maximum(n_z, settings.slope_floor), robust=True)
-            lift = make_tf(Rotation.from_rotvec([-c, b, 0.0]).as_matrix(), [0.0, 0.0, -a])
+            lift = make_tf(rotvec_to_matrix([-c, b, 0.0]), [0.0, 0.0, -a])
             tf = unview @ lift @ view @ tf
     seen = "from above the press" if tf_press_design is not None else "along the design's normal"
     return tf, (f"outline fit ({seen}): turned {sum(turns):+.2f} deg and shifted {shifts[0]:.1f} mm in the plane"

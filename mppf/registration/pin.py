@@ -26,11 +26,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
-from scipy.spatial.transform import Rotation
 
 from mppf.core.errors import GeometryError
 from mppf.core.polygon import area, convex_inset, convex_outline, perimeter
-from mppf.core.transform import apply_tf, make_tf
+from mppf.core.transform import apply_tf, make_tf, rotvec_to_matrix
 from mppf.registration.target import RegistrationTarget, polygon_moments, query
 
 COVERAGE_TOL = 0.12
@@ -136,7 +135,7 @@ class OutlinePin:
         """``tf`` moved in-plane by all of the outline's wish (the hard pin), (4, 4)."""
         wish = self.wish(tf)
         turn = wish[0] if 2 in self.rows else 0.0
-        rot = Rotation.from_rotvec([0.0, 0.0, turn]).as_matrix()
+        rot = rotvec_to_matrix([0.0, 0.0, turn])
         c = np.array([self.centroid_t[0], self.centroid_t[1], 0.0])
         correction = make_tf(rot, c + np.array([wish[-2], wish[-1], 0.0]) - rot @ c)
         return self.frame.tf_world_local @ correction @ self.frame.tf_local_world @ tf

@@ -19,10 +19,9 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from mppf.core.errors import EXIT_PRESS, InputError, MppfError
-from mppf.core.transform import apply_tf, make_tf, rotation_angle_deg
+from mppf.core.transform import apply_tf, make_tf, rotation_angle_deg, rotvec_to_matrix
 from mppf.registration.register import converge_start, register_icp
 from mppf.registration.settings import IcpSettings, ScanStart
 from mppf.registration.starts import evaluate, principal_candidates, rank
@@ -288,7 +287,7 @@ def _held_starts(target, candidates, mark, sample, settings: ScanStart) -> list[
     poses, scores = [], []
     for base in (candidates[0], candidates[2]):  # the two ways up
         for turn in np.arange(0.0, 360.0, settings.held_turn_step_deg):
-            tf = make_tf(Rotation.from_rotvec(np.radians(turn) * normal).as_matrix() @ base[:3, :3], np.zeros(3))
+            tf = make_tf(rotvec_to_matrix(np.radians(turn) * normal) @ base[:3, :3], np.zeros(3))
             tf[:3, 3] = mark[1] - apply_tf(tf, mark[0][None])[0]
             poses.append(tf)
             scores.append(_nearest_rms(target, sample, tf, clip))
