@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -23,6 +24,21 @@ def asymmetric_points() -> np.ndarray:
     x, y = np.meshgrid(np.linspace(-700.0, 700.0, 36), np.linspace(-450.0, 450.0, 24))
     z = x**2 / (2 * 6000.0) + 1e-7 * x**3 + 60.0 * np.exp(-((x - 350.0) ** 2 + (y - 180.0) ** 2) / (2 * 220.0**2))
     return np.column_stack([x.ravel(), y.ravel(), z.ravel()])
+
+
+def request_keeper():
+    """A reporter that keeps every scan request the loop announces, read when announced (the loop withdraws it
+    once the scan is taken): ``(reporter, {request file name: its document})``."""
+    from driver_helpers import HookReporter
+
+    requests: dict[str, dict] = {}
+
+    def keep(message):
+        if "scan request" in message:
+            path = Path(message.split("scan request ")[1].split(":")[0])
+            requests[path.name] = json.loads(path.read_text())
+
+    return HookReporter(on_info=keep), requests
 
 
 def plate_files(folder: Path, name: str, points: np.ndarray) -> tuple[Path, Path]:

@@ -8,15 +8,13 @@ tolerance and the union is in tolerance, the cleared points reported.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 import pytest
-from driver_helpers import HookReporter
 from mppf.sim.plc.link import InProcessPress
 from scan_station import write_ply
-from station_helpers import asymmetric_points, plate_files
+from station_helpers import asymmetric_points, plate_files, request_keeper
 
 from mppf.core.transform import apply_tf
 from mppf.loop.cycle import run_loop
@@ -83,14 +81,7 @@ def bump(tmp_path_factory):
 
 def _loop(tmp_path, plate, rescans):
     design, flat, press, job = plate
-    requests = {}
-
-    def keep(message):
-        if "scan request" in message:
-            path = Path(message.split("scan request ")[1].split(":")[0])
-            requests[path.name] = json.loads(path.read_text())
-
-    reporter = HookReporter(on_info=keep)
+    reporter, requests = request_keeper()
     with History(tmp_path / "h.sqlite") as history:
         record_plate(history, design, flat, press, THICKNESS_MM, job, plate_id="ART", work_dir=tmp_path / "ART",
                      settings=LoopSettings(**SETTINGS, rescans=rescans))

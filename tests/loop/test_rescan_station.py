@@ -7,14 +7,12 @@ frame; shifted 5 mm, the rescan disagrees with the first scan and is not merged.
 
 from __future__ import annotations
 
-import json
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
-from driver_helpers import HookReporter
-from station_helpers import asymmetric_points, planned_plate, station_log
+from station_helpers import asymmetric_points, planned_plate, request_keeper, station_log
 
 import mppf.loop.rescanning as rescanning
 from mppf.drivers.audit import AuditLog
@@ -47,15 +45,7 @@ def _run(tmp_path, plate, *station_args, rescans=2, requests=2, station=True):
     station = subprocess.Popen([sys.executable, str(STATION), str(folder), str(design.path), "--requests",
                                 str(requests), "--idle", "20", *station_args],
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True) if station else None
-    # keep every request the loop writes, to read it afterwards
-    requests_seen = {}
-
-    def keep(message):
-        if "scan request" in message:
-            path = Path(message.split("scan request ")[1].split(":")[0])
-            requests_seen[path.name] = json.loads(path.read_text())
-
-    reporter = HookReporter(on_info=keep)
+    reporter, requests_seen = request_keeper()  # every request the loop writes, to read it afterwards
     try:
         with AuditLog(tmp_path / "audit.sqlite") as audit, InProcessPress(press, audit=audit) as link:
             result = run_loop(history, "RS", link, DirectoryScanner(folder, timeout_s=30.0, poll_s=0.2),
