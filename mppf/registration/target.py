@@ -35,6 +35,13 @@ def query(tree, points: np.ndarray, k: int = 1):
     return tree.query(points, k=k, workers=-1 if points.shape[0] >= PARALLEL_QUERY else 1)
 
 
+def local_axes(hood: np.ndarray) -> np.ndarray:
+    """(m, 3, 3) principal axes of ``m`` neighbourhoods (m, k, 3): eigenvectors as columns, the least spread
+    (the local normal) first. A batched matmul for the covariances: 5 x faster than an einsum."""
+    centred = hood - hood.mean(axis=1, keepdims=True)
+    return np.linalg.eigh(np.matmul(centred.transpose(0, 2, 1), centred))[1]
+
+
 def check_cloud(points, name: str, min_points: int = 3) -> np.ndarray:
     """One point set of a registration as an ``(n, 3)`` array: finite, enough points, spread over an area.
 
@@ -144,11 +151,7 @@ class RegistrationTarget(Cloud):
             missing = np.unique(missing)
             k = min(NORMAL_NEIGHBOURS, self.n_points)
             _, nb = query(self.tree, self.points[missing], k=k)
-            hood = self.points[nb]
-            hood = hood - hood.mean(axis=1, keepdims=True)
-            cov = np.matmul(hood.transpose(0, 2, 1), hood)  # (m, 3, 3); a batched matmul beats einsum 5 x
-            _, vec = np.linalg.eigh(cov)
-            self._normals[missing] = vec[:, :, 0]
+            self._normals[missing] = local_axes(self.points[nb])[:, :, 0]
         return self._normals[idx]
 
     def outline(self) -> tuple[float, np.ndarray, np.ndarray]:

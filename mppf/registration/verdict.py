@@ -23,7 +23,7 @@ import numpy as np
 
 from mppf.core.defaults import MAD_SCALE
 from mppf.core.transform import apply_tf
-from mppf.registration.target import Cloud, RegistrationTarget, query
+from mppf.registration.target import Cloud, RegistrationTarget, local_axes, query
 
 NOISE_NEIGHBOURS = 16
 """Neighbours of the local quadric that gives a point's scatter (the point included)."""
@@ -67,8 +67,7 @@ def quadric_scatter_mm(points: np.ndarray, tree, sample: np.ndarray) -> float:
         return 0.0
     _, nb = query(tree, points[sample], k=k)
     hood = points[nb] - points[sample][:, None, :]                       # (m, k, 3), the point first
-    centred = hood - hood.mean(axis=1, keepdims=True)
-    _, vec = np.linalg.eigh(np.matmul(centred.transpose(0, 2, 1), centred))
+    vec = local_axes(hood)
     local = np.matmul(hood, vec)                                          # column 0 along the normal
     radius = np.maximum(np.abs(local[..., 1:]).max(axis=(1, 2)), 1e-9)[:, None]
     x, y, z = local[..., 2] / radius, local[..., 1] / radius, local[..., 0]
