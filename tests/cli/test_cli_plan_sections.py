@@ -72,3 +72,23 @@ def test_a_bad_transition_width_exits_2_before_planning(planned, value, capsys):
     err = capsys.readouterr().err
     assert "--transition" in err and value in err
     assert not out.exists()
+
+
+def test_plan_prints_the_border_warnings_of_sections_that_step(tmp_path, capsys):
+    """A plate longer AND wider than the bed with springback: the sections' over-bends disagree where they overlap,
+    and the command says so in its table output and in its JSON summary (docs/sections.md)."""
+    from mppf.examples.analytic import cylinder_plate
+    from mppf.geometry.write import write_points
+
+    design, flat = cylinder_plate(4200.0, 2400.0, 20000.0, spacing_mm=200.0)
+    design_path = write_points(tmp_path / "design.csv", design)
+    flat_path = write_points(tmp_path / "flat.csv", flat)
+    args = ["plan", str(design_path), str(flat_path), "--thickness", "20", "--springback", "--material", "steel",
+            "-o", str(tmp_path / "job.json")]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    warned = [line for line in out.splitlines() if line.startswith("warning: section")]
+    assert warned and all("--springback" in line and "mm at its border" in line for line in warned)
+    assert main([*args, "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert len(summary["warnings"]) == len(warned)
