@@ -91,4 +91,4 @@ def test_plan_prints_the_border_warnings_of_sections_that_step(tmp_path, capsys)
     assert warned and all("--springback" in line and "mm at its border" in line for line in warned)
     assert main([*args, "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
-    assert len(summary["warnings"]) == len(warned)
+    assert warned == [f"warning: {w}" for w in summary["warnings"]]  # the same words, one line each
