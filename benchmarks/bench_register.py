@@ -18,6 +18,13 @@ system, imports and file reading included) is what is compared:
   principal-axes candidate nearest the truth (computed here, handed over in a file: the
   anchors get the right one of the four).
 
+Bytecode: an installed package has its modules compiled (pip does it at install), a
+machine with ``PYTHONDONTWRITEBYTECODE`` set compiles mppf's ~100 modules in every process
+(about 0.08 s of CPU at each start). So the children run with a bytecode cache of their own
+(``PYTHONPYCACHEPREFIX`` in the benchmark's temporary folder, the variable above unset),
+filled by one untimed run of every command first; ``--no-bytecode-cache`` runs them in this
+process's environment as it is.
+
 Runs alternate (mppf, anchor, ..., mppf, anchor, ...); each row gives the median CPU time, the
 ratio of the medians to small_gicp's, and the range of the run-by-run ratios (the scatter of
 a shared machine). Errors are against the known truth (rotation deg, displacement at the
@@ -27,13 +34,14 @@ are printed.
 
 Run:  python benchmarks/bench_register.py [--sizes 10000,100000,200000] [--repeats 3]
       [--surfaces plate,saddle,cylinder] [--kinds copy,sampled] [--starts principal,identity]
-      [--tools small_gicp,open3d]
+      [--tools small_gicp,open3d] [--no-bytecode-cache] [--json PATH]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import shutil
 import subprocess
@@ -132,10 +140,20 @@ def mppf_command(files: dict, start: str, as_json: bool) -> list[str]:
             *(["--json"] if as_json else [])]
 
 
-def child_cpu(command: list[str]) -> tuple[float, str]:
+def child_env(tmp: str | None) -> dict | None:
+    """The children's environment: with a bytecode cache in ``tmp`` (see the module's doc), or None (this one's)."""
+    if tmp is None:
+        return None
+    env = {key: value for key, value in os.environ.items() if key != "PYTHONDONTWRITEBYTECODE"}
+    env["PYTHONPYCACHEPREFIX"] = str(Path(tmp) / "pycache")
+    return env
+
+
+def child_cpu(command: list[str], env: dict | None = None) -> tuple[float, str]:
     """Run one fresh process; (its CPU seconds, user + system, imports included; its stdout)."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    out = subprocess.run(command, check=True, text=True, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL).stdout
+    out = subprocess.run(command, check=True, text=True, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                         env=env).stdout
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), out
 
@@ -152,22 +170,26 @@ def available(wanted: list[str]) -> list[str]:
     return tools
 
 
-def run_case(files: dict, source: np.ndarray, start: str, anchors: list[str], repeats: int) -> dict:
+def run_case(files: dict, source: np.ndarray, start: str, anchors: list[str], repeats: int,
+             env: dict | None = None) -> dict:
     """Times (alternating runs) and errors of every tool on one case: {tool: {"cpu": [...], ...}}."""
     commands = {"mppf": mppf_command(files, start, as_json=False)}
     for tool in anchors:
         commands[tool] = [sys.executable, "-c", ANCHOR_CODE[tool], files["source"], files["target"], files[start]]
     rows = {tool: {"cpu": []} for tool in commands}
+    _, out = child_cpu(mppf_command(files, start, as_json=True), env)  # untimed: the result, the bytecode cache
+    for command in list(commands.values())[1:] if env is not None else []:  # the anchors' bytecode cache
+        child_cpu(command, env)
     for _ in range(repeats):
         for tool, command in commands.items():
-            cpu, out = child_cpu(command)
+            cpu, tool_out = child_cpu(command, env)
             rows[tool]["cpu"].append(cpu)
             if tool != "mppf":
-                rows[tool]["result"] = json.loads(out.strip().splitlines()[-1])
-    _, out = child_cpu(mppf_command(files, start, as_json=True))
+                rows[tool]["result"] = json.loads(tool_out.strip().splitlines()[-1])
     data = json.loads(out)
     rows["mppf"]["result"] = {"tf": data["transform"], "note": data["verdict"][:40]
-                              + (" (ambiguous start: symmetric)" if data["ambiguous_start"] else "")}
+                              + (" (ambiguous start: symmetric)" if data["ambiguous_start"] else ""),
+                              "verdict": data["verdict"], "ambiguous_start": data["ambiguous_start"]}
     for row in rows.values():
         row["rot_deg"], row["shift_mm"] = errors(np.asarray(row["result"]["tf"]), source)
     return rows
@@ -181,6 +203,10 @@ def main() -> None:
     parser.add_argument("--starts", default="principal,identity")
     parser.add_argument("--tools", default="small_gicp,open3d", help="anchors to run when importable")
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--no-bytecode-cache", dest="bytecode_cache", action="store_false",
+                        help="run the children in this environment as it is (see the module's doc on bytecode)")
+    parser.add_argument("--json", dest="json_path", default=None,
+                        help="also write every case's CPU times, transforms, errors and notes to this JSON file")
     args = parser.parse_args()
     from rich.console import Console
     from rich.table import Table
@@ -191,6 +217,7 @@ def main() -> None:
     for column in ("surface", "kind", "points", "start", "tool", "CPU s", "/ small_gicp", "run ratios",
                    "rot err deg", "shift err mm", "verdict / note"):
         table.add_column(column, justify="right")
+    cases = []
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.surfaces.split(","):
             for kind in args.kinds.split(","):
@@ -203,9 +230,13 @@ def main() -> None:
                         files[start] = str(Path(tmp) / f"{name}-{kind}-{n}-{start}.txt")
                         np.savetxt(files[start], tf0)
                     for start in args.starts.split(","):
-                        _add_rows(table, (name, kind, f"{n:,}", start), run_case(files, source, start, anchors,
-                                                                                 args.repeats))
+                        rows = run_case(files, source, start, anchors, args.repeats,
+                                        child_env(tmp if args.bytecode_cache else None))
+                        _add_rows(table, (name, kind, f"{n:,}", start), rows)
+                        cases.append({"surface": name, "kind": kind, "points": n, "start": start, "tools": rows})
     Console(width=220).print(table)
+    if args.json_path:
+        Path(args.json_path).write_text(json.dumps(cases, indent=1))
     if not anchors:
         Console(width=220).print("Open3D and small_gicp are not importable here: only mppf's rows (pip install "
                                  "open3d small_gicp to compare).")

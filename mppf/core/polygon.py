@@ -28,8 +28,18 @@ def as_polygon(corners, name: str = "polygon") -> np.ndarray:
     return pts
 
 
+HULL_TOLERANCE = 1e-12
+"""Points within this fraction of the cloud's size of an outline edge's line are on the edge, not corners."""
+
+
 def convex_outline_index(points_xy, what: str = "the points") -> np.ndarray:
-    """Indices of the points on their convex outline, counter-clockwise.
+    """Indices of the points on their convex outline, counter-clockwise from the lowest of the leftmost.
+
+    Quickhull, vectorised over the points: the outline from the leftmost to the rightmost
+    point and back, each edge split at the point farthest outside it until none is. Points
+    on an edge (within :data:`HULL_TOLERANCE` of the cloud's size) and repeated points are
+    not corners. The same corners as scipy's ``ConvexHull(points).vertices`` without
+    importing scipy (0.2 - 0.4 s of a small ``mppf register``).
 
     Parameters
     ----------
@@ -46,16 +56,71 @@ def convex_outline_index(points_xy, what: str = "the points") -> np.ndarray:
     GeometryError
         Fewer than 3 points, or all of them on one line (no area).
     """
-    from scipy.spatial import ConvexHull, QhullError
-
     pts = np.asarray(points_xy, dtype=float).reshape(-1, 2)
     if pts.shape[0] < 3:
         raise GeometryError(f"{what} have no outline: {pts.shape[0]} point(s), at least 3 are needed")
-    try:
-        return ConvexHull(pts).vertices
-    except QhullError:
+    corners = _quickhull(pts)
+    if corners.size < 3:
         raise GeometryError(f"{what} have no area in the plane (all {pts.shape[0]} on one line)",
-                            hint="check the file: a plate needs points spread over its area") from None
+                            hint="check the file: a plate needs points spread over its area")
+    return corners
+
+
+def _quickhull(pts: np.ndarray) -> np.ndarray:
+    """Corner indices (k,) of the convex outline of ``pts`` (n, 2), counter-clockwise; fewer than 3 when flat.
+
+    Every edge of the outline found so far is split at once at its farthest outside point,
+    round by round (about log2 of the corner count rounds), so the work is vectorised over
+    all the points still outside, whatever the number of corners.
+    """
+    x, y = pts[:, 0], pts[:, 1]
+    x_min, x_max = x.min(), x.max()
+    left, right = np.flatnonzero(x == x_min), np.flatnonzero(x == x_max)
+    first, last = int(left[np.argmin(y[left])]), int(right[np.argmax(y[right])])  # lowest leftmost, highest rightmost
+    if first == last:  # every point the same
+        return np.array([first], dtype=np.intp)
+    tolerance = HULL_TOLERANCE * float(max(x_max - x_min, y.max() - y.min()))
+    chain = np.array([first, last], dtype=np.intp)  # the corners so far, counter-clockwise; edge i: chain[i] -> [i + 1]
+    candidates = np.arange(pts.shape[0])
+    depth = _beyond(pts[first], pts[last], pts)  # right of first -> last: below, outside edge 0; above: edge 1
+    edge = (depth < 0).astype(np.intp)
+    depth = np.abs(depth)
+    keep = depth > tolerance * float(np.hypot(*(pts[last] - pts[first])))
+    candidates, edge, depth = candidates[keep], edge[keep], depth[keep]
+    while candidates.size:
+        # the farthest candidate of each edge that has any becomes a corner between its ends
+        deepest = np.full(chain.size, -np.inf)
+        np.maximum.at(deepest, edge, depth)
+        heads = depth == deepest[edge]  # of equally far ones any: the last pass drops those inside a side
+        far = np.full(chain.size, -1, dtype=np.intp)
+        far[edge[heads]] = candidates[heads]
+        split = far >= 0
+        place = np.cumsum(1 + split) - (1 + split)  # where each old corner goes in the new chain
+        grown = np.empty(chain.size + int(split.sum()), dtype=np.intp)
+        grown[place], grown[place[split] + 1] = chain, far[split]
+        # each candidate is now outside (a -> far), outside (far -> b), or inside the outline
+        a, f, b = pts[chain[edge]], pts[far[edge]], pts[chain[(edge + 1) % chain.size]]
+        to_a, to_b = _beyond(a, f, pts[candidates]), _beyond(f, b, pts[candidates])
+        on_a = to_a > tolerance * np.hypot(*(f - a).T)
+        on_b = to_b > tolerance * np.hypot(*(b - f).T)
+        keep = on_a | on_b
+        candidates, depth = candidates[keep], np.where(on_a, to_a, to_b)[keep]
+        edge, chain = np.where(on_a, place[edge], place[edge] + 1)[keep], grown
+    # a corner taken among points on one side (equally far from the edge split) is on that side: drop it
+    while chain.size > 2:
+        prev, nxt = pts[np.roll(chain, 1)], pts[np.roll(chain, -1)]
+        flat = _beyond(prev, nxt, pts[chain]) <= tolerance * np.hypot(*(nxt - prev).T)
+        if not flat.any():
+            break
+        chain = chain[~flat]
+    return chain
+
+
+def _beyond(a: np.ndarray, b: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """How far each point ``p`` (m, 2) lies right of the line a -> b (outside a counter-clockwise edge), times |ab|.
+    ``a`` and ``b`` (2,) or one per point (m, 2)."""
+    ab, rel = np.asarray(b - a).reshape(-1, 2), np.asarray(p - a).reshape(-1, 2)
+    return ab[:, 1] * rel[:, 0] - ab[:, 0] * rel[:, 1]
 
 
 def convex_outline(points_xy, what: str = "the points") -> np.ndarray:

@@ -22,10 +22,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import lstsq
-from scipy.spatial import cKDTree
 
 from mppf.core.errors import GeometryError, InputError
+from mppf.core.kdtree import KDTree
 from mppf.core.transform import as_points
 
 BULGE_MIN_MM = 0.5
@@ -118,7 +117,7 @@ def _mean_bulge_mm(local: np.ndarray) -> float:
     sv = max(float(np.abs(v).max()), 1e-12)
     s, t = u / su, v / sv
     design = np.column_stack([np.ones_like(s), s, t, s * s, s * t, t * t])
-    coef, *_ = lstsq(design, w, lapack_driver="gelsy", check_finite=False)
+    coef = np.linalg.lstsq(design, w, rcond=None)[0]
     return float(coef[3] + coef[5])
 
 
@@ -234,5 +233,5 @@ def check_height_field(frame: LocalFrame, points, faces=None, *, source: str | N
 def _neighbours(uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Distances and indices (n, k) of each point's nearest (u, v) neighbours, itself excluded."""
     k = min(FOLD_NEIGHBOURS + 1, len(uv))
-    dist, idx = cKDTree(uv).query(uv, k=k)
+    dist, idx = KDTree(uv).query(uv, k=k)
     return dist.reshape(len(uv), k)[:, 1:], idx.reshape(len(uv), k)[:, 1:]

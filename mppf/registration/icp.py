@@ -19,7 +19,7 @@ from mppf.core.progress import NULL_REPORTER, Reporter
 from mppf.core.rigid import fit_rigid
 from mppf.core.transform import apply_tf, make_tf, matrix_to_rotvec, rotvec_to_matrix
 from mppf.registration.settings import Matching
-from mppf.registration.target import RegistrationTarget, query
+from mppf.registration.target import RegistrationTarget
 
 HUBER_K = 1.345
 """Huber threshold in robust scales (95 % efficiency for Gaussian residuals)."""
@@ -121,11 +121,11 @@ class Nearest:
             redo = ~(shift < 0.5 * (d2 - d1) - self.MARGIN_MM)
         q, d1, d2, i1 = self.last
         if redo.any():
-            dist, idx = query(self.target.tree, moved[redo], k=2)  # targets have at least 3 points
+            dist, idx = self.target.tree.query(moved[redo], k=2)  # targets have at least 3 points
             first, second = dist[:, 0], dist[:, 1]
             tie = first == second
             if tie.any():  # the closest of equals: the one a plain query gives
-                idx[tie, 0] = query(self.target.tree, moved[redo][tie])[1]
+                idx[tie, 0] = self.target.tree.query(moved[redo][tie])[1]
             q[redo], d1[redo], d2[redo], i1[redo] = moved[redo], first, second, idx[:, 0]
         dist = np.sqrt(((moved - self.target.points[i1]) ** 2).sum(axis=1))
         return dist, i1.copy()
@@ -141,7 +141,7 @@ def match(target: RegistrationTarget, source: np.ndarray, tf: np.ndarray, matchi
     """
     metric = matching.metric
     moved = apply_tf(tf, source)
-    dist, idx = query(target.tree, moved) if nearest is None else nearest(moved)
+    dist, idx = target.tree.query(moved) if nearest is None else nearest(moved)
     matched = target.points[idx]
     normal = target.normals(idx) if metric == "plane" or normals else None
     if metric == "plane":

@@ -23,9 +23,9 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from mppf.core.grid import best_plane
+from mppf.core.kdtree import KDTree
 from mppf.core.polygon import area, closest_on_segments, convex_inset, convex_outline, inward_normals, offset_convex
 from mppf.core.rigid import fit_rigid
 from mppf.core.transform import apply_rotation, apply_tf, make_tf, rotvec_to_matrix
@@ -115,7 +115,7 @@ def _view(frame, design_uv, skin_world, tf_press_design, margin_mm) -> tuple[np.
 
 def _in_plane(xy, corners, size_mm: float, settings: OutlineFit) -> tuple[np.ndarray, str]:
     """(3, 3) turn and shift fitting the scan's edge (seen along z) to the outline, or a reason to skip."""
-    spacing = float(np.median(cKDTree(xy).query(xy, k=2)[0][:, 1]))
+    spacing = float(np.median(KDTree(xy).query(xy, k=2)[0][:, 1]))
     # inside a convex outline a point's distance to it is the least of those to its edges' lines
     edge = convex_inset(convex_outline(xy), xy) < settings.edge_spacings * spacing
     if edge.sum() < settings.min_edge_points:

@@ -25,12 +25,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from mppf.core.errors import GeometryError
+from mppf.core.kdtree import KDTree
 from mppf.core.polygon import area, convex_inset, convex_outline, perimeter
 from mppf.core.transform import apply_tf, make_tf, rotvec_to_matrix
-from mppf.registration.target import RegistrationTarget, polygon_moments, query
+from mppf.registration.target import RegistrationTarget, polygon_moments
 
 COVERAGE_TOL = 0.12
 """Outline areas and extents of source and target within this fraction: same plate."""
@@ -165,10 +165,10 @@ def outline_candidates(frame, points: np.ndarray, sample: np.ndarray) -> np.ndar
     """
 
     def not_isolated(tree, pts):
-        spacing = query(tree, pts, k=min(OUTLINE_NEIGHBOURS + 1, tree.n))[0][:, -1]
+        spacing = tree.query(pts, k=min(OUTLINE_NEIGHBOURS + 1, tree.n))[0][:, -1]
         return spacing <= ISOLATED * np.median(spacing)
 
-    sample = sample[not_isolated(cKDTree(sample), sample)]
+    sample = sample[not_isolated(KDTree(sample), sample)]
     try:
         outline = convex_outline(frame.to_local(sample)[:, :2])
     except GeometryError:
@@ -177,7 +177,7 @@ def outline_candidates(frame, points: np.ndarray, sample: np.ndarray) -> np.ndar
     band = points[np.abs(depth) <= PIN_BAND_FRACTION * np.sqrt(area(outline))]
     if band.shape[0] < 3:
         return band
-    tree = cKDTree(points) if points.shape[0] > sample.shape[0] else cKDTree(sample)
+    tree = KDTree(points) if points.shape[0] > sample.shape[0] else KDTree(sample)
     return band[not_isolated(tree, band)]
 
 

@@ -313,10 +313,11 @@ def register_icp(
                            tol_rotation_rad=tol_rotation_rad, tol_relative_mse=tol_relative_mse, seed=seed,
                            check_starts=check_starts)
     _check_init(init)
-    cloud = source if isinstance(source, Cloud) else prepare(source, "source")
-    tgt = _as_target(target, method)
-    # many (n, 3) @ (3, 3) products: one BLAS thread is faster than a pool that spins
+    # many (n, 3) @ (3, 3) products, and the frames' small least squares: one BLAS thread is faster than a pool
+    # that spins (the bulge fit of a 20,000-point frame: 1.2 ms of CPU against 8 ms on the 2 shared cores)
     with threadpool_limits(limits=1, user_api="blas"):
+        cloud = source if isinstance(source, Cloud) else prepare(source, "source")
+        tgt = _as_target(target, method)
         return _register(cloud, tgt, init, settings, reporter)
 
 

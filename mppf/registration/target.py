@@ -15,24 +15,17 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mppf.core.errors import GeometryError, InputError
+from mppf.core.kdtree import KDTree
 from mppf.core.polygon import convex_outline, moments
 from mppf.core.transform import as_points
 from mppf.geometry.check import check_plate
 from mppf.geometry.frame import LocalFrame, fit_frame
-
-PARALLEL_QUERY = 20000
-"""Closest-point queries of at least this many points run on all cores."""
 
 NORMAL_NEIGHBOURS = 10
 """Target points used for each local PCA normal (and the fewest points a point-to-plane target has)."""
 
 FLAT_RATIO = 3e-3
 """A cloud is flat when its spread along its normal is below this fraction of its in-plane spread."""
-
-
-def query(tree, points: np.ndarray, k: int = 1):
-    """``tree.query`` on all cores for large batches (threads cost more than they save on small ones)."""
-    return tree.query(points, k=k, workers=-1 if points.shape[0] >= PARALLEL_QUERY else 1)
 
 
 def local_axes(hood: np.ndarray) -> np.ndarray:
@@ -131,7 +124,7 @@ class RegistrationTarget(Cloud):
 
     Attributes
     ----------
-    tree : scipy.spatial.cKDTree of ``points``
+    tree : mppf.core.kdtree.KDTree of ``points``
     """
 
     tree: object
@@ -150,7 +143,7 @@ class RegistrationTarget(Cloud):
         if missing.size:
             missing = np.unique(missing)
             k = min(NORMAL_NEIGHBOURS, self.n_points)
-            _, nb = query(self.tree, self.points[missing], k=k)
+            _, nb = self.tree.query(self.points[missing], k=k)
             self._normals[missing] = local_axes(self.points[nb])[:, :, 0]
         return self._normals[idx]
 
@@ -183,8 +176,6 @@ def build_target(points, name: str = "target") -> RegistrationTarget:
     InputError, GeometryError
         See :func:`check_cloud`.
     """
-    from scipy.spatial import cKDTree
-
     cloud = prepare(points, name)
     return RegistrationTarget(points=cloud.points, frame=cloud.frame, flat=cloud.flat, name=name,
-                              tree=cKDTree(cloud.points))
+                              tree=KDTree(cloud.points))

@@ -23,7 +23,7 @@ import numpy as np
 
 from mppf.core.defaults import MAD_SCALE
 from mppf.core.transform import apply_tf
-from mppf.registration.target import Cloud, RegistrationTarget, local_axes, query
+from mppf.registration.target import Cloud, RegistrationTarget, local_axes
 
 NOISE_NEIGHBOURS = 16
 """Neighbours of the local quadric that gives a point's scatter (the point included)."""
@@ -65,7 +65,7 @@ def quadric_scatter_mm(points: np.ndarray, tree, sample: np.ndarray) -> float:
     k = min(NOISE_NEIGHBOURS, points.shape[0])
     if k < 8:
         return 0.0
-    _, nb = query(tree, points[sample], k=k)
+    _, nb = tree.query(points[sample], k=k)
     hood = points[nb] - points[sample][:, None, :]                       # (m, k, 3), the point first
     vec = local_axes(hood)
     local = np.matmul(hood, vec)                                          # column 0 along the normal
@@ -89,7 +89,7 @@ def sampling_scatter_mm(target: RegistrationTarget, sample: np.ndarray) -> float
     """
     if target.n_points < 3:
         return 0.0
-    _, nb = query(target.tree, target.points[sample], k=2)
+    _, nb = target.tree.query(target.points[sample], k=2)
     other = nb[:, 1]
     offset = target.points[sample] - target.points[other]
     residual = np.einsum("ij,ij->i", offset, target.normals(other))
@@ -102,10 +102,10 @@ def noise_floor_mm(source: Cloud, target: RegistrationTarget) -> float:
     The source's scatter is taken among at most :data:`NOISE_TREE_POINTS` of its points (a
     seeded sample); the target's is computed once per target.
     """
-    from scipy.spatial import cKDTree
+    from mppf.core.kdtree import KDTree
 
     points = source.points[sample_index(source.n_points, NOISE_TREE_POINTS)]
-    s_source = quadric_scatter_mm(points, cKDTree(points), sample_index(points.shape[0]))
+    s_source = quadric_scatter_mm(points, KDTree(points), sample_index(points.shape[0]))
     if "sampling_mm" not in target.cache:
         target.cache["sampling_mm"] = sampling_scatter_mm(target, sample_index(target.n_points))
     return float(np.hypot(s_source, target.cache["sampling_mm"]))
@@ -119,7 +119,7 @@ def plane_residuals(target: RegistrationTarget, points: np.ndarray, tf: np.ndarr
 def point_residuals(target: RegistrationTarget, points: np.ndarray, tf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(normal distances, closest-point distances), each (k,), of ``points`` moved by ``tf``."""
     moved = apply_tf(tf, points)
-    distance, idx = query(target.tree, moved)
+    distance, idx = target.tree.query(moved)
     return np.einsum("ij,ij->i", moved - target.points[idx], target.normals(idx)), distance
 
 

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from mppf.core.errors import GeometryError, InputError
-from mppf.core.polygon import (MITER_LIMIT, area, contains, convex_outline, distance_outside, distance_to_outline,
-                               moments, offset_convex, perimeter)
+from mppf.core.polygon import (MITER_LIMIT, area, contains, convex_outline, convex_outline_index, distance_outside,
+                               distance_to_outline, moments, offset_convex, perimeter)
 
 
 def test_offset_of_a_square_is_a_bigger_square():
@@ -89,3 +89,40 @@ def test_distances_area_perimeter_and_moments_of_a_rectangle():
     assert a == pytest.approx(40000.0, rel=1e-9)
     np.testing.assert_allclose(centre, [1.0e5 + 200.0, 1.0e5 + 50.0], atol=1e-6)
     np.testing.assert_allclose(second, [[400.0**2 / 12, 0.0], [0.0, 100.0**2 / 12]], rtol=1e-6, atol=1e-6)
+
+
+@pytest.mark.parametrize("kind", ["plate", "ring", "grid", "rounded", "circle"])
+def test_convex_outline_has_the_corners_of_scipys_hull(kind):
+    from scipy.spatial import ConvexHull
+
+    rng = np.random.default_rng(len(kind))
+    if kind == "plate":  # a plate's points, far from the origin
+        pts = rng.uniform(-1.0, 1.0, (5000, 2)) * [1500.0, 750.0] + [2e5, -3e4]
+    elif kind == "ring":
+        angle = rng.uniform(0.0, 2 * np.pi, 3000)
+        pts = np.column_stack([np.cos(angle), np.sin(angle)]) * rng.uniform(900.0, 1000.0, (3000, 1))
+    elif kind == "grid":  # many points on each side, and a repeated corner
+        pts = np.array([[x, y] for x in range(12) for y in range(7)], dtype=float) * 37.5 + [3.0, -2.0]
+        pts = np.vstack([pts, pts[:1], pts[-1:]])
+    elif kind == "rounded":  # whole numbers: points repeated and on the sides
+        pts = np.round(rng.uniform(-5.0, 5.0, (400, 2)))
+    else:  # every point a corner
+        angle = rng.uniform(0.0, 2 * np.pi, 2000)
+        pts = np.column_stack([np.cos(angle), np.sin(angle)]) * 1000.0
+    index = convex_outline_index(pts)
+    assert len(set(index.tolist())) == index.size
+    assert sorted(map(tuple, pts[index])) == sorted(map(tuple, pts[ConvexHull(pts).vertices]))
+    corners = pts[index]
+    edges = np.roll(corners, -1, axis=0) - corners
+    turns = edges[:, 0] * np.roll(edges, -1, axis=0)[:, 1] - edges[:, 1] * np.roll(edges, -1, axis=0)[:, 0]
+    assert np.all(turns > 0)  # counter-clockwise, every corner a real turn
+    assert contains(corners, pts, tolerance_mm=1e-6).all()
+
+
+def test_convex_outline_refuses_repeated_and_nearly_collinear_points():
+    with pytest.raises(GeometryError, match="one line"):
+        convex_outline(np.ones((5, 2)))
+    t = np.linspace(0.0, 1.0, 50)
+    with pytest.raises(GeometryError, match="one line"):  # 0.1 t, 0.7 t: on a line up to round-off
+        convex_outline(np.column_stack([0.1 * t, 0.7 * t]))
+    assert area(convex_outline(np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 1e-6]]))) > 0  # thin but real

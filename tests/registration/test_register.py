@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -233,3 +236,25 @@ def test_icp_bad_points():
         register_icp(bad, pts)
     with pytest.raises(GeometryError, match="collinear"):
         register_icp(pts, np.outer(np.arange(10.0), [1.0, 2.0, 3.0]))
+
+
+def test_the_register_command_runs_without_importing_scipy(tmp_path):
+    # scipy's import is most of a small registration's time (docs/math-registration.md section 9): the
+    # k-d trees (mppf.core.kdtree), the outline (mppf.core.polygon) and the frame's fit do without it
+    design, scan = sampled_scan(4000, 2000, seed=5)
+    np.savetxt(tmp_path / "scan.csv", scan, delimiter=",")
+    np.savetxt(tmp_path / "design.csv", design, delimiter=",")
+    script = ("import json, sys; from mppf.cli import main; "
+              f"args = [{str(tmp_path / 'scan.csv')!r}, {str(tmp_path / 'design.csv')!r}]; "
+              "codes = [main(['register', *args, '--method', 'plane', '--json', '-o', "
+              f"{str(tmp_path / 'moved.csv')!r}]), main(['register', *args, '--init', 'identity'])]; "
+              "print(json.dumps([codes, sorted(m for m in sys.modules if m.partition('.')[0] == 'scipy')]))")
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, check=False,
+                          cwd=Path(__file__).resolve().parents[2])  # this checkout's mppf
+    assert proc.returncode == 0, proc.stderr
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    out = json.loads(proc.stdout[:proc.stdout.index("\n}") + 2])
+    assert result == [[0, 0], []], proc.stdout[-2000:]
+    turn_deg, shift_mm = motion_error(np.asarray(out["transform"]), PLATE_POSE, scan.mean(axis=0))
+    assert out["verdict"] == "converged" and turn_deg < 0.05 and shift_mm < 5.0  # 2,000 points: 0.011 deg, 2.1 mm
+    assert (tmp_path / "moved.csv").exists()
