@@ -274,6 +274,9 @@ def _latest_job(history, plate_id):
 @click.option("--rescans", type=int, default=_DEFAULTS.rescans, show_default=True,
               help="Rescans a cycle may ask for when areas of the net plate were not measured and nothing else "
                    "needs review; the union of the scans is compared (0: stop for review at once).")
+@click.option("--rescan-timeout", type=float, default=_DEFAULTS.rescan_timeout_s, show_default=True,
+              help="Longest wait for a rescan file (s; at most --scan-timeout). After one unanswered rescan "
+                   "request the run asks for no more and decides on the scans taken.")
 @click.option("--resume", is_flag=True, help="Continue an interrupted plate (never presses a cycle twice).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
 @click.option("--yes", is_flag=True, help="Do not ask before driving a real press.")
@@ -283,8 +286,8 @@ def _latest_job(history, plate_id):
 @units_option
 def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, rms_tolerance, max_cycles, gain,
          no_springback, margin_mm, material, history_path, audit_path, plate_id, work_dir, seed, time_scale,
-         scan_timeout, on_pressed, on_pressed_timeout, mark_timeout, mark_settle, rescans, resume, as_json, yes,
-         write_report_, operator, units):
+         scan_timeout, on_pressed, on_pressed_timeout, mark_timeout, mark_settle, rescans, rescan_timeout, resume,
+         as_json, yes, write_report_, operator, units):
     """Plan, press, measure, compare, correct, press again, until the plate is in tolerance.
 
     Stops when the largest absolute form deviation is within --tolerance and the RMS within
@@ -316,7 +319,8 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
                             mark_timeout_s=_positive("--mark-timeout", mark_timeout),
                             mark_settle_s=check_number("--mark-settle", mark_settle, low=0.0, unit="s",
                                                        hint="give the wait in s, 0 or more"),
-                            rescans=check_number("--rescans", rescans, low=0, high=MAX_RESCANS, integer=True))
+                            rescans=check_number("--rescans", rescans, low=0, high=MAX_RESCANS, integer=True),
+                            rescan_timeout_s=_positive("--rescan-timeout", rescan_timeout))
     reporter = RichReporter(enabled=not as_json)
     # SIGTERM ends the command like Ctrl-C: the press is stopped, the lease given back
     with sigterm_as_ctrl_c(), open_history(history_path) as history:

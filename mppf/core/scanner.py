@@ -70,6 +70,9 @@ class ScanContext:
     regions : tuple of dict
         A rescan: the areas it is asked for (the rescan request's ``regions``: ``kind``,
         ``corners_press_mm`` where the press pose is known, ...); empty for a cycle's first scan.
+    wait_s : float or None
+        The longest wait for this file (s) when the loop wants a shorter one than the scanner's own
+        (a rescan: ``LoopSettings.rescan_timeout_s``); None: the scanner's own timeout.
     """
 
     plate_id: str
@@ -82,6 +85,7 @@ class ScanContext:
     steps: tuple[PressedStep, ...] = ()
     reporter: Reporter = field(default=NULL_REPORTER)
     regions: tuple = ()
+    wait_s: float | None = None
 
 
 class Scanner(Protocol):

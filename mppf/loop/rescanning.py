@@ -2,8 +2,8 @@
 
 A compared cycle whose verdict needs review only because areas of the net plate were not
 measured and / or points set aside as scanner artefacts lie beyond the tolerance
-(:attr:`mppf.measure.decision.Verdict.only_rescannable`: the limits met, not badly formed, no
-point confirmed by two scans) is not stopped at once: the loop asks the station for a rescan of
+(:attr:`mppf.measure.decision.Verdict.only_rescannable`: the limits met, not badly formed) is not
+stopped at once: the loop asks the station for a rescan of
 those areas and spots (a scan request with ``rescan`` K and the ``regions``, ``kind``
 "uncovered" or "artefacts": :func:`artefact_spots`; :mod:`mppf.loop.scan_request`;
 ``--on-pressed`` runs for it too), up to ``LoopSettings.rescans`` times per cycle, and compares
@@ -19,7 +19,9 @@ union's normal deviations of its points must agree with those of the nearest ear
 neighbour (their noise level) + :data:`AGREE_FLOOR_MM`, over at least :data:`MIN_OVERLAP`
 points. A rescan that disagrees (the plate or the scanner moved), does not overlap, cannot be
 read or makes a union that does not register is not merged: the loop stops with needs_review
-and says why. See ``docs/scanner-station.md``, "Rescans".
+and says why. A rescan is waited for at most ``LoopSettings.rescan_timeout_s``; when none came, the
+cycle is decided on the scans taken and the run asks for no more rescans (a station that does not
+rescan costs one wait per run, not one per cycle). See ``docs/scanner-station.md``, "Rescans".
 """
 
 from __future__ import annotations
@@ -35,7 +37,7 @@ from mppf.core.transform import apply_tf
 from mppf.geometry.read import read_points
 from mppf.loop.measuring import compare_union, load_cycle_job, rescan_paths
 from mppf.loop.pressing import scan_context
-from mppf.measure.decision import OUT_OF_TOLERANCE, REVIEW_ARTEFACTS
+from mppf.measure.decision import OUT_OF_TOLERANCE
 from mppf.loop.scan_request import post_request
 from mppf.registration.scan_start import AmbiguousStart
 
@@ -53,6 +55,9 @@ SPOT_SPACINGS = 2.0
 
 SPOT_MIN_RADIUS_MM = 10.0
 """... at least this radius (mm)."""
+
+UNANSWERED = "rescan_unanswered"
+"""Key of ``_Run.known``: which rescan request of the run went unanswered (then no more are asked in the run)."""
 
 SPOTS_LISTED = 200
 """Most artefact spots a rescan request lists (the largest |deviation| first; the total is given)."""
@@ -150,7 +155,8 @@ def region_doc(gap, comparison, tf_press_design) -> dict:
 
 
 def artefact_spots(comparison, tf_press_design) -> list[dict]:
-    """The spots of the set-aside points beyond the tolerance not cleared by a rescan, for the rescan request.
+    """The spots of the set-aside points beyond the tolerance not cleared by a rescan (in the net plate and its trim
+    margin), for the rescan request.
 
     Each point's disc (:data:`SPOT_SPACINGS` point spacings, at least :data:`SPOT_MIN_RADIUS_MM`), merged where
     discs overlap; each spot: ``kind`` "artefacts", ``centroid_uv_mm``, ``box_uv_mm`` (the discs' box),
@@ -162,8 +168,10 @@ def artefact_spots(comparison, tf_press_design) -> list[dict]:
     from scipy.spatial import cKDTree
 
     dev = np.asarray(comparison.deviation_mm, dtype=float)
-    net = ~np.asarray(comparison.is_outside) & ~np.asarray(comparison.in_margin)
-    beyond = np.asarray(comparison.is_outlier) & ~np.asarray(comparison.is_cleared) & net
+    # the trim margin's too: a point at the net plate's edge falls in or out of the net as the union's
+    # registration settles (a fraction of a mm), and may decide the next union
+    on_plate = ~np.asarray(comparison.is_outside)
+    beyond = np.asarray(comparison.is_outlier) & ~np.asarray(comparison.is_cleared) & on_plate
     beyond &= np.abs(np.nan_to_num(dev)) > comparison.tolerance_mm
     rows = np.flatnonzero(beyond)
     if not rows.size:
@@ -205,16 +213,23 @@ def _corners_press(box_uv_mm, comparison, tf_press_design):
 def _rescannable(verdict) -> bool:
     """A rescan can decide the cycle or mend what it measured: it needs review only for areas not measured and / or
     set-aside points beyond the tolerance, or it is out of tolerance with areas not measured (the correction would
-    otherwise guess the plate there); never with a point confirmed by two scans (a real defect) or a badly formed
-    plate."""
-    if verdict is None or verdict.figures.confirmed_beyond or verdict.figures.badly_formed:
+    otherwise guess the plate there); never for a badly formed plate. A point confirmed by two scans gets another
+    look too: it clears the point only where the new scan measures a plain surface beside it nearer than any plate's
+    flank allows (two artefacts at one spot by chance; :func:`mppf.measure.outliers.clear_by_rescans`), which no scan
+    of a real dent can."""
+    if verdict is None or verdict.figures.badly_formed:
         return False
     return verdict.only_rescannable or (verdict.kind == OUT_OF_TOLERANCE and verdict.figures.n_gaps > 0)
 
 
 def _spots(comparison, tf_press_design) -> list:
-    """The artefact spots worth a rescan: only while the artefacts stand in the way of the verdict (within the limits)."""
-    if comparison.verdict is None or REVIEW_ARTEFACTS not in comparison.verdict.review_causes:
+    """The artefact spots worth a rescan: the set-aside points beyond the tolerance not yet re-measured within it.
+
+    Asked for whenever a rescan is taken, also when it is taken for areas not measured while the cycle is out of
+    tolerance: once those areas are measured the union may be within the limits, and then its artefacts decide (a
+    rescan of the gaps alone would leave every artefact for the next rescan, and the rescans of a cycle are few).
+    """
+    if comparison.verdict is None or not comparison.verdict.figures.set_aside_beyond:
         return []
     return artefact_spots(comparison, tf_press_design)
 
@@ -252,6 +267,10 @@ def rescan_uncovered(cycle_run, record, comparison) -> Measured:
     for number in range(1, settings.rescans + 1):
         if not _rescannable(comparison.verdict):
             return Measured(comparison, scans)
+        if run.known.get(UNANSWERED):
+            reporter.info(f"cycle {record.cycle}: no rescan asked: the station did not answer a rescan request "
+                          f"earlier in this run ({run.known[UNANSWERED]}); the cycle is decided on the scan taken")
+            return Measured(comparison, scans)
         if not hasattr(run.scanner, "rescan"):
             reporter.info(f"cycle {record.cycle}: the scanner cannot rescan; the cycle needs review")
             return Measured(comparison, scans)
@@ -262,9 +281,11 @@ def rescan_uncovered(cycle_run, record, comparison) -> Measured:
                       f"{settings.rescans}")
         try:
             path = _take_rescan(run, record, job, number, regions + spots[:SPOTS_LISTED], scans, len(spots))
-        except InputError as exc:  # no rescan came in the scan timeout: decided on the scans taken
+        except InputError as exc:  # no rescan came in the wait: decided on the scans taken, no more asked this run
+            run.known[UNANSWERED] = f"cycle {record.cycle}, rescan {number}"
             reporter.info(f"cycle {record.cycle}: no rescan came ({exc.message}); the cycle is decided on the "
-                          f"{len(scans)} scan(s) taken")
+                          f"{len(scans)} scan(s) taken, and no further rescan is asked in this run (a station "
+                          "that does not rescan: --rescans 0)")
             return Measured(comparison, scans)
         scan = {"path": str(path), "sha256": "", "rescan": number, "n_points": 0, "merged": False}
         scans.append(scan)
@@ -309,7 +330,8 @@ def _take_rescan(run, record, job, number: int, regions: list, scans: list, spot
     try:
         context = scan_context(run.history, run.plate, record, run.press, run.reporter)
         taken = tuple(s["path"] for s in scans) + rescan_paths(run.history, run.plate.plate_id)
-        context = dataclasses.replace(context, used_paths=context.used_paths + taken, regions=tuple(regions))
+        context = dataclasses.replace(context, used_paths=context.used_paths + taken, regions=tuple(regions),
+                                      wait_s=run.settings.rescan_timeout_s)
         path = Path(run.scanner.rescan(record.cycle, number, context)).resolve()
     finally:
         request.withdraw()

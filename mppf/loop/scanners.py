@@ -36,7 +36,7 @@ class DirectoryScanner:
     folder : path-like
         Folder the scanner software writes into (must exist).
     timeout_s : float
-        Longest wait for the file.
+        Longest wait for the file (s); a shorter one when the context asks (``ScanContext.wait_s``: a rescan).
     poll_s : float
         Interval between looks into the folder.
     """
@@ -77,8 +77,9 @@ class DirectoryScanner:
         return self._wait(cycle, context, f"rescan {number}", f"scan {cycle} rescan {number}", expected)
 
     def _wait(self, cycle: int, context: ScanContext, what: str, task: str, expected: Path | None = None) -> Path:
-        context.reporter.info(f"cycle {cycle}: waiting for {what} in {self.folder} (up to {self.timeout_s:.0f} s)")
-        context.reporter.start(f"waiting for {task}", total=self.timeout_s)
+        timeout_s = self.timeout_s if context.wait_s is None else min(self.timeout_s, context.wait_s)
+        context.reporter.info(f"cycle {cycle}: waiting for {what} in {self.folder} (up to {timeout_s:.0f} s)")
+        context.reporter.start(f"waiting for {task}", total=timeout_s)
         start = time.monotonic()
         previous: dict[Path, int] = {}
         try:
@@ -90,9 +91,9 @@ class DirectoryScanner:
                     return named[0] if named else max(stable, key=lambda p: p.stat().st_mtime)
                 previous = current
                 waited = time.monotonic() - start
-                if waited >= self.timeout_s:
+                if waited >= timeout_s:
                     raise InputError(
-                        f"no new scan file appeared in {self.folder} within {self.timeout_s:.0f} s "
+                        f"no new scan file appeared in {self.folder} within {timeout_s:.0f} s "
                         f"for {task.replace('scan ', 'cycle ', 1)} of plate {context.plate_id}",
                         hint="save the scan there (PLY or CSV) and run 'mppf loop --resume' to go on",
                     )

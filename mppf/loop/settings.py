@@ -70,6 +70,10 @@ class LoopSettings:
         Rescans a compared cycle may ask for, 0 to :data:`MAX_RESCANS`, when its verdict needs
         review only because areas of the net plate were not measured
         (:mod:`mppf.loop.rescanning`; ``--rescans``); 0: the loop stops with needs_review there.
+    rescan_timeout_s : float
+        Longest wait for a rescan file (s; ``--rescan-timeout``; at most the scanner's own
+        timeout). A station that does not answer rescan requests costs this once per run: after
+        one unanswered request the run asks for no more rescans and decides on the scans taken.
     """
 
     tolerance_mm: float = TOLERANCE_MM
@@ -88,11 +92,13 @@ class LoopSettings:
     mark_settle_s: float = 5.0
     mark_timeout_s: float = 600.0
     rescans: int = 2
+    rescan_timeout_s: float = 300.0
 
     def __post_init__(self):
         checks = {  # name: (lower bound, exclusive)
             "tolerance_mm": 0.0, "rms_tolerance_mm": 0.0, "gain": 0.0, "divergence_factor": 1.0,
             "on_pressed_timeout_s": 0.0, "mark_timeout_s": 0.0,
+            "rescan_timeout_s": 0.0,
         }
         for name, low in checks.items():
             object.__setattr__(self, name, check_number(f"loop setting {name}", getattr(self, name), low=low,

@@ -84,7 +84,8 @@ class Figures:
     cleared_by : str
         Which scans cleared them, in words ("cleared by rescan 1 (80)").
     confirmed_beyond : int
-        Of ``set_aside_beyond``, those another scan confirmed (measured so twice: no rescan clears them).
+        Of ``set_aside_beyond``, those another scan confirmed (measured so twice: cleared only by a scan that shows a
+        wall beside them, :func:`mppf.measure.outliers.clear_by_rescans`).
     """
 
     form_max_mm: float

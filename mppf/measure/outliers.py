@@ -27,8 +27,13 @@ not set aside lie within :data:`CLEAR_RADIUS_SPACINGS` of its local point spacin
 that it was an artefact. It is *confirmed* instead when another scan has a point within
 :data:`CONFIRM_RADIUS_SPACINGS` spacings beyond the tolerance on the same side, within
 :data:`CONFIRM_FRACTION` of its deviation (measured so twice: a real defect, or two artefacts at one
-spot, which no rule can tell apart): never cleared (it keeps the verdict from "in tolerance" and a
-person looks). With one scan nothing is cleared or confirmed: issue 13's rule holds exactly.
+spot): never cleared (it keeps the verdict from "in tolerance" and a person looks). Two artefacts meet
+by chance often enough in dense scans (1 % spikes: about one meeting per cycle and rescan) that one
+more test is made: a confirmation needs that the other scan did not also measure the surface plainly
+(within the tolerance) nearer the point than a flank of slope :data:`MAX_FLANK_SLOPE` would allow;
+such a wall is no feature of a formed plate, so its agreeing point is an artefact of its own. Any scan
+of the union may show the wall (the loop gives a confirmed spot another look: a rescan); no scan can
+show one beside a real dent whose flanks are less steep, so the extra looks never clear a defect. With one scan nothing is cleared or confirmed: issue 13's rule holds exactly.
 """
 
 from __future__ import annotations
@@ -72,7 +77,14 @@ CONFIRM_RADIUS_SPACINGS = 1.0
 """Another scan's point within this many of its local spacings (at least :data:`CLEAR_RADIUS_FLOOR_MM`) ..."""
 
 CONFIRM_FRACTION = 0.3
-"""... beyond the tolerance on the same side, within this share of the deviation, confirms it."""
+"""... beyond the tolerance on the same side, within this share of the deviation, confirms it ..."""
+
+MAX_FLANK_SLOPE = 2.0
+"""... unless a scan (other than the point's own) measured the surface within the tolerance (a point not set
+aside) so near the point, or near the agreeing point, that the deviation would have to change faster than this
+per mm between them (a 63 degree flank: no dent of a formed plate is that steep; the narrowest dent of the tests,
+8 mm deep, sigma 4 mm, has flanks of 1.2 at most): then the agreeing point is an artefact of its own at the same
+spot, and the point is not confirmed."""
 
 
 
@@ -197,22 +209,42 @@ def clear_by_rescans(uv: np.ndarray, deviation: np.ndarray, set_aside: np.ndarra
     scans = np.unique(scan_index[valid])
     if scans.size < 2 or not beyond.any():
         return Clearing(cleared, cleared_by, confirmed)
+    # each scan's points, k-d tree and radii (clear, confirm) from its own point spacing
+    parts = {}
     for scan in scans:
         own = np.flatnonzero(valid & (scan_index == scan))
+        if own.size > MIN_NEIGHBOURS:
+            tree = cKDTree(uv[own])
+            spacing = float(np.median(local_spacing_mm(spatial_query(tree, uv[own], MIN_NEIGHBOURS + 1)[0])))
+            parts[scan] = (own, tree, max(CLEAR_RADIUS_SPACINGS * spacing, CLEAR_RADIUS_FLOOR_MM),
+                           max(CONFIRM_RADIUS_SPACINGS * spacing, CLEAR_RADIUS_FLOOR_MM))
+
+    def walled(point: int) -> bool:
+        """Whether a scan other than the point's own measured a plain surface (within the tolerance, not set aside)
+        so near it that the deviation would change faster than MAX_FLANK_SLOPE between them: no plate feature is
+        there, whatever another scan agreed."""
+        for scan, (own, tree, radius, _) in parts.items():
+            if scan == scan_index[point]:
+                continue
+            near = own[np.asarray(tree.query_ball_point(uv[point], radius), dtype=int)]
+            plain = ~set_aside[near] & (np.abs(deviation[near]) <= tolerance_mm)
+            apart = np.linalg.norm(uv[near] - uv[point], axis=1)
+            if np.any(plain & (np.abs(deviation[point] - deviation[near]) > MAX_FLANK_SLOPE * apart)):
+                return True
+        return False
+
+    for scan, (own, tree, radius, close) in parts.items():
         rows = np.flatnonzero(beyond & (scan_index != scan))
-        if own.size <= MIN_NEIGHBOURS or not rows.size:
-            continue
-        tree = cKDTree(uv[own])
-        dist, _ = spatial_query(tree, uv[own], MIN_NEIGHBOURS + 1)
-        spacing = float(np.median(local_spacing_mm(dist)))
-        radius = max(CLEAR_RADIUS_SPACINGS * spacing, CLEAR_RADIUS_FLOOR_MM)
-        close = max(CONFIRM_RADIUS_SPACINGS * spacing, CLEAR_RADIUS_FLOOR_MM)
-        for row, near in zip(rows, tree.query_ball_point(uv[rows], radius)):
+        for row, near in zip(rows, tree.query_ball_point(uv[rows], radius) if rows.size else []):
             near = own[np.asarray(near, dtype=int)]
             d, mine = deviation[near], deviation[row]
-            at = np.linalg.norm(uv[near] - uv[row], axis=1) <= close
-            confirmed[row] |= bool(np.any(at & (np.abs(d) > tolerance_mm) & (np.sign(d) == np.sign(mine))
-                                          & (np.abs(d - mine) <= CONFIRM_FRACTION * abs(mine))))
+            apart = np.linalg.norm(uv[near] - uv[row], axis=1)
+            alike = near[(apart <= close) & (np.abs(d) > tolerance_mm) & (np.sign(d) == np.sign(mine))
+                         & (np.abs(d - mine) <= CONFIRM_FRACTION * abs(mine))]
+            # measured alike twice confirms, unless a scan saw a plain surface beside either excursion, nearer than
+            # a plate's flank allows (then the two are artefacts at one spot by chance; a third look may show it)
+            if alike.size and not confirmed[row] and not walled(row):
+                confirmed[row] = any(not walled(other) for other in alike)
             if np.sum(~set_aside[near] & (np.abs(d) <= tolerance_mm)) >= CLEAR_MIN_POINTS and cleared_by[row] < 0:
                 cleared_by[row] = scan
     cleared = beyond & (cleared_by >= 0) & ~confirmed
@@ -309,7 +341,12 @@ def _quadric_miss(pts, dev, rows, nb, dist) -> tuple[np.ndarray, np.ndarray]:
     surrounded = (np.hypot(x.mean(axis=1), y.mean(axis=1)) < 1.0 / 3.0)[:, None].astype(float)
     design = np.stack([np.ones_like(x), x, y, surrounded * x * x, surrounded * x * y, surrounded * y * y], axis=-1)
     near = dev[nb]
-    weight = use
+    # a robust start: neighbours far from the neighbours' median are left out of the first fit. Started from all of
+    # them, a neighbouring artefact at the rim of the neighbourhood (where the quadric terms have most leverage)
+    # bends the first quadric onto itself; the scatter it leaves then hides the point tested (0.1 % of 1 % spikes)
+    centre = _weighted_median(near, use)
+    spread = np.maximum(_weighted_median_abs(near - centre[:, None], use), 1e-6)
+    weight = use * (np.abs(near - centre[:, None]) <= np.maximum(4.0 * MAD_SCALE * spread, FLOOR_MM)[:, None])
     for _ in range(3):  # reweighted: neighbours that are artefacts themselves drop out
         a = np.einsum("mki,mk,mkj->mij", design, weight, design) + 1e-9 * np.eye(6)
         b = np.einsum("mki,mk,mk->mi", design, weight, near)
@@ -319,6 +356,11 @@ def _quadric_miss(pts, dev, rows, nb, dist) -> tuple[np.ndarray, np.ndarray]:
         weight = use * (np.abs(resid) <= 4.0 * MAD_SCALE * spread[:, None])
     scatter = MAD_SCALE * _weighted_median_abs(resid, use)
     return dev[rows] - coef[:, 0], scatter
+
+
+def _weighted_median(values: np.ndarray, use: np.ndarray) -> np.ndarray:
+    """Median (m,) of ``values`` (m, k) over the entries with ``use`` 1 (each row has some)."""
+    return np.nanmedian(np.where(use > 0, values, np.nan), axis=1)
 
 
 def _weighted_median_abs(resid: np.ndarray, use: np.ndarray) -> np.ndarray:

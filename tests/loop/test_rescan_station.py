@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -34,14 +35,14 @@ def bump(tmp_path_factory):
     return planned_plate(tmp_path_factory.mktemp("bump"), "bump", asymmetric_points(), LoopSettings(**SETTINGS))
 
 
-def _run(tmp_path, plate, *station_args, rescans=2, requests=2, station=True):
+def _run(tmp_path, plate, *station_args, rescans=2, requests=2, station=True, **settings):
     design, flat, press, job = plate
     folder = tmp_path / "scans"
     folder.mkdir(exist_ok=True)
     history = History(tmp_path / "h.sqlite")
     if not history.plates():
         record_plate(history, design, flat, press, 20.0, job, plate_id="RS", work_dir=tmp_path / "RS",
-                     settings=LoopSettings(**SETTINGS, rescans=rescans))
+                     settings=LoopSettings(**SETTINGS, rescans=rescans, **settings))
     station = subprocess.Popen([sys.executable, str(STATION), str(folder), str(design.path), "--requests",
                                 str(requests), "--idle", "20", *station_args],
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True) if station else None
@@ -100,6 +101,41 @@ def test_no_rescans_keeps_the_old_needs_review(bump, tmp_path):
     assert not any("asking for rescan" in m or "rescan 1" in m for m in messages)
     assert list(requests) == ["RS-cycle-01.scan-request.json"]
     assert len(comparison["scans"]) == 1 and not comparison["coverage"]["complete"]
+
+
+def test_a_station_that_does_not_rescan_costs_one_short_wait(bump, tmp_path):
+    # the station answers the cycle's scan request, never the rescan request
+    start = time.monotonic()
+    result, messages, _, comparison, _ = _run(tmp_path, bump, requests=1, rescan_timeout_s=1.0)
+    assert result.status == "needs_review"
+    assert any("asking for rescan 1 of 2" in m for m in messages)
+    assert any("waiting for rescan 1" in m and "(up to 1 s)" in m for m in messages)
+    assert any("no rescan came" in m and "no further rescan is asked in this run" in m for m in messages)
+    assert not any("rescan 2" in m for m in messages)
+    assert len(comparison["scans"]) == 1 and not comparison["coverage"]["complete"]
+    assert time.monotonic() - start < 25.0  # not the scanner's 30 s
+
+
+def test_after_one_unanswered_rescan_request_the_run_asks_for_no_more(monkeypatch):
+    from types import SimpleNamespace
+
+    from driver_helpers import HookReporter
+
+    class Station:
+        calls = 0
+
+        def rescan(self, *args):
+            Station.calls += 1
+
+    monkeypatch.setattr(rescanning, "load_cycle_job", lambda record: None)
+    monkeypatch.setattr(rescanning, "_rescannable", lambda verdict: True)
+    run = SimpleNamespace(settings=LoopSettings(rescans=2), reporter=HookReporter(), scanner=Station(),
+                          known={rescanning.UNANSWERED: "cycle 1, rescan 1"})
+    record = SimpleNamespace(scan_path="scan-02.ply", scan_sha256="", cycle=2)
+    comparison = SimpleNamespace(n_points=100, verdict=None)
+    measured = rescanning.rescan_uncovered(run, record, comparison)
+    assert measured.comparison is comparison and len(measured.scans) == 1 and Station.calls == 0
+    assert any("no rescan asked" in m and "cycle 1, rescan 1" in m for m in run.reporter.messages)
 
 
 def test_a_rescan_taken_before_a_crash_is_not_lost_on_resume(bump, tmp_path, monkeypatch):

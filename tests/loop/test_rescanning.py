@@ -101,9 +101,30 @@ def test_what_a_rescan_is_asked_for():
     assert _rescannable(verdict(Figures(1.0, 0.4, set_aside=3, set_aside_beyond=2, set_aside_max_mm=9.0), limits))
     # out of tolerance with areas not measured: the correction needs the plate there
     assert _rescannable(verdict(Figures(4.0, 1.5, **gaps), limits))
-    # out of tolerance, all of it measured; a badly formed plate; a point measured so twice: no rescan
+    # a point measured so twice gets another look (only a wall beside it clears it: mppf.measure.outliers)
+    assert _rescannable(verdict(Figures(1.0, 0.4, set_aside=3, set_aside_beyond=1, set_aside_max_mm=7.0,
+                                        confirmed_beyond=1), limits))
+    # out of tolerance, all of it measured; a badly formed plate: no rescan
     assert not _rescannable(verdict(Figures(4.0, 1.5), limits))
     assert not _rescannable(verdict(Figures(40.0, 20.0, badly_formed="this plate, 36.8 mm RMS off", **gaps), limits))
-    assert not _rescannable(verdict(Figures(1.0, 0.4, set_aside=3, set_aside_beyond=1, set_aside_max_mm=7.0,
-                                            confirmed_beyond=1), limits))
     assert not _rescannable(verdict(Figures(1.0, 0.4), limits)) and not _rescannable(None)
+
+
+def test_every_rescan_also_asks_for_the_artefact_spots(monkeypatch):
+    """A rescan taken for areas not measured while the cycle is out of tolerance asks for the artefact spots too:
+    once the areas are measured the union may be within the limits, and then the artefacts decide (P2 seed 2 of
+    bench_loop --mode loop: its one rescan went to the gaps alone and 129 spikes were left needing review)."""
+    from mppf.loop import rescanning
+    from mppf.measure.decision import Figures, Limits, verdict
+
+    monkeypatch.setattr(rescanning, "artefact_spots", lambda comparison, tf: [{"kind": "artefacts", "tf": tf}])
+    limits = Limits(2.5, 1.0)
+    gaps = dict(gaps=("0.5 m^2 on the rim",), n_gaps=1, allowed_gap_mm=100.0)
+    spikes = dict(set_aside=40, set_aside_beyond=30, set_aside_max_mm=45.0)
+    for figures in (Figures(4.0, 1.5, **gaps, **spikes), Figures(1.0, 0.4, **spikes), Figures(1.0, 0.4, **gaps,
+                                                                                              **spikes)):
+        assert rescanning._spots(SimpleNamespace(verdict=verdict(figures, limits)), "tf") == [{"kind": "artefacts",
+                                                                                                 "tf": "tf"}]
+    # no artefact beyond the tolerance left (or no verdict): only the areas are asked for
+    assert rescanning._spots(SimpleNamespace(verdict=verdict(Figures(4.0, 1.5, **gaps), limits)), "tf") == []
+    assert rescanning._spots(SimpleNamespace(verdict=None), "tf") == []

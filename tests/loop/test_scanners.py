@@ -52,6 +52,23 @@ def test_directory_scanner_times_out_with_a_clear_error(tmp_path):
     assert "--resume" in info.value.hint
 
 
+def test_a_rescan_waits_the_shorter_wait_the_loop_asks_for(tmp_path):
+    import dataclasses
+
+    scanner = DirectoryScanner(tmp_path, timeout_s=30.0, poll_s=0.05)
+    context = dataclasses.replace(_context(tmp_path, time.time()), wait_s=0.3)
+    start = time.monotonic()
+    with pytest.raises(InputError, match="within 0 s|within 1 s") as info:  # 0.3 s, printed to the second
+        scanner.rescan(1, 1, context)
+    assert time.monotonic() - start < 5.0 and "rescan 1" in info.value.message
+    # never longer than the scanner's own timeout
+    short = DirectoryScanner(tmp_path, timeout_s=0.2, poll_s=0.05)
+    start = time.monotonic()
+    with pytest.raises(InputError):
+        short.rescan(1, 1, dataclasses.replace(context, wait_s=60.0))
+    assert time.monotonic() - start < 5.0
+
+
 def test_directory_scanner_needs_a_folder(tmp_path):
     with pytest.raises(InputError, match="does not exist"):
         DirectoryScanner(tmp_path / "missing")

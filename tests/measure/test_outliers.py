@@ -57,3 +57,24 @@ def test_occluded_scan_with_outliers_still_registers():
     assert (c.is_outlier & true).sum() >= 0.95 * true.sum()
     assert (c.is_outlier & ~true).sum() <= 0.005 * len(true)
     assert c.to_dict()["n_outliers"] == int(c.is_outlier.sum())
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_every_spike_is_set_aside_also_beside_another_spike(seed):
+    """3 % of the points of a dense scan thrown 5-50 mm off (many have another spike among their neighbours, some
+    at the rim of the neighbourhood, where a quadric fitted to all neighbours bends onto it): every one is set aside,
+    no other point."""
+    from mppf.measure.outliers import find_outliers
+
+    rng = np.random.default_rng(seed)
+    spacing_mm = 20.0
+    u, v = np.meshgrid(np.arange(-1500.0, 1500.1, spacing_mm), np.arange(-1000.0, 1000.1, spacing_mm))
+    uv = np.column_stack([u.ravel(), v.ravel()]) + rng.uniform(-0.5, 0.5, (u.size, 2)) * spacing_mm
+    deviation = 1e-3 * uv[:, 0] + 2e-7 * uv[:, 1] ** 2 + rng.normal(0.0, 0.3, len(uv))  # a smooth error field
+    spikes = rng.choice(len(uv), int(0.03 * len(uv)), replace=False)
+    deviation[spikes] += rng.uniform(5.0, 50.0, spikes.size) * rng.choice([-1.0, 1.0], spikes.size)
+    truth = np.zeros(len(uv), dtype=bool)
+    truth[spikes] = True
+    found = find_outliers(uv, deviation, np.ones(len(uv), dtype=bool)).mask
+    assert np.array_equal(found, truth), (f"{int((truth & ~found).sum())} spikes kept, "
+                                          f"{int((found & ~truth).sum())} plain points set aside")

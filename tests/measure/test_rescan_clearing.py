@@ -91,6 +91,46 @@ def test_a_narrow_dent_in_both_scans_is_never_passed(design):
     assert result.set_aside.cleared > 20
 
 
+def test_two_spikes_at_one_spot_by_chance_are_not_a_confirmed_defect(design):
+    # each scan has its spikes and, by chance, one more at nearly the same spot as the other's (10 mm apart, 40 and
+    # 42 mm high: alike, as a real defect measured twice would be); each scan measured the plain surface right beside
+    # the other's spike, a wall no plate has: both are artefacts, cleared like the rest
+    first, second = _scan(1), _scan(2)
+    first = np.vstack([first, [[-200.0, -100.0, _shape(-200.0, -100.0) + 40.0]]])
+    second = np.vstack([second, [[-190.0, -100.0, _shape(-190.0, -100.0) + 42.0]]])
+    points, index = _union(first, second)
+    result = compare(design, points, tolerance_mm=TOLERANCE_MM, rotation_hint=np.eye(3), scan_index=index)
+    uv = result.measured_uv_mm
+    pair = (np.hypot(uv[:, 0] + 195.0, uv[:, 1] + 100.0) < 8.0) & (result.deviation_mm > 30.0)
+    assert pair.sum() == 2 and result.is_outlier[pair].all() and result.is_cleared[pair].all()
+    assert result.set_aside.confirmed == 0 and result.verdict.kind == "in_tolerance", result.headline
+
+
+def test_a_third_look_clears_a_chance_pair_but_never_a_dent(design):
+    # two spikes alike at one spot, each scan's plain points too far to show a wall (the pair alone: confirmed) ...
+    first = np.vstack([_scan(1, spikes=0.0), [[300.0, 200.0, _shape(300.0, 200.0) + 12.0]]])
+    second = np.vstack([_scan(2, spikes=0.0), [[305.0, 200.0, _shape(305.0, 200.0) + 11.0]]])
+    def far(scan):  # the spike, and no plain point within 12 mm of the spot
+        return scan[(np.hypot(scan[:, 0] - 302.0, scan[:, 1] - 200.0) > 12.0)
+                    | (np.abs(scan[:, 2] - _shape(scan[:, 0], scan[:, 1])) > 5.0)]
+
+    first, second = far(first), far(second)
+    options = {"tolerance_mm": TOLERANCE_MM, "rotation_hint": np.eye(3)}
+    points, index = _union(first, second)
+    pair = compare(design, points, scan_index=index, **options)
+    assert pair.set_aside.confirmed == 2 and pair.verdict.kind == "needs_review", pair.headline
+    # ... a third scan that measured the plain surface 2 mm beside them (a 5 mm per mm wall) clears both
+    third = np.vstack([_scan(3, spikes=0.0), [[301.0, 201.0, _shape(301.0, 201.0)]]])
+    points, index = _union(first, second, third)
+    looked = compare(design, points, scan_index=index, **options)
+    assert looked.set_aside.confirmed == 0 and looked.verdict.kind == "in_tolerance", looked.headline
+    # a narrow dent measured by three scans stays confirmed: no scan can show a wall beside it
+    dent = {"dent_mm": 8.0, "sigma_mm": 4.0, "spikes": 0.0}
+    points, index = _union(_scan(1, **dent), _scan(2, **dent), _scan(3, **dent))
+    dented = compare(design, points, scan_index=index, **options)
+    assert dented.set_aside.confirmed >= 2 and dented.verdict.kind != "in_tolerance", dented.headline
+
+
 def test_confirmed_points_keep_the_verdict_from_in_tolerance():
     from mppf.measure.decision import REVIEW_ARTEFACTS, Figures, Limits, verdict
 
