@@ -84,7 +84,12 @@ MAX_FLANK_SLOPE = 2.0
 aside) so near the point, or near the agreeing point, that the deviation would have to change faster than this
 per mm between them (a 63 degree flank: no dent of a formed plate is that steep; the narrowest dent of the tests,
 8 mm deep, sigma 4 mm, has flanks of 1.2 at most): then the agreeing point is an artefact of its own at the same
-spot, and the point is not confirmed."""
+spot, and the point is not confirmed. The two agreeing measurements themselves must not differ by more than
+this slope times their distance apart, plus :data:`PAIR_NOISE_MM`."""
+
+PAIR_NOISE_MM = 1.5
+"""What two measurements of one spot may differ by beyond the flank between them (mm): 3 sigma of the difference
+of two scans' noise of 0.35 mm each."""
 
 
 
@@ -239,8 +244,11 @@ def clear_by_rescans(uv: np.ndarray, deviation: np.ndarray, set_aside: np.ndarra
             near = own[np.asarray(near, dtype=int)]
             d, mine = deviation[near], deviation[row]
             apart = np.linalg.norm(uv[near] - uv[row], axis=1)
+            # alike: beyond the tolerance on the same side, within CONFIRM_FRACTION, and no steeper between the two
+            # than a plate's flank (two spikes 0.7 mm apart, 30 and 23 mm high, are no one feature)
             alike = near[(apart <= close) & (np.abs(d) > tolerance_mm) & (np.sign(d) == np.sign(mine))
-                         & (np.abs(d - mine) <= CONFIRM_FRACTION * abs(mine))]
+                         & (np.abs(d - mine) <= np.minimum(CONFIRM_FRACTION * abs(mine),
+                                                           MAX_FLANK_SLOPE * apart + PAIR_NOISE_MM))]
             # measured alike twice confirms, unless a scan saw a plain surface beside either excursion, nearer than
             # a plate's flank allows (then the two are artefacts at one spot by chance; a third look may show it)
             if alike.size and not confirmed[row] and not walled(row):

@@ -124,6 +124,13 @@ def test_a_third_look_clears_a_chance_pair_but_never_a_dent(design):
     points, index = _union(first, second, third)
     looked = compare(design, points, scan_index=index, **options)
     assert looked.set_aside.confirmed == 0 and looked.verdict.kind == "in_tolerance", looked.headline
+    # two spikes 0.7 mm apart, 30 and 23 mm high (within 30 % of each other): a 10 mm per mm wall between
+    # them, no one feature
+    close_first = np.vstack([_scan(1, spikes=0.0), [[300.0, 200.0, _shape(300.0, 200.0) + 30.0]]])
+    close_second = np.vstack([_scan(2, spikes=0.0), [[300.7, 200.0, _shape(300.7, 200.0) + 23.0]]])
+    points, index = _union(far(close_first), far(close_second))
+    steep = compare(design, points, scan_index=index, **options)
+    assert steep.set_aside.confirmed == 0 and steep.verdict.kind == "in_tolerance", steep.headline
     # a narrow dent measured by three scans stays confirmed: no scan can show a wall beside it
     dent = {"dent_mm": 8.0, "sigma_mm": 4.0, "spikes": 0.0}
     points, index = _union(_scan(1, **dent), _scan(2, **dent), _scan(3, **dent))
