@@ -2,7 +2,16 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
+
+# The tests solve many small problems: one BLAS thread is faster than a pool that spins (and two test
+# workers share the machine's two cores). Set before any BLAS is loaded: scipy's wheels bring their own
+# OpenBLAS, loaded only when scipy.linalg first is, which a limit set at start-up would not reach (the
+# plate simulator's banded Cholesky ran 14 times slower on a busy machine). Subprocesses of the tests
+# inherit it. (pykdtree's OpenMP threads are mppf.core.kdtree's business, tested there.)
+for _name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_name, "1")
 
 import numpy  # noqa: F401 - loaded before the BLAS limit below, so that it applies
 import pytest
@@ -10,9 +19,7 @@ from threadpoolctl import threadpool_limits
 
 import mppf
 
-# The tests solve many small problems: one BLAS thread is faster than a pool that spins
-# (and two test workers share the machine's two cores).
-_BLAS_LIMIT = threadpool_limits(limits=1, user_api="blas")
+_BLAS_LIMIT = threadpool_limits(limits=1, user_api="blas")  # a BLAS loaded before this file (a plugin's)
 
 LOOP_PLATE = "K2_fwd_bilge_convex"
 """The plate of the loop's tests: a weakly doubly curved KCS bilge plate, plans fast."""

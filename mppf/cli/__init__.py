@@ -171,6 +171,26 @@ def _close_reporters() -> None:
         common.close_reporters()
 
 
+BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+"""Set to 1 by :func:`main` unless the environment says otherwise (see :func:`_one_blas_thread`)."""
+
+
+def _one_blas_thread() -> None:
+    """One BLAS thread for the command, unless its environment names a number (set before numpy is loaded).
+
+    mppf's linear algebra is many small products and banded solves (the plate simulator, the correction's
+    model, the registration), where a BLAS thread pool spins instead of working: ``mppf demo`` took 103 s
+    with the default pool on a busy 2-core machine against 46 s with one thread (docs/architecture.md). The
+    work that runs in parallel does so in processes and threads of its own (``mppf batch``, the registration's
+    two start fits). The variables must be set before the BLAS is loaded (scipy's wheels load their own
+    OpenBLAS when scipy.linalg first is): a command's process sets them before it imports numpy.
+    """
+    import os
+
+    for name in BLAS_THREAD_VARIABLES:
+        os.environ.setdefault(name, "1")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; return (and exit with) the exit code.
 
@@ -178,6 +198,7 @@ def main(argv: list[str] | None = None) -> int:
     is the same error as one JSON object (``{"error": {"type", "message", "hint", "exit_code"}}``).
     Exit codes as :mod:`mppf.core.errors` says.
     """
+    _one_blas_thread()
     args = sys.argv[1:] if argv is None else list(argv)
     debug = "--debug" in args
     as_json = "--json" in args

@@ -170,3 +170,17 @@ def test_a_plain_stop_does_not_import_click_and_says_what_the_plc_did(tmp_path):
     assert "the PLC took it (state STOPPED)" in proc.stdout
     # click and rich stay out; pymodbus (the one Modbus library, behind mppf.drivers.modbus_adapter) is needed
     assert proc.stdout.split()[-3:] == ["0", "False", "True"], proc.stdout + proc.stderr
+
+
+@pytest.mark.parametrize("given, expected", [(None, 1), ("2", 2)])
+def test_a_command_runs_on_one_blas_thread_unless_the_environment_names_a_number(given, expected):
+    # numpy's and scipy's own OpenBLAS, both loaded after main() set the variable (scipy's only with scipy.linalg)
+    code = ("import sys; from mppf.cli import main; main(['--version']); import numpy, scipy.linalg; "
+            "from threadpoolctl import threadpool_info; "
+            "print(sorted({i['num_threads'] for i in threadpool_info() if i['user_api'] == 'blas'}))")
+    env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
+                                                            "OMP_NUM_THREADS")}
+    if given is not None:
+        env["OPENBLAS_NUM_THREADS"] = given
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True).stdout
+    assert out.strip().splitlines()[-1] == str([expected]), out
