@@ -23,13 +23,17 @@ from mppf.planning.job import Job, PlateLayout
 from mppf.planning.job_sections import Section
 from mppf.planning.placement import FlatPlacement, fits_bed, lay_flat, register_design
 from mppf.planning.plan import (SURFACE_DEGREE, SURFACE_KIND, _active_punches, _check_inputs, _check_trim,
-                                _on_grid, _optimise_pose, _refine, _reports, _split,
-                                _surface_to_press, plan_job)
+                                _on_grid, _optimise_pose, _reports, _split, plan_job)
 from mppf.planning.press import PressConfig
+from mppf.planning.sectional_borders import BORDER_STEP_LIMIT_MM, border_steps, border_warnings, recovered_residual
+from mppf.planning.sectional_overbend import closer_fit, whole_target
 from mppf.planning.sections import (TRANSITION_PITCHES, earlier_weight, index_offset, mark_punches, shifted,
                                     split_plate)
 from mppf.planning.steps import steps_needed
 from mppf.planning.validate import validate_steps
+
+__all__ = ["BORDER_STEP_LIMIT_MM", "apply_section_corrections", "border_warnings", "plan_plate", "plan_sectional",
+           "recovered_residual", "sections_summary"]
 
 
 def plan_plate(design_points, flat_points, press: PressConfig, thickness_mm: float, *,
@@ -55,8 +59,9 @@ def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm:
 
     Each section is the plate shifted on the bed (by whole punch pitches) with its own pose
     (offset and tilt of least travel); its strokes are the exact ball contact of the design so
-    placed, plus its springback correction blended smoothly with the earlier sections' in the
-    transition zones. Parameters as :func:`mppf.planning.plan.plan_job`.
+    placed, or with ``springback`` of the whole plate's one over-bent target
+    (:mod:`mppf.planning.sectional_overbend`), the same surface for every section. Parameters as
+    :func:`mppf.planning.plan.plan_job`.
 
     Returns
     -------
@@ -75,56 +80,53 @@ def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm:
     registration = register_design(design, placement.flat_press_mm, reporter=reporter)
     belongs = check_flat_belongs(design, placement.flat_press_mm, registration.method == "paired",
                                  design_area_mm2(fitted, design, design_faces))
-    springback_report = {"enabled": bool(springback),
-                         "method": "per section: over-bent about the section's centre, refined on the plate model"}
     # 3. split the plate into sections covering the bed, in pressing order
     split = split_plate(placement.size_mm, press, transition_mm=transition_mm)
     zone = TRANSITION_PITCHES * max(press.pitch_x_mm, press.pitch_y_mm) if transition_mm is None else transition_mm
     reporter.info(f"the plate needs {split.n_sections} sections ({split.counts[0]} along x {split.counts[1]} across)")
     # 4. each section: contact in its pose, its own correction blended with the formed plate, steps, marks
-    # one surface for every section (without springback): the sections then press the same shape where they meet
+    # one surface for every section: the sections then press the same shape where they meet; with springback
+    # one over-bent target of that surface for the whole plate, the material's points moved onto it
     whole = _whole_surface(fitted, design, design_faces)
-    ctx = dict(press=press, fitted=whole, design=design, flat_file=flat, registration=registration, t=t,
-               margin=margin, material=material, springback=springback)
+    target = whole_target(whole, design, press, t, material, margin) if springback else None
+    springback_report = target.report if springback else {"enabled": False}
+    ctx = {"press": press, "fitted": whole, "design": design, "flat_file": flat, "registration": registration,
+           "t": t, "margin": margin, "material": material, "target": target,
+           "points": design if target is None else target.material_points(design)}
     planned = []
     for k, (cell, centre) in enumerate(zip(split.cells, split.bed_centres_mm), start=1):
         reporter.info(f"planning section {k} of {split.n_sections}")
         planned.append(_plan_section(k, cell, centre, planned, zone, steps, placement, ctx))
     # 5. the design recovered from the strokes must not step where sections meet
-    border = _border_steps(press, whole, planned)
+    border = border_steps(press, planned, t)
     return _assemble(planned, border, split, zone, fitted, registration, belongs, placement, inputs,
                      springback_report, press, t, margin, material)
 
 
 def _plan_section(index, cell, centre, earlier, zone, steps, placement, ctx) -> dict:
-    """One section: pose, contact strokes, the blended correction, the steps and the marks."""
+    """One section: pose, contact strokes, the blend weights, the steps and the marks."""
     press, t, margin = ctx["press"], ctx["t"], ctx["margin"]
     tf_press_plate = make_tf(translation=[-centre[0], -centre[1], 0.0])
-    # the design's part on the bed, fitted on its own and laid level onto its part of the flat
+    # the plate's part on the bed (as pressed: on the over-bent target with springback) laid level onto its flat
     flat_press = apply_tf(tf_press_plate, placement.flat_press_mm)
     fitted, tf_reg, on_bed = _section_fit(press, ctx, flat_press, tf_press_plate @ ctx["registration"].tf)
-    surface, _ = _surface_to_press(fitted, ctx["design"][on_bed], press, t, ctx["material"], ctx["springback"], margin)
-    design_press = apply_tf(tf_reg, ctx["design"])
-    outline_xy = offset_convex(convex_outline(design_press[:, :2], "the placed design"), margin)
+    target_plate, surface = ctx["target"], fitted.surface
+    shape_press = apply_tf(tf_reg, ctx["points"])
+    outline_xy = offset_convex(convex_outline(shape_press[:, :2], "the placed design"), margin)
     active = _active_punches(press, outline_xy)
-    # the section's pose of least travel; the exact ball contact of the design so placed
+    # the section's pose of least travel; the exact ball contact of the surface so placed (the design's or the
+    # whole plate's over-bent target: the same for every section, so no blend of corrections is needed)
     pose = _optimise_pose(press, PlacedSurface(surface, tf_reg @ fitted.frame.tf_world_local), active, t)
     tf_press_design = pose.tf_adjust @ tf_reg
-    if ctx["springback"]:  # the pose was found on the over-bent surface: the design's own contact
-        upper, lower = _contact(press, fitted, tf_press_design, active, t)
-    else:
-        upper, lower = _on_grid(press, active, pose.upper_mm), _on_grid(press, active, pose.lower_mm)
-    net = convex_outline(apply_tf(pose.tf_adjust, design_press)[:, :2], "the placed design")
+    upper, lower = _on_grid(press, active, pose.upper_mm), _on_grid(press, active, pose.lower_mm)
+    net = convex_outline(apply_tf(pose.tf_adjust, shape_press)[:, :2], "the placed design")
     outline = offset_convex(net, margin)
-    target = 0.5 * (upper + lower)
+    # the design's own mid heights in the section's pose (the loop's target)
+    target = 0.5 * (upper + lower) if target_plate is None else _mid(*_contact(press, ctx["fitted"],
+                                                                                tf_press_design, active, t))
     trim = _check_trim(pose.contact_xy_mm, outline_xy, press)
-    # this section's own correction (over-bend and its refinement), blended with the formed plate's
-    own_up, own_lo, refinement = np.zeros(press.shape), np.zeros(press.shape), None
-    if ctx["springback"]:
-        start_up, start_lo = _on_grid(press, active, pose.upper_mm), _on_grid(press, active, pose.lower_mm)
-        ref_up, ref_lo, refinement = _refine(press, start_up, start_lo, active, target, outline, t, ctx["material"])
-        own_up, own_lo = np.nan_to_num(ref_up - upper), np.nan_to_num(ref_lo - lower)
-    weight, d_up, d_lo = _blend(press, centre, active, own_up, own_lo, earlier, zone, placement.size_mm / 2.0)
+    zero = np.zeros(press.shape)
+    weight, d_up, d_lo = _blend(press, centre, active, zero, zero, earlier, zone, placement.size_mm / 2.0)
     final_up, final_lo = np.where(active, upper + d_up, np.nan), np.where(active, lower + d_lo, np.nan)
     # press steps from flat, validated
     n_steps = steps if steps is not None else steps_needed(final_up, final_lo, active, press, t)
@@ -132,7 +134,7 @@ def _plan_section(index, cell, centre, earlier, zone, steps, placement, ctx) -> 
     validation = validate_steps(step_list, press, t)
     validation["contact_beyond_edge_mm"] = trim
     tf_press_flat = tf_press_plate @ placement.tf_press_flat
-    placed = PlacedSurface(fitted.surface, tf_press_design @ fitted.frame.tf_world_local)
+    placed = PlacedSurface(surface, tf_press_design @ fitted.frame.tf_world_local)
     marks = _marks(press, active & _active_punches(press, net), centre, tf_press_flat, placed, fitted, ctx, on_bed)
     travel = float(max(np.abs(final_up[active] - t).max(), np.abs(final_lo[active]).max()))
     extra = {"pose": {"tilt_x_deg": pose.tilt_x_deg, "tilt_y_deg": pose.tilt_y_deg, "offset_mm": pose.offset_mm,
@@ -140,8 +142,6 @@ def _plan_section(index, cell, centre, earlier, zone, steps, placement, ctx) -> 
              "validation": validation, "n_steps": int(n_steps), "n_active": int(active.sum()),
              "plate_corners_mm": (placement.corners_mm + [-centre[0], -centre[1], 0.0]).tolist(),
              "transition": {"zone_mm": float(zone), "blended_punches": int((active & (weight < 1.0 - 1e-9)).sum())}}
-    if refinement is not None:
-        extra["refinement"] = refinement
     section = Section(index=index, cell=tuple(cell), plate_centre_mm=-np.asarray(centre, dtype=float),
                       marks_plate_mm=marks[0], marks_flat_mm=marks[1], marks_press_mm=marks[2],
                       mark_punches=marks[3], steps=step_list, tf_press_design=tf_press_design,
@@ -150,7 +150,7 @@ def _plan_section(index, cell, centre, earlier, zone, steps, placement, ctx) -> 
                                          design_mid_mm=target, material=ctx["material"]),
                       own_weight=np.where(active, weight, np.nan), extra=extra)
     return {"section": section, "centre": np.asarray(centre, dtype=float), "active": active, "pose": pose,
-            "delta": (d_up, d_lo), "contact": (upper, lower)}
+            "delta": (d_up, d_lo), "contact": (upper, lower), "fitted": fitted}
 
 
 def _whole_surface(fitted, design, design_faces):
@@ -159,42 +159,42 @@ def _whole_surface(fitted, design, design_faces):
     The polynomial extends smoothly under the trim margin (where a B-spline, beyond its knots, does
     not); over 9 m of a stern plate it misses the design by up to 3 mm, the spline by 0.7 mm.
     """
-    if fitted.max_abs_mm <= POLY_ENOUGH_MM:
-        return fitted
-    spline = fit_plate(design, kind="spline", faces=design_faces)
-    return spline if spline.max_abs_mm < fitted.max_abs_mm else fitted
-
-
-POLY_ENOUGH_MM = 0.1
-"""Largest residual of the plate's polynomial fit still used for every section (above: the B-spline, if closer)."""
+    return closer_fit(fitted, lambda: fit_plate(design, kind="spline", faces=design_faces))
 
 
 def _section_fit(press: PressConfig, ctx: dict, flat_press, tf_whole):
-    """The design fitted over the section (bed, margin, trim allowance) and its ``tf_press_design`` before the pose.
+    """The surface every section presses, its ``tf_press_design`` before the pose, and the points on the bed.
 
-    Paired points (the unfolding's order): the design points whose flat points lie there are laid
-    onto their flat points by the rigid fit, so the section lies level over its own part of the flat
-    whatever the plate's curvature elsewhere. The surface is the whole plate's (the same in every
-    section: where sections meet they press the same shape, :func:`_whole_surface`); with springback
-    the section's own
-    fit (``fit_plate`` of those points), over-bent about its own centre. Unpaired: the whole plate's
-    surface and registration, shifted.
+    Paired points (the unfolding's order): the plate's points whose flat points lie over the bed (with
+    the margin and the trim allowance) are laid onto their flat points by the rigid fit, so the
+    section lies level over its own part of the flat whatever the plate's curvature elsewhere. The
+    points are the design's, or with springback where their material lies on the whole plate's
+    over-bent target (:mod:`mppf.planning.sectional_overbend`). The surface is the whole plate's (the
+    same in every section: where sections meet they press the same shape, :func:`_whole_surface`).
+    Unpaired: the whole plate's registration, shifted.
     """
-    design = ctx["design"]
-    if design.shape != flat_press.shape:
-        return ctx["fitted"], tf_whole, np.ones(len(design), dtype=bool)
-    half = np.array(press.bed_size_mm) / 2.0 + ctx["margin"] + press.trim_allowance_mm
-    on_bed = np.all(np.abs(flat_press[:, :2]) <= half, axis=1)
-    if on_bed.sum() < MIN_SECTION_POINTS:
-        return ctx["fitted"], tf_whole, np.ones(len(design), dtype=bool)
-    if not ctx["springback"]:  # the whole plate's surface, laid level over this section's part of the flat
-        return ctx["fitted"], fit_rigid(design[on_bed], flat_press[on_bed]), on_bed
-    fitted = fit_plate(design[on_bed], degree=SURFACE_DEGREE, kind=SURFACE_KIND)
-    return fitted, fit_rigid(design[on_bed], flat_press[on_bed]), on_bed
+    points, target = ctx["points"], ctx["target"]
+    reach = ctx["margin"] + press.trim_allowance_mm
+    half = np.array(press.bed_size_mm) / 2.0 + reach
+    paired = points.shape == flat_press.shape
+    on_bed = np.all(np.abs((flat_press if paired else apply_tf(tf_whole, points))[:, :2]) <= half, axis=1)
+    few = on_bed.sum() < MIN_SECTION_POINTS
+    if few:
+        on_bed = np.ones(len(points), dtype=bool)
+    # the surface pressed: the whole plate's, or the whole plate's over-bent target over this section
+    fitted = ctx["fitted"] if target is None else target.section_fit(ctx["design"][on_bed], reach + press.pitch_x_mm)
+    if not paired or few:
+        return fitted, tf_whole, on_bed
+    return fitted, fit_rigid(points[on_bed], flat_press[on_bed]), on_bed
 
 
 MIN_SECTION_POINTS = 30
-"""Fewest paired points over a section for its own fit of the design."""
+"""Fewest paired points over a section for its own rigid fit onto the flat."""
+
+
+def _mid(upper, lower):
+    """Mid heights of the tips, (upper + lower) / 2."""
+    return 0.5 * (upper + lower)
 
 
 def _contact(press: PressConfig, fitted, tf_press_design, active, t: float):
@@ -226,10 +226,11 @@ def _marks(press: PressConfig, active, centre, tf_press_flat, placed, fitted, ct
     """The section's two reference marks: plate x, y; flat-file x, y, z; press x, y; the punches under them.
 
     ``active`` holds the punches under the net plate, so the marks lie inside the net outline. A mark
-    is the material point that lies over its punch **once the section is formed**: the design point
-    under the punch axis (as the section places the design), taken to the flat by the paired points
-    (linear interpolation over the design's own (u, v)). Unpaired flats: the flat point under the
-    punch with the plate lying flat.
+    is the material point that lies over its punch **once the section is formed**: the point of the
+    pressed surface (``placed``: the design, or the over-bent target) under the punch axis, taken to
+    the flat by the paired points (linear interpolation over the pressed surface's own (u, v) of the
+    points where the material lies on it).
+    Unpaired flats: the flat point under the punch with the plate lying flat.
     """
     punches = mark_punches(active)
     press_xy = np.column_stack([press.punch_x_mm[punches[:, 1]], press.punch_y_mm[punches[:, 0]]])
@@ -239,68 +240,11 @@ def _marks(press: PressConfig, active, centre, tf_press_flat, placed, fitted, ct
         from scipy.interpolate import LinearNDInterpolator
 
         uv = np.column_stack(placed.axis_foot(press_xy[:, 0], press_xy[:, 1]))
-        local = fitted.frame.to_local(ctx["design"][on_bed])[:, :2]
+        local = fitted.frame.to_local(ctx["points"][on_bed])[:, :2]
         formed = LinearNDInterpolator(local, flat_file[on_bed])(uv)
         flat = np.where(np.isfinite(formed), formed, flat)
     plate_xy = apply_tf(tf_press_flat, flat)[:, :2] + np.asarray(centre, dtype=float)
     return plate_xy, flat, press_xy, punches
-
-
-def recovered_residual(press: PressConfig, fitted, section: Section, thickness_mm: float) -> np.ndarray:
-    """(rows, cols): the design recovered from a section's final strokes, as its height above the design (mm).
-
-    The tips' mid height (upper + lower) / 2 at each active punch axis, taken back into the design's
-    own frame (``tf_press_design`` inverted), minus the design surface there; NaN at parked punches.
-    """
-    final = section.steps[-1]
-    gx, gy = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
-    act = final.active
-    mid = np.column_stack([gx[act], gy[act], 0.5 * (final.upper_mm[act] + final.lower_mm[act])])
-    local = fitted.frame.to_local(apply_tf(invert_tf(section.tf_press_design), mid))
-    residual = np.full(press.shape, np.nan)
-    residual[act] = local[:, 2] - fitted.surface.evaluate(local[:, 0], local[:, 1])
-    return residual
-
-
-def _border_steps(press, fitted, planned) -> list[float]:
-    """Per section: the largest step of the recovered design at its border with the plate formed before it.
-
-    At the section's outermost punches (first and last row and column of the bed) that an earlier
-    section also pressed, the plate just beyond stays as that section left it: its recovered design
-    (:func:`recovered_residual`) there must equal this section's. Measured against the last earlier
-    section pressing each punch.
-    """
-    residuals = [recovered_residual(press, fitted, p["section"], 0.0) for p in planned]
-    edge = np.zeros(press.shape, dtype=bool)
-    edge[[0, -1], :] = True
-    edge[:, [0, -1]] = True
-    steps = []
-    for k, p in enumerate(planned):
-        last = np.full(press.shape, np.nan)
-        for j in range(k):
-            other = shifted(residuals[j], index_offset(press, p["centre"], planned[j]["centre"]))
-            last = np.where(np.isfinite(other), other, last)
-        diff = np.abs(residuals[k] - last)[edge]
-        steps.append(float(np.nanmax(diff)) if np.isfinite(diff).any() else 0.0)
-    return steps
-
-
-BORDER_STEP_LIMIT_MM = 1.0
-"""A section whose recovered design steps more than this (mm) at its border with the plate formed before it
-is warned of: the press would leave a step or kink there (see ``docs/sections.md``, "Not yet done")."""
-
-
-def border_warnings(border_mm, springback: bool) -> list[str]:
-    """The warnings of a sectional plan whose sections step at their borders (one per such section)."""
-    out = []
-    for index, step in enumerate(border_mm, start=1):
-        if step > BORDER_STEP_LIMIT_MM:
-            why = (" (the sections' springback over-bends disagree where they overlap: plan without --springback "
-                   "and let the loop correct, or check the section order)") if springback else ""
-            out.append(f"section {index}: its strokes step by {step:.1f} mm at its border with the plate formed "
-                       f"before it (limit {BORDER_STEP_LIMIT_MM:g} mm): the press would leave a step or kink "
-                       f"there{why}")
-    return out
 
 
 def _assemble(planned, border, split, zone, fitted, registration, belongs, placement, inputs, springback_report,

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.interpolate import LinearNDInterpolator
 
 from mppf.core.errors import ConfigError, LimitError
 from mppf.core.transform import apply_tf, invert_tf, make_tf
+from mppf.examples import analytic
 from mppf.examples.analytic import cylinder_plate, hull_pose, twisted_plate
 from mppf.geometry.unfold import unfold
 from mppf.planning.contact import PlacedSurface, tip_heights
@@ -20,6 +23,7 @@ from mppf.planning.sections import placement_text, press_sequence, split_plate
 from plan_helpers import CylinderSurface, press  # noqa: F401 (fixture)
 
 RADIUS_MM = 20000.0
+LONG = Path(analytic.__file__).parent / "long"
 T_MM = 20.0
 TF_CYL_LOCAL = make_tf(np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]))
 """The plan_helpers cylinder (axis along u) turned so its axis runs along y, as cylinder_plate's."""
@@ -68,6 +72,27 @@ def _recovered(press, section, tf_world_local, surface):
     grid = np.full(press.shape, np.nan)
     grid[final.active] = local[:, 2] - surface.derivatives(local[:, 0], local[:, 1])[0]
     return grid
+
+
+def _loaded_radius_mm(radius_mm):
+    """The radius a cylinder of ``radius_mm`` is over-bent to (steel, ``T_MM``)."""
+    from mppf.forming.material import MATERIALS
+    from mppf.forming.springback import loaded_curvature
+
+    return 1.0 / float(loaded_curvature(np.array([1.0 / radius_mm]), T_MM, MATERIALS["steel"])[0])
+
+
+def _held_on_cylinder(press, section, radius_mm):
+    """Per punch (rows, cols): the tips' mid point as (arc length, y) on the cylinder of ``radius_mm`` tangent to the
+    design at the plate's centre, and its height above that cylinder (NaN parked)."""
+    final = section.steps[-1]
+    x, y = _axes(press, final.active)
+    mid = np.column_stack([x, y, 0.5 * (final.upper_mm[final.active] + final.lower_mm[final.active])])
+    plate = apply_tf(invert_tf(section.tf_press_design @ hull_pose()), mid)
+    where, height = np.full(press.shape + (2,), np.nan), np.full(press.shape, np.nan)
+    where[final.active] = np.column_stack([radius_mm * np.arctan2(plate[:, 0], radius_mm - plate[:, 2]), plate[:, 1]])
+    height[final.active] = radius_mm - np.hypot(plate[:, 0], radius_mm - plate[:, 2])
+    return where, height
 
 
 def _plate_keys(press, section):
@@ -222,18 +247,26 @@ def test_springback_corrections_blend_in_the_transition_zone(press, springback_j
     assert np.all(first.own_weight[first.steps[-1].active] == 1.0)
     weight = second.own_weight[second.steps[-1].active]
     assert weight.min() == 0.0 and weight.max() == 1.0 and np.any((weight > 0.05) & (weight < 0.95))
-    # each section pressed its own over-bend (far larger than the tips' reach of the design itself)
+    # each section pressed the over-bend (far larger than the tips' reach of the design itself)
     tf_world_local = hull_pose() @ TF_CYL_LOCAL
     recovered = [_recovered(press, s, tf_world_local, CylinderSurface(RADIUS_MM)) for s in (first, second)]
     assert np.nanmax(np.abs(recovered[1])) > 20.0
-    # where the second section's bed ends inside the first, the plate stays as the first left it: no step
+    # where the second section's bed ends inside the first, the plate stays as the first left it: no step.
+    # Compared at the same place of the plate (not punch by punch: on the over-bent plate, R 4.75 m, the punches
+    # of two sections shifted by whole pitches meet it some 25 mm apart along the bend, where the over-bend
+    # differs from the design by 0.3 x 25 mm), as heights above the plate's over-bent target
     keys = [_plate_keys(press, s) for s in (first, second)]
     edge_cols = {0, press.cols - 1}
     shared = [p for p in keys[1].keys() & keys[0].keys()
               if keys[1][p][1] in edge_cols or keys[1][p][0] in (0, press.rows - 1)]
     assert len(shared) >= 10
-    steps = [abs(recovered[1][keys[1][p]] - recovered[0][keys[0][p]]) for p in shared]
-    assert max(steps) < 0.2
+    loaded = _loaded_radius_mm(RADIUS_MM)
+    held = [_held_on_cylinder(press, s, loaded) for s in (first, second)]
+    border = np.array([keys[1][p] for p in shared])
+    where = held[1][0][border[:, 0], border[:, 1]]
+    there = LinearNDInterpolator(held[0][0][first.steps[-1].active], held[0][1][first.steps[-1].active])(where)
+    steps = np.abs(held[1][1][border[:, 0], border[:, 1]] - there)
+    assert np.isfinite(steps).sum() >= 10 and np.nanmax(steps) < 0.2
     assert springback_job.extra["sectional"]["max_border_step_mm"] < 0.2
 
 
@@ -293,17 +326,24 @@ def test_corrections_per_section_blend_like_the_plan(press, cylinder_job):
 
 
 def test_sections_whose_over_bends_disagree_are_warned_of(press, springback_job):
-    """A plate longer AND wider than the bed, springback pre-compensated: each section's over-bend is about its own
-    centre, and where sections overlap in two directions they disagree; the plan says so (not yet solved, see
-    docs/sections.md). The one-row plate of the fixture blends within the limit: no warning."""
+    """Sections that step at their borders are warned of. A plate longer AND wider than the bed with springback
+    (the 4.2 x 2.4 m cylinder in 2 x 2 sections) no longer steps: every section presses the whole plate's one
+    over-bent target (it stepped by 128 mm when each section was over-bent about its own centre). The 9.4 m KCS
+    stern plate still does: its curvature varies strongly over the plate and the target there is the principal
+    arcs plus the design's departure from them, which the sections' fits follow only to some mm (docs/sections.md)."""
     from mppf.forming.material import MATERIALS
+    from mppf.geometry.read import read_points
     from mppf.planning.sectional import BORDER_STEP_LIMIT_MM, border_warnings
 
     assert springback_job.extra["sectional"]["warnings"] == []
     design, flat = cylinder_plate(4200.0, 2400.0, RADIUS_MM, spacing_mm=200.0)
     job = plan_plate(design, flat, press, T_MM, springback=True, material=MATERIALS["steel"])
     sectional = job.extra["sectional"]
-    assert sectional["counts"] == [2, 2] and sectional["max_border_step_mm"] > BORDER_STEP_LIMIT_MM
+    assert sectional["counts"] == [2, 2] and sectional["max_border_step_mm"] < 0.2 and sectional["warnings"] == []
+    kcs = read_points(LONG / "kcs_stern_bilge_9000x2400.csv").points
+    job = plan_plate(kcs, unfold(kcs).flat, press, T_MM, springback=True, material=MATERIALS["steel"])
+    sectional = job.extra["sectional"]
+    assert sectional["max_border_step_mm"] > BORDER_STEP_LIMIT_MM
     warned = sectional["warnings"]
     assert warned and all("step" in w and "--springback" in w for w in warned)
     assert len(warned) == sum(s.extra["transition"]["border_step_mm"] > BORDER_STEP_LIMIT_MM for s in job.sections)
