@@ -33,7 +33,8 @@ more test is made: a confirmation needs that the other scan did not also measure
 (within the tolerance) nearer the point than a flank of slope :data:`MAX_FLANK_SLOPE` would allow;
 such a wall is no feature of a formed plate, so its agreeing point is an artefact of its own. Any scan
 of the union may show the wall (the loop gives a confirmed spot another look: a rescan); no scan can
-show one beside a real dent whose flanks are less steep, so the extra looks never clear a defect. With one scan nothing is cleared or confirmed: issue 13's rule holds exactly.
+show one beside a real dent whose flanks are less steep, so the extra looks never clear a defect. With
+one scan nothing is cleared or confirmed: issue 13's rule holds exactly.
 """
 
 from __future__ import annotations
@@ -373,5 +374,4 @@ def _weighted_median(values: np.ndarray, use: np.ndarray) -> np.ndarray:
 
 def _weighted_median_abs(resid: np.ndarray, use: np.ndarray) -> np.ndarray:
     """Median (m,) of ``|resid|`` over the entries with ``use`` 1 (each row has some)."""
-    masked = np.where(use > 0, np.abs(resid), np.nan)
-    return np.nanmedian(masked, axis=1)
+    return _weighted_median(np.abs(resid), use)

@@ -122,8 +122,9 @@ def _plan_section(index, cell, centre, earlier, zone, steps, placement, ctx) -> 
     net = convex_outline(apply_tf(pose.tf_adjust, shape_press)[:, :2], "the placed design")
     outline = offset_convex(net, margin)
     # the design's own mid heights in the section's pose (the loop's target)
-    target = 0.5 * (upper + lower) if target_plate is None else _mid(*_contact(press, ctx["fitted"],
-                                                                                tf_press_design, active, t))
+    design_up, design_lo = (upper, lower) if target_plate is None else _contact(press, ctx["fitted"],
+                                                                                tf_press_design, active, t)
+    target = 0.5 * (design_up + design_lo)
     trim = _check_trim(pose.contact_xy_mm, outline_xy, press)
     zero = np.zeros(press.shape)
     weight, d_up, d_lo = _blend(press, centre, active, zero, zero, earlier, zone, placement.size_mm / 2.0)
@@ -190,11 +191,6 @@ def _section_fit(press: PressConfig, ctx: dict, flat_press, tf_whole):
 
 MIN_SECTION_POINTS = 30
 """Fewest paired points over a section for its own rigid fit onto the flat."""
-
-
-def _mid(upper, lower):
-    """Mid heights of the tips, (upper + lower) / 2."""
-    return 0.5 * (upper + lower)
 
 
 def _contact(press: PressConfig, fitted, tf_press_design, active, t: float):

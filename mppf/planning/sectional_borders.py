@@ -127,8 +127,9 @@ def border_warnings(border_mm, springback: bool) -> list[str]:
     out = []
     for index, step in enumerate(border_mm, start=1):
         if step > BORDER_STEP_LIMIT_MM:
-            why = (" (the sections' springback over-bends disagree where they overlap: plan without --springback "
-                   "and let the loop correct, or check the section order)") if springback else ""
+            why = (" (the sections' fits follow the plate's one over-bent target only approximately where its "
+                   "curvature varies strongly: plan without --springback and let the loop correct, or check "
+                   "the plan)") if springback else ""
             out.append(f"section {index}: its strokes step by {step:.1f} mm at its border with the plate formed "
                        f"before it (limit {BORDER_STEP_LIMIT_MM:g} mm): the press would leave a step or kink "
                        f"there{why}")

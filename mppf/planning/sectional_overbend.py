@@ -207,7 +207,7 @@ def whole_target(whole, design, press, thickness_mm: float, material, margin_mm:
     directions = dirs3[:, :2] / np.linalg.norm(dirs3[:, :2], axis=1, keepdims=True)
     flat = np.abs(target) < 1.0 / FLAT_RADIUS_MM
     loaded = np.where(flat, target, loaded_curvature(np.where(flat, 0.0, target), thickness_mm, material))
-    reach = float(np.linalg.norm(whole.frame.to_local(design)[:, :2], axis=1).max()) + margin_mm \
+    reach = float(np.linalg.norm(local[:, :2], axis=1).max()) + margin_mm \
         + press.trim_allowance_mm
     try:  # where the over-bent arcs are a graph over the whole plate: the point-by-point field as well
         field, how = overbend(whole.surface, thickness_mm, material, reach).field, "principal arcs and field"

@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from mppf.core.defaults import MAD_SCALE
+from mppf.core.kdtree import KDTree
 from mppf.core.transform import apply_tf
 from mppf.registration.target import Cloud, RegistrationTarget, local_axes
 
@@ -102,8 +103,6 @@ def noise_floor_mm(source: Cloud, target: RegistrationTarget) -> float:
     The source's scatter is taken among at most :data:`NOISE_TREE_POINTS` of its points (a
     seeded sample); the target's is computed once per target.
     """
-    from mppf.core.kdtree import KDTree
-
     points = source.points[sample_index(source.n_points, NOISE_TREE_POINTS)]
     s_source = quadric_scatter_mm(points, KDTree(points), sample_index(points.shape[0]))
     if "sampling_mm" not in target.cache:
