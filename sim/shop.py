@@ -20,6 +20,10 @@ step on it twice.
 The press side of a dry run is the simulated PLC (:func:`mppf.sim.plc.run_simulated_plc`)
 driven over loopback Modbus by the real driver (``mppf loop`` without ``--plc``,
 ``mppf demo``), or the in-process press (:class:`mppf.sim.plc.link.InProcessPress`).
+A plate larger than the bed is pressed section by section: each step of a section carries where the
+press's punch axes lie in the plate's frame (``placement_mm`` of the loop's steps, the first section's
+press x, y), and the steel plate is shifted there before the step (:meth:`mppf.sim.plate.plate.SteelPlate.place`),
+so the plate formed by one section is re-pressed in the overlap by the next; the scan is of the whole plate.
 Each cycle's scan uses its own seed (``seed * 1000 + cycle``), so a scan repeated after a
 resume is the same scan. A rescan of the cycle (:meth:`SimulatedPlateScanner.rescan`: a fixed
 station scans the plate again where it lies) is a new take with its own noise and outliers
@@ -218,7 +222,17 @@ class SimulatedPlateScanner:
         return self.last_formed
 
     def _press(self, step: PressedStep) -> None:
-        """One step on the plate; an interrupted one takes the tips :data:`INTERRUPTED_SHARE` of the way."""
+        """One step on the plate; an interrupted one takes the tips :data:`INTERRUPTED_SHARE` of the way.
+
+        A step of a section of a plate larger than the bed carries ``placement_mm``, where the press's punch
+        axes lie in the plate's frame (the first section's press x, y): the plate is shifted there first.
+        """
+        placement = getattr(step, "placement_mm", None)
+        if hasattr(self.plate, "place"):
+            self.plate.place((0.0, 0.0) if placement is None else placement)
+        elif placement is not None and np.any(np.asarray(placement) != 0.0):
+            raise InputError(f"the {self.plate_model!r} plate model cannot be pressed in sections (it keeps no memory "
+                             "of the sections pressed before)", hint="use the steel plate (plate_model='steel')")
         share = 1.0 if step.complete else INTERRUPTED_SHARE
         self.plate.press_step(step.upper_mm, step.lower_mm, step.active, share=share)
         self.pressed.append([int(step.cycle), int(step.step)])

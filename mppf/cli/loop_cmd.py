@@ -218,7 +218,26 @@ def run_plate(history, plate_id, draft, *, plc_url, scanner_spec, time_scale, au
             plate = record(history, draft)
         recorded = press_from_dict(plate.press, source=f"history of plate {plate_id}")
         scanner = _scanner(history, plate, scanner_spec, recorded, scan_timeout_s)
-        return run_loop(history, plate.plate_id, link, scanner, reporter=reporter, on_cycle=on_cycle)
+        return run_loop(history, plate.plate_id, link, scanner, reporter=reporter, on_cycle=on_cycle,
+                        place=_placer(reporter, yes, dry_run=not plc_url))
+
+
+def _placer(reporter, yes: bool, *, dry_run: bool):
+    """Before each section of a plate larger than the bed: the placement line; at --plc the operator confirms it."""
+    from mppf.cli._sections import confirm_placement
+    from mppf.core.errors import PressRefused
+    from mppf.planning.sections import placement_text
+
+    def place(section, previous) -> None:
+        text = placement_text(section, previous)
+        reporter.info(text)
+        try:
+            confirm_placement(text, yes, dry_run)
+        except PressRefused as exc:  # nothing of the section was sent; the loop goes on from there when resumed
+            raise PressRefused(exc.message,
+                               hint="place the plate by its marks and continue with 'mppf loop --resume'") from None
+
+    return place
 
 
 def _latest_job(history, plate_id):

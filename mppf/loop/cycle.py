@@ -5,7 +5,8 @@ cycle in the history; :func:`run_loop` then drives every cycle through its state
 (:mod:`mppf.loop.states`), one handler per state, until the plate is in tolerance, the
 cycles run out, or the error diverges:
 
-    planned   -> press every step of the cycle's job          -> pressing -> pressed
+    planned   -> press every step of the cycle's job (of every
+                 section, the plate shifted between them)      -> pressing -> pressed
     pressing  -> (interrupted) never press again               -> pressed
     pressed   -> request the scan (the station's request file, --on-pressed),
                  get it, complete with its reference mark     -> scanned
@@ -19,6 +20,11 @@ same plate (``mppf loop --resume``) continues where the last run stopped. A cycl
 "pressing" is never pressed again: the press either finished the step or was stopped by
 the PLC's watchdog when the master died, so the plate is measured as it is and the next
 cycle corrects whatever happened.
+
+A plate larger than the bed (a sectional job) is pressed section by section, scanned and
+compared whole, and corrected section by section (:mod:`mppf.loop.sectional`); a cycle of it
+found in "pressing" goes on with the steps not started (the plate is measured whole), never
+pressing a step recorded as started.
 
 The loop takes the press (:class:`mppf.core.presslink.PressLink`) and the scanner
 (:class:`mppf.core.scanner.Scanner`) as arguments and reports through a
@@ -44,6 +50,8 @@ from mppf.loop.pressing import press_cycle
 from mppf.loop.records import CycleRecord, PlateRecord
 from mppf.loop.rescanning import rescan_uncovered
 from mppf.loop.scan_request import PostedRequest, post_request
+from mppf.loop.section_steps import is_sectional
+from mppf.loop.sectional import PlaceCallback, plan_next_sections, press_sections, report_placement, section_deviations
 from mppf.loop.settings import LoopSettings
 from mppf.loop.states import CycleState, Decision
 from mppf.planning.job import load_job
@@ -97,6 +105,7 @@ class _Run:
     on_cycle: CycleCallback | None
     verdicts: list
     known: dict
+    place: PlaceCallback | None = None
 
     def notify(self, record: CycleRecord, comparison) -> None:
         if self.on_cycle is not None:
@@ -128,6 +137,7 @@ def run_loop(
     *,
     reporter: Reporter = NULL_REPORTER,
     on_cycle: CycleCallback | None = None,
+    place: PlaceCallback | None = None,
 ) -> LoopResult:
     """Drive the plate's cycles from where the history stands until the loop ends.
 
@@ -142,6 +152,10 @@ def run_loop(
     reporter : Reporter
     on_cycle : callable, optional
         ``on_cycle(record, comparison)`` after each compare and at the end of each cycle.
+    place : callable, optional
+        A plate pressed in sections: ``place(section, previous)`` before each section's steps
+        (:data:`mppf.loop.sectional.PlaceCallback`: tell the operator, and on a real press wait for the
+        confirmation); default: the placement line is reported and the loop goes on (a simulated press).
 
     Returns
     -------
@@ -165,7 +179,7 @@ def run_loop(
         From the press during a step; the cycle stays "pressing" and is measured, not
         pressed again, on resume.
     """
-    run = _start_run(history, plate_id, link, scanner, reporter, on_cycle)
+    run = _start_run(history, plate_id, link, scanner, reporter, on_cycle, place or report_placement(reporter))
     cycles = history.cycles(plate_id)
     ran_before = any(e.state != CycleState.PLANNED for e in history.events(plate_id) if e.cycle is not None)
     resumed = cycles[-1].state if ran_before else None
@@ -178,21 +192,25 @@ def run_loop(
         number = _HANDLERS[record.state](run, record)
 
 
-def _start_run(history, plate_id, link, scanner, reporter, on_cycle) -> _Run:
+def _start_run(history, plate_id, link, scanner, reporter, on_cycle, place) -> _Run:
     """The plate's settings, press and design (checked against its recorded hash)."""
     plate = history.plate(plate_id)
     settings = LoopSettings.from_dict(plate.settings["loop"])
     press = press_from_dict(plate.press, source=f"history of plate {plate_id}")
     design = read_checked(plate.design_path, plate.design_sha256, "design", plate.settings.get("units", "mm"))
-    return _Run(history, plate, press, settings, design, link, scanner, reporter, on_cycle, [], {})
+    return _Run(history, plate, press, settings, design, link, scanner, reporter, on_cycle, [], {}, place)
 
 
 # -- one handler per state: each does what the state asks and returns the cycle to look at next --
 
 
 def _on_planned(run: _Run, record: CycleRecord) -> int:
-    # press every step of the cycle (each step committed before and after)
-    press_cycle(run.history, record, run.press, run.link, run.reporter)
+    # press every step of the cycle (each step committed before and after); a plate in sections section by section
+    job = load_cycle_job(record)
+    if is_sectional(job):
+        press_sections(run.history, record, run.press, run.link, run.reporter, job, run.place)
+    else:
+        press_cycle(run.history, record, run.press, run.link, run.reporter)
     return record.cycle
 
 
@@ -200,6 +218,13 @@ def _on_pressing(run: _Run, record: CycleRecord) -> int:
     # stopped while pressing: never press again, measure the plate as it is; "interrupted" only when a
     # step was really cut short (a crash after the last step was recorded done is not an interruption)
     cut = record.step_started > record.steps_done or record.steps_done < len(record.steps)
+    job = load_cycle_job(record)
+    if is_sectional(job) and record.steps_done < len(record.steps):
+        # a plate in sections is measured whole: the steps not started are pressed, the one cut short never again
+        run.reporter.info(f"cycle {record.cycle} stopped at step {record.step_started} of {len(record.steps)}: the "
+                          "steps recorded as started are not pressed again; pressing the steps not started")
+        press_sections(run.history, record, run.press, run.link, run.reporter, job, run.place)
+        return record.cycle
     if cut:
         run.reporter.info(f"cycle {record.cycle} was interrupted at step {record.step_started} of "
                           f"{len(record.steps)}: it is not pressed again; measuring the plate as it is")
@@ -246,11 +271,15 @@ def _on_scanned(run: _Run, record: CycleRecord) -> int:
     beyond = 0 if comparison.set_aside is None else comparison.set_aside.beyond_tolerance
     decision = decide(rms, comparison.form_max_abs_mm, record.cycle, run.settings, set_aside_beyond=beyond,
                       verdict=comparison.verdict)
-    # record deviations and decision, tell the caller
+    # record deviations and decision (a plate in sections: the deviations at every section's punches), tell the caller
+    summary = comparison_summary(comparison, measured.scans, measured.stopped)
+    job = load_cycle_job(record)
+    if is_sectional(job):
+        summary["sections"] = section_deviations(comparison, run.design.points, job)
     run.history.mark_compared(
         record.plate_id, record.cycle, rms_mm=comparison.rms_mm, max_abs_mm=comparison.form_max_abs_mm,
         within_pct=comparison.within_tolerance_pct, punch_deviation_mm=comparison.punch_deviation_mm,
-        comparison=comparison_summary(comparison, measured.scans, measured.stopped), decision=decision,
+        comparison=summary, decision=decision,
     )
     run.notify(run.history.cycle(record.plate_id, record.cycle), comparison)
     return record.cycle
@@ -262,7 +291,11 @@ def _on_compared(run: _Run, record: CycleRecord) -> int:
         run.history.mark_done(record.plate_id, record.cycle, record.decision)
     else:
         # correct the strokes and record the next cycle, or stop with the correction's verdict
-        verdict = plan_next(run.history, run.plate, record, run.press, run.settings)
+        if is_sectional(load_cycle_job(record)):
+            plan_next_sections(run.history, run.plate, record, run.press, run.settings)
+            verdict = None
+        else:
+            verdict = plan_next(run.history, run.plate, record, run.press, run.settings)
         if verdict is not None:
             run.reporter.info(f"plate {record.plate_id}, cycle {record.cycle}: {verdict.text}")
             run.verdicts.append(verdict.text)

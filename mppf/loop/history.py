@@ -247,12 +247,14 @@ class History:
         ``interrupted`` marks a cycle found in "pressing" after a crash: it is not pressed
         again but measured as it is. It is recorded only when a step was really cut short
         (a step started and not recorded done, or steps left): a crash after the last step
-        was recorded done leaves a cycle that is simply pressed.
+        was recorded done leaves a cycle that is simply pressed. A plate pressed in sections goes on
+        with the later steps after a cut step (recorded done, ``complete: false``): still interrupted.
         """
         with self._transaction():
             record = self.cycle(plate_id, cycle)
             interrupted = interrupted and (record.step_started > record.steps_done
-                                           or record.steps_done < len(record.steps))
+                                           or record.steps_done < len(record.steps)
+                                           or any(r.get("complete") is False for r in record.results))
             self._move(plate_id, cycle, (CycleState.PRESSING,), CycleState.PRESSED, interrupted=int(interrupted),
                        detail=detail)
 

@@ -12,9 +12,10 @@ from mppf.forming.material import Material
 from mppf.geometry.read import PointCloud
 from mppf.loop.history import History
 from mppf.loop.records import PlateRecord
+from mppf.loop.section_steps import cycle_steps
 from mppf.loop.settings import LoopSettings
 from mppf.planning.job import Job, save_job
-from mppf.planning.plan import plan_job
+from mppf.planning.sectional import plan_plate
 from mppf.planning.press import PressConfig
 
 
@@ -27,6 +28,8 @@ def plan_first_cycle(design: PointCloud, flat: PointCloud, press: PressConfig, t
                      settings: LoopSettings = LoopSettings(), material: Material = Material(),
                      reporter: Reporter = NULL_REPORTER) -> Job:
     """The job of a plate's first cycle: every step, springback pre-compensated unless the settings say no.
+
+    A plate larger than the bed is planned in sections (:func:`mppf.planning.sectional.plan_plate`).
 
     Parameters
     ----------
@@ -47,8 +50,8 @@ def plan_first_cycle(design: PointCloud, flat: PointCloud, press: PressConfig, t
     """
     inputs = {"design": {"path": str(design.path), "sha256": design.sha256},
               "flat": {"path": str(flat.path), "sha256": flat.sha256}}
-    return plan_job(design.points, flat.points, press, thickness_mm, material=material,
-                    springback=settings.springback, reporter=reporter, inputs=inputs, margin_mm=settings.margin_mm)
+    return plan_plate(design.points, flat.points, press, thickness_mm, material=material,
+                      springback=settings.springback, reporter=reporter, inputs=inputs, margin_mm=settings.margin_mm)
 
 
 def record_plate(history: History, design: PointCloud, flat: PointCloud, press: PressConfig, thickness_mm: float,
@@ -95,7 +98,7 @@ def record_plate(history: History, design: PointCloud, flat: PointCloud, press: 
             thickness_mm=thickness_mm, press=press.to_dict(),
             settings={"loop": settings.to_dict(), "work_dir": str(work_dir.resolve()), **(setup or {})},
         )
-        history.add_cycle(plate_id, 1, job_path=job_path.resolve(), job_sha256=job.sha256(), steps=job.steps)
+        history.add_cycle(plate_id, 1, job_path=job_path.resolve(), job_sha256=job.sha256(), steps=cycle_steps(job))
     return history.plate(plate_id)
 
 

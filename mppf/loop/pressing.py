@@ -17,7 +17,8 @@ from mppf.core.progress import Reporter
 from mppf.core.scanner import PressedStep, ScanContext
 from mppf.loop.history import History
 from mppf.loop.records import CycleRecord, PlateRecord
-from mppf.planning.job import StepStrokes, grid_from_json, grid_to_json
+from mppf.loop.section_steps import placed_steps
+from mppf.planning.job import StepStrokes, grid_from_json, grid_to_json, load_job
 from mppf.planning.press import PressConfig
 
 
@@ -32,22 +33,54 @@ def press_cycle(history: History, record: CycleRecord, press: PressConfig, link:
     LinkError, PlcError, PressFault, Cancelled
         From the press during a step: the cycle stays "pressing" (never pressed again).
     """
-    n = len(record.steps)
     if hasattr(link, "job_sha256"):  # the press driver writes it into the audit log
         link.job_sha256 = record.job_sha256
-    for index, step in enumerate(record.steps, start=1):
-        reporter.info(f"cycle {record.cycle}: press step {index} of {n}")
-        # committed before anything is sent: a crash from here on never presses this step again
-        history.mark_step_started(record.plate_id, record.cycle, index)
-        upper_mm, lower_mm = step.setpoints_mm(press)
-        try:
-            result = link.run_step(upper_mm, lower_mm, reporter=reporter)
-        except (InputError, PressRefused) as exc:
-            # refused before any motion (limits, verification, GO refused): the step may run later
-            history.mark_step_not_started(record.plate_id, record.cycle, index, exc.message)
-            raise
-        history.mark_step_done(record.plate_id, record.cycle, index, result_to_dict(result))
+    for index in range(1, len(record.steps) + 1):
+        press_step(history, record, press, link, reporter, index)
     history.mark_pressed(record.plate_id, record.cycle)
+
+
+def press_step(history: History, record: CycleRecord, press: PressConfig, link: PressLink, reporter: Reporter,
+               index: int, what: str = "") -> None:
+    """Press step ``index`` (1-based) of the cycle: recorded as started before anything is sent, done with its read-back.
+
+    ``what`` is said after the step's number (e.g. "(section 2, step 1 of 2)").
+
+    Raises
+    ------
+    InputError, PressRefused
+        Refused before any motion: the step is recorded as not started.
+    LinkError, PlcError, PressFault, Cancelled
+        From the press during the step: it stays started, not done.
+    """
+    step = record.steps[index - 1]
+    reporter.info(f"cycle {record.cycle}: press step {index} of {len(record.steps)}" + (f" {what}" if what else ""))
+    # committed before anything is sent: a crash from here on never presses this step again
+    history.mark_step_started(record.plate_id, record.cycle, index)
+    upper_mm, lower_mm = step.setpoints_mm(press)
+    try:
+        result = link.run_step(upper_mm, lower_mm, reporter=reporter)
+    except (InputError, PressRefused) as exc:
+        # refused before any motion (limits, verification, GO refused): the step may run later
+        history.mark_step_not_started(record.plate_id, record.cycle, index, exc.message)
+        raise
+    history.mark_step_done(record.plate_id, record.cycle, index, result_to_dict(result))
+
+
+def close_cut_step(history: History, record: CycleRecord, press: PressConfig) -> CycleRecord:
+    """Record the step a crash cut short as over, unfinished (its setpoints, ``complete: false``), so the cycle's
+    later steps may be pressed (a plate pressed in sections); the step itself is never pressed again.
+
+    Returns the cycle as recorded now (unchanged when no step was cut short).
+    """
+    if record.step_started <= record.steps_done:
+        return record
+    index = record.step_started
+    upper_mm, lower_mm = record.steps[index - 1].setpoints_mm(press)
+    history.mark_step_done(record.plate_id, record.cycle, index, {
+        "sequence": -1, "complete": False, "max_error_mm": None, "duration_s": None,
+        "actual_upper_mm": grid_to_json(upper_mm), "actual_lower_mm": grid_to_json(lower_mm)})
+    return history.cycle(record.plate_id, record.cycle)
 
 
 def result_to_dict(result: StepResult) -> dict:
@@ -68,8 +101,12 @@ def last_step(record: CycleRecord) -> StepStrokes:
 
 def scan_context(history: History, plate: PlateRecord, record: CycleRecord, press: PressConfig,
                  reporter: Reporter) -> ScanContext:
-    """What the scanner may want to know about the cycle: every step the press did, the last one's tips, more."""
-    steps = pressed_steps(record, press)
+    """What the scanner may want to know about the cycle: every step the press did, the last one's tips, more.
+
+    The steps of a plate pressed in sections carry their section and where the plate lay for it
+    (:func:`mppf.loop.section_steps.placed_steps`).
+    """
+    steps = list(placed_steps(pressed_steps(record, press), load_job(record.job_path)))
     last = steps[-1] if steps else None
     if last is None:  # nothing was pressed (cannot happen in the loop): the first step's setpoints
         upper_mm, lower_mm = record.steps[0].setpoints_mm(press)
@@ -90,14 +127,17 @@ def scan_context(history: History, plate: PlateRecord, record: CycleRecord, pres
 def pressed_steps(record: CycleRecord, press: PressConfig) -> list[PressedStep]:
     """The steps of a cycle the press did, in order, as it did them.
 
-    Every step recorded as done, with the tips read back after it; then the step that
+    Every step recorded as done, with the tips read back after it (a step cut short and
+    closed by :func:`close_cut_step`: its setpoints, ``complete=False``); then the step that
     was started but not finished (an interruption during its motion), with its setpoints
     and ``complete=False``.
     """
     steps = []
     for index, result in enumerate(record.results[: record.steps_done], start=1):
+        # a step a crash cut short and the cycle went on after (:func:`close_cut_step`): its setpoints
         steps.append(PressedStep(record.cycle, index, grid_from_json(result["actual_upper_mm"]),
-                                 grid_from_json(result["actual_lower_mm"]), record.steps[index - 1].active))
+                                 grid_from_json(result["actual_lower_mm"]), record.steps[index - 1].active,
+                                 complete=result.get("complete", True)))
     if record.step_started > record.steps_done:  # interrupted in motion: the read-back is lost
         step = record.steps[record.step_started - 1]
         upper_mm, lower_mm = step.setpoints_mm(press)

@@ -280,7 +280,8 @@ def apply_section_corrections(job: Job, corrections, *, steps: int | None = None
     The loop's per-section correction (or any other): ``corrections[k]`` = (upper, lower) (rows, cols)
     mm to add to section k+1's final strokes. Section by section in pressing order, the correction
     pressed is ``(1 - w) own + w earlier`` as in planning (``own_weight``: ``1 - w``), so the formed
-    plate keeps no step where sections meet; the steps go again from flat to the new strokes, validated.
+    plate keeps no step where sections meet; the strokes are held to the press's stroke limits; the steps
+    go again from flat to the new strokes, validated.
 
     Raises
     ------
@@ -304,8 +305,9 @@ def apply_section_corrections(job: Job, corrections, *, steps: int | None = None
         final, centre = s.steps[-1], -np.asarray(s.plate_centre_mm, dtype=float)
         own_up, own_lo = np.nan_to_num(c_up), np.nan_to_num(c_lo)
         _, d_up, d_lo = _blend(press, centre, final.active, own_up, own_lo, done, zone, plate_half)
-        up = np.where(final.active, final.upper_mm + d_up, np.nan)
-        lo = np.where(final.active, final.lower_mm + d_lo, np.nan)
+        # held to the strokes the press has (a blend of two sections' corrections may reach past them)
+        up = np.where(final.active, np.clip(final.upper_mm + d_up, press.upper.min_mm, press.upper.max_mm), np.nan)
+        lo = np.where(final.active, np.clip(final.lower_mm + d_lo, press.lower.min_mm, press.lower.max_mm), np.nan)
         n = steps if steps is not None else steps_needed(up, lo, final.active, press, t)
         step_list = _split(up, lo, final.active, press, t, n)
         validation = validate_steps(step_list, press, t)

@@ -82,13 +82,16 @@ class Punches:
     grid : PlateGrid
     thickness_at : callable
         Local thickness (n,) mm at plate points (n, 2).
+    placement_mm : (2,) float
+        Where the press's punch axes lie in the plate's frame (press x, y of the first placement), mm: the
+        shift of the plate between sections of a plate larger than the bed (0: the plate as first laid).
 
     Attributes
     ----------
     index : (m, 2) int
         (row, col) of each punch pair over the plate.
     xy_mm : (m, 2) float
-        Press x, y of their axes.
+        Their axes in the plate's frame (press x, y of the first placement, shifted by ``placement_mm``).
     thickness_mm : (m,) float
         Plate thickness at the axes.
     bowl : (m,) float
@@ -99,9 +102,10 @@ class Punches:
         Local rows of w, w_u, w_v at the axes.
     """
 
-    def __init__(self, press, grid, thickness_at):
+    def __init__(self, press, grid, thickness_at, placement_mm=(0.0, 0.0)):
         px, py = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
-        xy = np.column_stack([px.ravel(), py.ravel()])
+        on_press = np.column_stack([px.ravel(), py.ravel()])
+        xy = on_press + np.asarray(placement_mm, dtype=float).reshape(1, 2)
         cell, rows = grid.point_blocks(grid.to_plate(xy))
         over = contains(grid.outline_xy_mm, xy, tolerance_mm=1e-9) & (cell >= 0)
         self.shape = press.shape
@@ -113,7 +117,7 @@ class Punches:
         self.radius_mm = press.tip_radius_mm
         half = np.array([max(np.ptp(press.punch_x_mm), 1.0), max(np.ptp(press.punch_y_mm), 1.0)]) / 2
         centre = np.array([press.punch_x_mm.mean(), press.punch_y_mm.mean()])
-        self.bowl = 1.0 - 0.5 * np.sum(((self.xy_mm - centre) / half) ** 2, axis=1)
+        self.bowl = 1.0 - 0.5 * np.sum(((on_press[over] - centre) / half) ** 2, axis=1)  # the frame's, on the press
         self.n_dof = grid.n_dof
 
     @property

@@ -47,7 +47,8 @@ SMALLEST_INCREMENT = 1.0 / 64
 """Smallest share of the tip path in one increment."""
 
 STATE_ARRAYS = ("q", "loaded_q", "force_n", "frame_mm", "tips_lower_mm", "tips_upper_mm", "tips_enabled")
-"""Attributes of :class:`SteelPlate` saved by :meth:`SteelPlate.state_dict` (besides the plastic state)."""
+"""Attributes of :class:`SteelPlate` saved by :meth:`SteelPlate.state_dict` (besides the plastic state and
+``placement_mm``, which older states lack: the first placement)."""
 
 
 class SteelPlate:
@@ -125,13 +126,8 @@ class SteelPlate:
             "springback": bool(options["springback"]), "cylindrical": bool(options["cylindrical"]),
         }
         self.grid = PlateGrid(outline_xy_mm, self.options["grid_spacing_mm"], cylindrical=self.options["cylindrical"])
-        self.punches = Punches(press, self.grid, plate.thickness_at)
-        if self.punches.count < 3:
-            raise GeometryError(f"the plate covers {self.punches.count} punch pair(s) of the press, "
-                                "at least 3 are needed", hint="give the plate's outline in press x, y (mm)")
-        law = LayerLaw(plate.steel, self.options["layers"])
-        self.model = PlateModel(self.grid, law, plate, self.punches, compliance)
-        self.predictor = ContactPredictor(self.model)
+        self.law, self._placed = LayerLaw(plate.steel, self.options["layers"]), {}
+        self._set_placement(np.zeros(2))
         # the flat, stress-free plate (bottom skin on z = 0) between the flat stroke set
         m = self.punches.count
         self.q = np.full(self.grid.n_dof, 0.5 * plate.thickness_mm)
@@ -144,6 +140,42 @@ class SteelPlate:
         self.tips_enabled = np.ones(m, dtype=bool)
         self.steps = 0
         self.last_iterations: list[int] = []
+
+    def _set_placement(self, placement_mm) -> None:
+        """Punches, model and predictor of the plate shifted by ``placement_mm`` (built once per placement)."""
+        key = tuple(np.round(np.asarray(placement_mm, dtype=float).reshape(2), 6))
+        if key not in self._placed:
+            punches = Punches(self.press, self.grid, self.plate.thickness_at, key)
+            if punches.count < 3:
+                raise GeometryError(f"the plate covers {punches.count} punch pair(s) of the press, "
+                                    "at least 3 are needed", hint="give the plate's outline in press x, y (mm)")
+            model = PlateModel(self.grid, self.law, self.plate, punches, self.compliance)
+            self._placed[key] = (punches, model, ContactPredictor(model))
+        self.placement_mm = np.array(key)
+        self.punches, self.model, self.predictor = self._placed[key]
+
+    def place(self, placement_mm) -> None:
+        """Shift the plate on the bed (the next section of a plate larger than the bed).
+
+        The press's punch axes then lie at press x, y + ``placement_mm`` in the plate's frame (the
+        press x, y of its first placement). The plate keeps its shape and plastic state; it lies
+        between the new punch pairs as it is, every pair just touching it, so the next step takes the
+        tips from there to its own (the formed part is re-pressed where the sections overlap).
+
+        Parameters
+        ----------
+        placement_mm : (2,) float
+            Shift of the punch axes in the plate's frame, mm (0, 0: the first placement).
+        """
+        placement = np.asarray(placement_mm, dtype=float).reshape(2)
+        if np.allclose(placement, self.placement_mm, atol=1e-6):
+            return
+        self._set_placement(placement)
+        m = self.punches.count
+        below, above = np.split(self.punches.gaps(self.q, np.zeros(m), np.zeros(m))[0], 2)
+        self.tips_lower_mm, self.tips_upper_mm = below, -above  # zero gaps: the pairs touch the plate as it lies
+        self.tips_enabled = np.ones(m, dtype=bool)
+        self.force_n, self.frame_mm, self.loaded_q = np.zeros(2 * m), np.zeros(2), self.q.copy()
 
     # --- pressing ----------------------------------------------------------------
     def press_step(self, upper_mm, lower_mm, active, *, share: float = 1.0) -> FormedSteelPlate:
@@ -280,7 +312,7 @@ class SteelPlate:
         config = {"press": self.press.to_dict(), "outline_xy_mm": self.grid.outline_xy_mm.tolist(),
                   "plate": self.plate.to_dict(), "options": self.options, "compliance": asdict(self.compliance)}
         state = {name: np.array(getattr(self, name)) for name in STATE_ARRAYS}
-        state.update(config=json.dumps(config), steps=np.array(self.steps),
+        state.update(config=json.dumps(config), steps=np.array(self.steps), placement_mm=self.placement_mm.copy(),
                      plastic_strain=self.state.plastic_strain.copy(), alpha=self.state.alpha.copy())
         return state
 
@@ -302,6 +334,8 @@ class SteelPlate:
         press = press_from_dict(config["press"], "saved plate state")
         self = cls.from_physical(press, np.asarray(config["outline_xy_mm"]), plate,
                                  compliance=Compliance(**config["compliance"]), **config["options"])
+        if "placement_mm" in state:
+            self._set_placement(np.asarray(state["placement_mm"], dtype=float))
         arrays = {name: getattr(self, name) for name in STATE_ARRAYS}
         arrays.update(plastic_strain=self.state.plastic_strain, alpha=self.state.alpha)
         restored = {}
