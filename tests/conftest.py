@@ -3,14 +3,24 @@
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
-# The tests solve many small problems: one BLAS thread is faster than a pool that spins (and two test
-# workers share the machine's two cores). Set before any BLAS is loaded: scipy's wheels bring their own
+# Every test worker and every subprocess of the tests (the real `mppf` processes) imports the whole
+# package; where the environment forbids bytecode caches (PYTHONDONTWRITEBYTECODE, set on some CI
+# machines) each compiled every module and re-wrote every test's assertions from source again, a
+# tenth of the suite's time. The tests write the caches (__pycache__/, ignored by git) and read them.
+sys.dont_write_bytecode = False
+os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
+
+# The tests solve many small problems: one BLAS thread is faster than a pool that spins (and the test
+# workers share the machine's cores). Set before any BLAS is loaded: scipy's wheels bring their own
 # OpenBLAS, loaded only when scipy.linalg first is, which a limit set at start-up would not reach (the
-# plate simulator's banded Cholesky ran 14 times slower on a busy machine). Subprocesses of the tests
-# inherit it. (pykdtree's OpenMP threads are mppf.core.kdtree's business, tested there.)
-for _name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+# plate simulator's banded Cholesky ran 14 times slower on a busy machine). The same for OpenMP (pykdtree's
+# queries; mppf.core.kdtree's own thread rules are tested in tests/core/test_kdtree.py): the workers fill the
+# cores, and OpenMP threads spin while they wait, so a second thread per worker only burned CPU (the suite's CPU
+# time was 14 % lower on one thread). Subprocesses of the tests inherit them.
+for _name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS"):
     os.environ.setdefault(_name, "1")
 
 import numpy  # noqa: F401 - loaded before the BLAS limit below, so that it applies
@@ -20,6 +30,17 @@ from threadpoolctl import threadpool_limits
 import mppf
 
 _BLAS_LIMIT = threadpool_limits(limits=1, user_api="blas")  # a BLAS loaded before this file (a plugin's)
+
+
+def pytest_xdist_auto_num_workers(config) -> int:
+    """``-n auto`` (the default run): half as many test workers again as cores, at least one more.
+
+    A fifth of the tests' time is spent waiting (watchdogs, timeouts, a scan station's polls, real
+    processes starting), one worker per core then leaves a core idle; the extra worker fills it.
+    """
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return cores + max(1, cores // 2)
+
 
 LOOP_PLATE = "K2_fwd_bilge_convex"
 """The plate of the loop's tests: a weakly doubly curved KCS bilge plate, plans fast."""
