@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import os
 import sys
 from pathlib import Path
@@ -40,6 +41,24 @@ def pytest_xdist_auto_num_workers(config) -> int:
     """
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     return cores + max(1, cores // 2)
+
+
+@pytest.fixture
+def steady_gc():
+    """No full garbage collection during the test (collected before it, enabled again after).
+
+    For the tests that time a driver's heartbeat against a PLC's watchdog: a test worker's heap (every
+    test's objects before, matplotlib's figures) makes a full collection hold the interpreter 0.1-0.5 s
+    (measured in the default run, idle), long enough to stretch a heartbeat gap past a quarter of a 1 s
+    watchdog; the driver's own process never sees that (a full collection in a process that has imported
+    the loop, the driver, the simulator and the reports: 53 ms).
+    """
+    gc.collect()
+    gc.disable()
+    try:
+        yield
+    finally:
+        gc.enable()
 
 
 LOOP_PLATE = "K2_fwd_bilge_convex"

@@ -448,6 +448,7 @@ def test_a_device_that_is_not_an_mppf_plc_is_refused_untouched(foreign_device, p
         assert io.read_holding(0, 200) == [0x1234] * 200
 
 
+@pytest.mark.usefixtures("steady_gc")
 def test_the_heartbeat_after_a_claim_keeps_the_lease(start_sim, press):
     sim = start_sim(watchdog_s=1.0)
     with ModbusPress(sim.url, press, heartbeat_s=0.25) as plc:

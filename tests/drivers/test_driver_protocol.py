@@ -107,6 +107,7 @@ def test_no_go_without_a_heartbeat_on_a_plc_with_a_watchdog(press):
         assert sim.state() == "VALIDATED" and not sim.status_bits()["busy"]
 
 
+@pytest.mark.usefixtures("steady_gc")
 def test_the_heartbeat_is_kept_through_a_step_and_stops_with_the_release(press):
     upper, lower = step_setpoints(press)
     with run_simulated_plc(press, time_scale=20.0, watchdog_s=1.0) as sim:

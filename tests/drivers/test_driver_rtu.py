@@ -32,6 +32,7 @@ def test_upload_verify_go_complete_over_rtu(tmp_path, word_order):
     np.testing.assert_allclose(result.actual_lower_mm, lower, atol=press.position_tolerance_mm)
 
 
+@pytest.mark.usefixtures("steady_gc")
 def test_heartbeat_goes_on_during_a_long_paced_upload():
     """At 115200 baud a 16 x 24 upload and read-back take about 0.8 s: the heartbeat frames slip
     in between the setpoint frames (urgent requests go first), so the gap between two beats
