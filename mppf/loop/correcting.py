@@ -28,9 +28,8 @@ from mppf.correct.result import Correction, PreviousCycle
 from mppf.correct.verdict import Verdict, convergence_verdict
 from mppf.forming.material import Material
 from mppf.loop.history import History
-from mppf.loop.measuring import load_cycle_job
 from mppf.loop.pressing import last_step, pressed_steps
-from mppf.loop.records import CycleRecord, PlateRecord
+from mppf.loop.records import CycleRecord, PlateRecord, load_cycle_job
 from mppf.loop.settings import LoopSettings
 from mppf.loop.states import Decision
 from mppf.planning.job import Job, StepStrokes, grid_from_json, grid_to_json, save_job

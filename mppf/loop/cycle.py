@@ -45,9 +45,9 @@ from mppf.loop.correcting import plan_next
 from mppf.loop.decide import decide
 from mppf.loop.history import History
 from mppf.loop.marks import MarkedScanner, MarkNeed, needs_mark, plausible_scan
-from mppf.loop.measuring import acquire_scan, compare_cycle, comparison_summary, load_cycle_job, read_checked
+from mppf.loop.measuring import acquire_scan, compare_cycle, comparison_summary, read_checked
 from mppf.loop.pressing import press_cycle
-from mppf.loop.records import CycleRecord, PlateRecord
+from mppf.loop.records import CycleRecord, PlateRecord, load_cycle_job
 from mppf.loop.rescanning import rescan_uncovered
 from mppf.loop.scan_request import PostedRequest, post_request
 from mppf.loop.section_steps import is_sectional

@@ -20,17 +20,16 @@ from pathlib import Path
 
 import numpy as np
 
-from mppf.core.errors import ConfigError, GeometryError, InputError
+from mppf.core.errors import GeometryError, InputError
 from mppf.core.progress import Reporter
 from mppf.core.scanner import Scanner
 from mppf.geometry.read import PointCloud, read_points
 from mppf.loop.history import History
 from mppf.loop.pressing import scan_context
-from mppf.loop.records import CycleRecord, PlateRecord
+from mppf.loop.records import CycleRecord, PlateRecord, load_cycle_job
 from mppf.loop.settings import LoopSettings
 from mppf.measure.compare import compare
 from mppf.measure.job_options import job_compare_options
-from mppf.planning.job import Job, load_job
 from mppf.registration.scan_start import AmbiguousStart
 from mppf.planning.press import PressConfig
 
@@ -45,17 +44,6 @@ def read_checked(path, sha256: str, what: str, units: str = "mm") -> PointCloud:
             hint=f"restore the original {what} file, or start a new plate",
         )
     return cloud
-
-
-def load_cycle_job(record: CycleRecord) -> Job:
-    """The job file of a cycle; ConfigError when it changed since it was recorded."""
-    job = load_job(record.job_path)
-    if job.sha256() != record.job_sha256:
-        raise ConfigError(
-            f"job file {record.job_path} of cycle {record.cycle} changed since it was recorded",
-            hint="restore it; the strokes are also in the history ('mppf history --json')",
-        )
-    return job
 
 
 def acquire_scan(history: History, plate: PlateRecord, record: CycleRecord, press: PressConfig, scanner: Scanner,

@@ -16,9 +16,9 @@ from mppf.core.presslink import PressLink, StepResult
 from mppf.core.progress import Reporter
 from mppf.core.scanner import PressedStep, ScanContext
 from mppf.loop.history import History
-from mppf.loop.records import CycleRecord, PlateRecord
+from mppf.loop.records import CycleRecord, PlateRecord, load_cycle_job
 from mppf.loop.section_steps import placed_steps
-from mppf.planning.job import StepStrokes, grid_from_json, grid_to_json, load_job
+from mppf.planning.job import StepStrokes, grid_from_json, grid_to_json
 from mppf.planning.press import PressConfig
 
 
@@ -106,7 +106,7 @@ def scan_context(history: History, plate: PlateRecord, record: CycleRecord, pres
     The steps of a plate pressed in sections carry their section and where the plate lay for it
     (:func:`mppf.loop.section_steps.placed_steps`).
     """
-    steps = list(placed_steps(pressed_steps(record, press), load_job(record.job_path)))
+    steps = list(placed_steps(pressed_steps(record, press), load_cycle_job(record)))
     last = steps[-1] if steps else None
     if last is None:  # nothing was pressed (cannot happen in the loop): the first step's setpoints
         upper_mm, lower_mm = record.steps[0].setpoints_mm(press)

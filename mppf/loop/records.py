@@ -13,8 +13,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from mppf.core.errors import ConfigError
 from mppf.loop.states import CycleState, Decision, PlateStatus
-from mppf.planning.job import StepStrokes, grid_from_json, grid_to_json
+from mppf.planning.job import Job, StepStrokes, grid_from_json, grid_to_json, load_job
 
 SCHEMA_VERSION = 1
 
@@ -161,6 +162,17 @@ class CycleRecord:
             out["steps"] = steps_to_json(self.steps)
             out["punch_deviation_mm"] = grid_to_json(self.punch_deviation_mm)
         return out
+
+
+def load_cycle_job(record: CycleRecord) -> Job:
+    """The job file of a cycle; ConfigError when it changed since it was recorded."""
+    job = load_job(record.job_path)
+    if job.sha256() != record.job_sha256:
+        raise ConfigError(
+            f"job file {record.job_path} of cycle {record.cycle} changed since it was recorded",
+            hint="restore it; the strokes are also in the history ('mppf history --json')",
+        )
+    return job
 
 
 @dataclass(frozen=True)

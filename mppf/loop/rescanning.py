@@ -35,8 +35,9 @@ import numpy as np
 from mppf.core.errors import GeometryError, InputError
 from mppf.core.transform import apply_tf
 from mppf.geometry.read import read_points
-from mppf.loop.measuring import compare_union, load_cycle_job, rescan_paths
+from mppf.loop.measuring import compare_union, rescan_paths
 from mppf.loop.pressing import scan_context
+from mppf.loop.records import load_cycle_job
 from mppf.measure.decision import OUT_OF_TOLERANCE
 from mppf.loop.scan_request import post_request
 from mppf.registration.scan_start import AmbiguousStart

@@ -34,9 +34,8 @@ from mppf.core.progress import Reporter
 from mppf.core.presslink import PressLink
 from mppf.loop.correcting import correction_to_dict, next_correction
 from mppf.loop.history import History
-from mppf.loop.measuring import load_cycle_job
 from mppf.loop.pressing import close_cut_step, press_step
-from mppf.loop.records import CycleRecord, PlateRecord
+from mppf.loop.records import CycleRecord, PlateRecord, load_cycle_job
 from mppf.loop.section_steps import cycle_steps, section_of_step, section_spans
 from mppf.loop.settings import LoopSettings
 from mppf.loop.states import CycleState, Decision
