@@ -21,7 +21,10 @@ os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
 # queries; mppf.core.kdtree's own thread rules are tested in tests/core/test_kdtree.py): the workers fill the
 # cores, and OpenMP threads spin while they wait, so a second thread per worker only burned CPU (the suite's CPU
 # time was 14 % lower on one thread). Subprocesses of the tests inherit them.
-for _name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS"):
+# mppf's own threads (a comparison's start fits, local fits and foot points: mppf.core.threads) likewise: on
+# cores the workers already fill, a comparison on two threads took 17 % more CPU than on one, for the same results
+# (tests/core/test_threads.py checks that they do not depend on the count).
+for _name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS", "MPPF_THREADS"):
     os.environ.setdefault(_name, "1")
 
 import numpy  # noqa: F401 - loaded before the BLAS limit below, so that it applies

@@ -17,11 +17,12 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from mppf.core.polygon import contains, convex_outline, distance_to_outline, offset_convex
+from mppf.core.threads import worker_threads
 from mppf.core.transform import apply_rotation, apply_tf
 from mppf.geometry.frame import LocalFrame
 from mppf.geometry.localize import FootPoints, foot_points
 from mppf.geometry.surface import FittedPlate
-from mppf.measure.localfit import WORKERS, spatial_query
+from mppf.measure.localfit import spatial_query
 
 DENSE_POINTS = 25000
 """Points of the dense design skin the scan is registered onto."""
@@ -165,14 +166,15 @@ class DesignSkin:
 
 
 def _foot_points(surface, local: np.ndarray) -> FootPoints:
-    """:func:`mppf.geometry.localize.foot_points` of many points in :data:`WORKERS` parts on as many threads (each
+    """:func:`mppf.geometry.localize.foot_points` of many points in parts on as many threads (:func:`worker_threads`) (each
     point's Newton iteration is its own: the same foot points; ``iterations`` is the slowest part's and
     ``mean_sq_change_mm2`` its last iteration's)."""
     n = local.shape[0]
-    if n < PARALLEL_POINTS or WORKERS < 2:
+    threads = worker_threads()
+    if n < PARALLEL_POINTS or threads < 2:
         return foot_points(surface, local)
-    parts = np.array_split(np.arange(n), WORKERS)
-    with ThreadPoolExecutor(WORKERS) as pool:
+    parts = np.array_split(np.arange(n), threads)
+    with ThreadPoolExecutor(threads) as pool:
         found = list(pool.map(lambda rows: foot_points(surface, local[rows]), parts))
     slowest = max(found, key=lambda f: f.iterations)
     joined = {name: np.concatenate([getattr(f, name) for f in found])

@@ -13,17 +13,17 @@ queried in a spatial order (:func:`spatial_query`). Positions in the design plan
 
 from __future__ import annotations
 
-import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 
+from mppf.core.kdtree import spatial_order
+from mppf.core.threads import worker_threads
+
 CHUNK = 5000
 """Centres fitted at once (by each worker)."""
 
-WORKERS = min(2, os.cpu_count() or 1)
-"""Threads the chunks of fits are shared by."""
 
 RIDGE = 1e-9
 """Relative ridge on the normal equations (degenerate neighbourhoods: collinear points)."""
@@ -84,8 +84,9 @@ def spatial_query(tree, centres: np.ndarray, k: int) -> tuple[np.ndarray, np.nda
     """
     if not centres.shape[0]:
         return np.empty((0, k)), np.empty((0, k), dtype=int)
-    order = np.lexsort((centres[:, 1], np.floor(centres[:, 0] / max(np.ptp(centres[:, 0]) / 64.0, 1e-9))))
-    dist, idx = tree.query(centres[order], k=k, workers=-1 if centres.shape[0] >= PARALLEL_QUERIES else 1)
+    order = spatial_order(centres)
+    workers = worker_threads() if centres.shape[0] >= PARALLEL_QUERIES else 1
+    dist, idx = tree.query(centres[order], k=k, workers=workers)
     back = np.empty_like(order)
     back[order] = np.arange(order.size)
     return dist[back].reshape(-1, k), idx[back].reshape(-1, k)
@@ -195,8 +196,9 @@ def fits(uv: np.ndarray, values: np.ndarray, centres: np.ndarray, neighbours: np
 
     # the chunks are independent: on every core (numpy lets go of the GIL), each written in place
     starts = range(0, m, CHUNK)
-    if len(starts) > 1 and WORKERS > 1:
-        with ThreadPoolExecutor(WORKERS) as pool:
+    threads = worker_threads()
+    if len(starts) > 1 and threads > 1:
+        with ThreadPoolExecutor(threads) as pool:
             list(pool.map(chunk, starts))
     else:
         for lo in starts:

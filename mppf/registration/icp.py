@@ -15,6 +15,7 @@ import numpy as np
 
 from mppf.core.defaults import MAD_SCALE
 from mppf.core.errors import GeometryError
+from mppf.core.kdtree import spatial_order
 from mppf.core.progress import NULL_REPORTER, Reporter
 from mppf.core.rigid import fit_rigid
 from mppf.core.transform import apply_tf, make_tf, matrix_to_rotvec, rotvec_to_matrix
@@ -100,14 +101,24 @@ class Nearest:
     moved that far (in the late iterations, most points move far less); the others'
     distances are recomputed exactly as the tree computes them. The pairs are the same
     as a query of every point (exact ties are queried as such).
+
+    The points are queried in a spatial order (strips across the source's longest extent,
+    along the next in each; taken once, at the first query: a rigid move keeps neighbours
+    neighbours), not in the source's order, which is a shuffled subsample: neighbouring
+    queries walk the same branches of the tree, 1.2 - 1.6 times faster, with the same
+    answers (each point's query is its own).
     """
 
     MARGIN_MM = 1e-6
     """Kept off the bound (d2 - d1) / 2, for the round-off of the distances."""
 
+    STRIPS = 64
+    """Strips of the spatial query order."""
+
     def __init__(self, target: RegistrationTarget):
         self.target = target
         self.last = None  # (q, d1, d2, i1) of every point at its last query
+        self.order = None  # the points' spatial query order
 
     def __call__(self, moved: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(distance (n,) mm, index (n,)) of the closest target point of each moved point."""
@@ -115,18 +126,20 @@ class Nearest:
             redo = np.ones(moved.shape[0], dtype=bool)
             self.last = (moved.copy(), np.zeros(moved.shape[0]), np.zeros(moved.shape[0]),
                          np.zeros(moved.shape[0], dtype=np.intp))
+            self.order = spatial_order(moved, self.STRIPS)
         else:
             q, d1, d2, _ = self.last
             shift = np.sqrt(((moved - q) ** 2).sum(axis=1))
             redo = ~(shift < 0.5 * (d2 - d1) - self.MARGIN_MM)
         q, d1, d2, i1 = self.last
         if redo.any():
-            dist, idx = self.target.tree.query(moved[redo], k=2)  # targets have at least 3 points
+            rows = self.order[redo[self.order]]  # the points to query, in the spatial order
+            dist, idx = self.target.tree.query(moved[rows], k=2)  # targets have at least 3 points
             first, second = dist[:, 0], dist[:, 1]
             tie = first == second
             if tie.any():  # the closest of equals: the one a plain query gives
-                idx[tie, 0] = self.target.tree.query(moved[redo][tie])[1]
-            q[redo], d1[redo], d2[redo], i1[redo] = moved[redo], first, second, idx[:, 0]
+                idx[tie, 0] = self.target.tree.query(moved[rows][tie])[1]
+            q[rows], d1[rows], d2[rows], i1[rows] = moved[rows], first, second, idx[:, 0]
         dist = np.sqrt(((moved - self.target.points[i1]) ** 2).sum(axis=1))
         return dist, i1.copy()
 

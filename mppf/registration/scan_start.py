@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mppf.core.errors import EXIT_PRESS, InputError, MppfError
+from mppf.core.threads import worker_threads
 from mppf.core.transform import apply_tf, make_tf, rotation_angle_deg, rotvec_to_matrix
 from mppf.registration.register import converge_start, register_icp
 from mppf.registration.settings import IcpSettings, ScanStart
@@ -256,13 +257,14 @@ def _mark_start(scan, target, candidates, fits, scores, order, mark, length_mm, 
 
 def _map(fit, starts, settings: ScanStart) -> list:
     """``[fit(start) for start in starts]``, on ``settings.workers`` threads (the fits are independent)."""
-    if settings.workers <= 1:
+    threads = worker_threads() if settings.workers is None else settings.workers
+    if threads <= 1:
         return [fit(start) for start in starts]
     from threadpoolctl import threadpool_limits
 
     # one BLAS thread set once here, for both threads: each fit's own limit then sets and restores the same
     # value (BLAS's thread count is process-wide; restored by one thread while the other computes, it would not be)
-    with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(max_workers=settings.workers) as pool:
+    with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(max_workers=threads) as pool:
         return list(pool.map(fit, starts))
 
 

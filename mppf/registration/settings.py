@@ -115,7 +115,8 @@ class ScanStart:
     held_keep: int = 3                   # best of those turns that are fitted with the mark held
     hold_rounds: int = 5                 # rounds of a held fit: ICP, then the mark shifted back on its place
     held_max_rms_fraction: float = 0.05  # a held fit is taken within this RMS (fraction of the length) of the design
-    workers: int = 2                     # threads the independent start fits run on (the results do not depend on it)
+    workers: int | None = None           # threads the independent start fits run on (the results do not depend on
+    #                                      it); None: mppf.core.threads.worker_threads() ($MPPF_THREADS, else <= 2)
 
 
 @dataclass(frozen=True)

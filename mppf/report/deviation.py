@@ -165,7 +165,9 @@ def punch_map_figure(comparison: Comparison, punch_x_mm, punch_y_mm, scale_mm: f
     base = c.punch_label_base
     interp = c.punch_interpolated
     for i, j in zip(*np.nonzero(np.isfinite(c.punch_deviation_mm))):
-        ax.text(x[j], y[i], f"{c.punch_deviation_mm[i, j]:+.1f}", ha="center", va="center", fontsize=5.5)
+        # inside the axes: left out of the layout (which would measure every label on every pass: most of the time)
+        ax.text(x[j], y[i], f"{c.punch_deviation_mm[i, j]:+.1f}", ha="center", va="center", fontsize=5.5,
+                in_layout=False)
         if interp[i, j]:
             ax.add_patch(_cell_patch(x[j], y[i], dx, dy))
     gx, gy = np.meshgrid(x, y)

@@ -130,3 +130,22 @@ def test_small_queries_run_on_one_openmp_thread_and_restore_it(monkeypatch, clou
     assert [lib["num_threads"] for lib in kdtree._OPENMP[0].real.info()] == threads  # restored
     np.testing.assert_array_equal(big[1], want[1])
     np.testing.assert_array_equal(big[0], want[0])
+
+
+def test_the_spatial_order_walks_strips_and_queries_in_it_give_the_same_answers():
+    from mppf.core.kdtree import spatial_order
+
+    rng = np.random.default_rng(11)
+    points = rng.uniform([-1500.0, -1000.0, -5.0], [1500.0, 1000.0, 5.0], (5000, 3))
+    order = spatial_order(points)
+    assert np.array_equal(np.sort(order), np.arange(5000))  # a permutation
+    strip = np.floor(points[order, 0] / (np.ptp(points[:, 0]) / 64))
+    assert np.all(np.diff(strip) >= 0)  # strips across the longest extent, in turn
+    steps = np.linalg.norm(np.diff(points[order], axis=0), axis=1)
+    assert np.median(steps) < 0.1 * np.median(np.linalg.norm(np.diff(points, axis=0), axis=1))  # neighbours follow
+    tree = KDTree(rng.uniform(-1500.0, 1500.0, (20000, 3)))
+    dist, idx = tree.query(points, k=2)
+    sorted_dist, sorted_idx = tree.query(points[order], k=2)
+    np.testing.assert_array_equal(sorted_dist, dist[order])
+    np.testing.assert_array_equal(sorted_idx, idx[order])
+    assert spatial_order(np.zeros((0, 3))).size == 0 and list(spatial_order(np.array([[2.0], [1.0]]))) == [1, 0]

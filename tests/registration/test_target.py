@@ -56,3 +56,27 @@ def test_target_checks_its_points():
     target = build_target(np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.1]]))
     with pytest.raises(GeometryError, match="at least 10"):
         register_icp(np.random.default_rng(0).normal(size=(20, 3)), target, method="plane")
+
+
+def test_a_target_of_the_same_points_is_built_once_and_kept_for_the_latest_few(monkeypatch):
+    from mppf.registration import target as target_module
+
+    monkeypatch.setattr(target_module, "_kept", type(target_module._kept)())
+    design, scan = sampled_scan(3000, 1500, seed=6)
+    first = build_target(design, "the design skin")
+    assert build_target(design.copy(), "the design skin") is first  # by content, not by the array
+    assert build_target(design, "another name") is not first
+    moved = design + [0.0, 0.0, 1e-9 * 1024]
+    assert build_target(moved, "the design skin") is not first  # one coordinate bit differs: another target
+    for k in range(target_module.KEPT_TARGETS):
+        build_target(design + [0.0, 0.0, k + 1.0], "the design skin")
+    rebuilt = build_target(design, "the design skin")
+    assert rebuilt is not first  # the oldest was let go
+    # a kept target (normals of earlier registrations filled in) registers as a new one
+    register_icp(scan[::2], rebuilt, method="plane")  # fills in the normals of the points it met
+    assert np.isfinite(rebuilt._normals).all(axis=1).any()
+    warm = register_icp(scan, build_target(design, "the design skin"), method="plane")
+    monkeypatch.setattr(target_module, "_kept", type(target_module._kept)())
+    cold = register_icp(scan, build_target(design, "the design skin"), method="plane")
+    np.testing.assert_array_equal(warm.tf, cold.tf)
+    assert warm.rms_history == cold.rms_history
