@@ -7,6 +7,7 @@ these classes). This module imports neither pymodbus nor numpy.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 from mppf.core.errors import ConfigError, LimitError
 
@@ -229,9 +230,9 @@ class RegisterMap:
         """The fields of one group, in address order."""
         return [f for f in self.fields.values() if f.group == name]
 
-    @property
+    @cached_property
     def total_registers(self) -> int:
-        """One past the highest register of the map."""
+        """One past the highest register of the map (computed once: the simulated PLC asks on every scan)."""
         return max(field.end for field in self.fields.values())
 
     # -- documentation -------------------------------------------------------------

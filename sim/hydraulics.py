@@ -69,6 +69,8 @@ class Hydraulics:
 
     def step(self, dt_s: float) -> None:
         """Advance the motion by ``dt_s`` simulated seconds."""
+        if not self.moving:  # every axis at rest on its target: nothing changes (an idle PLC's every scan)
+            return
         a, vmax = self.accel_mm_s2, self.speed_mm_s
         gap = self.target - self.position
         direction = np.sign(gap)

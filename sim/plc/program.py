@@ -128,6 +128,7 @@ class PlcProgram(Commands, ProgramFaults):
     def _power_on(self) -> None:
         """The program's power-on state (also a restart); the punches stay where they are."""
         self.hydraulics.halt()
+        self._actual_cache: dict = {}  # matrix -> (actual positions' bytes, their register words)
         self.goal_mm = self.hydraulics.position.copy()
         self.state = "IDLE"
         self.fault_code = 0
@@ -331,7 +332,7 @@ class PlcProgram(Commands, ProgramFaults):
         if self.noise_mm > 0:
             actual = actual + self._rng.normal(0.0, self.noise_mm, actual.shape)
         for k, side in enumerate(MATRICES):
-            self._set(f"{side}_actuals", encode_int32(mm_to_counts(actual[k].ravel(), m.count_mm), self.word_order))
+            self._set(f"{side}_actuals", self._actual_words(k, actual[k]))
             self._set(f"{side}_fault_bits", pack_bits(self.punch_faults[k].ravel()))
         counter, master, command, result = self.ack
         self._set("status_word", [m.status_word(**self.status_bits())])
@@ -346,6 +347,16 @@ class PlcProgram(Commands, ProgramFaults):
                             ("motion_crc", self.motion[1]), ("last_stop_master", self.last_stop_master)):
             self._set_u32(name, value)
         self._shadow = self.regs[: m.total_registers]
+
+    def _actual_words(self, k: int, actual_mm: np.ndarray) -> list[int]:
+        """The register words of matrix ``k``'s actual positions (rows, cols) mm: encoded again only when they
+        changed since the last scan (at rest they do not, and most scans find the punches at rest)."""
+        key = actual_mm.tobytes()
+        cached = self._actual_cache.get(k)
+        if cached is None or cached[0] != key:
+            cached = (key, encode_int32(mm_to_counts(actual_mm.ravel(), self.map.count_mm), self.word_order))
+            self._actual_cache[k] = cached
+        return cached[1]
 
     # ---------------------------------------------------------------- reading ---
     def actual_positions_mm(self) -> tuple[np.ndarray, np.ndarray]:

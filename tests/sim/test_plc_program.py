@@ -83,6 +83,30 @@ def test_a_job_moves_in_the_trapezoid_time_and_completes(program, owner):
     assert owner.command("RESET") == "ACCEPTED" and owner.state() == "IDLE"
 
 
+def test_the_actual_registers_follow_every_scan_of_a_motion_and_hold_at_rest(program, owner):
+    """The scan encodes the actual positions again only when they changed: in motion every scan's registers are
+    the positions of that scan, at rest they stay those of the end (and the hydraulics are not stepped)."""
+    crc, upper, lower = _validated(program, owner, 3)
+    assert owner.command("GO", 3, crc) == "ACCEPTED"
+    seen = []
+    for _ in range(40):
+        owner.beat()
+        program.advance(0.02)
+        np.testing.assert_allclose(owner.actuals_mm("upper", PRESS.shape), program.actual_positions_mm()[0],
+                                   atol=0.005)
+        seen.append(owner.actuals_mm("upper", PRESS.shape).copy())
+    assert not np.allclose(seen[0], seen[-1])  # they moved
+    _run_until(program, owner, ("COMPLETE",))
+    position = program.hydraulics.position
+    for _ in range(5):
+        owner.beat()
+        program.advance(0.02)
+    assert program.hydraulics.position is position  # at rest: not stepped
+    np.testing.assert_allclose(owner.actuals_mm("upper", PRESS.shape), upper, atol=0.005)
+    np.testing.assert_allclose(owner.actuals_mm("lower", PRESS.shape), lower, atol=0.005)
+    assert MAP.total_registers == max(f.end for f in MAP.fields.values())
+
+
 def test_a_write_acts_only_on_the_next_scan(program, owner):
     upper, lower = _targets()
     crc = owner.upload(upper, lower)
