@@ -197,7 +197,9 @@ def build_target(points, name: str = "target") -> RegistrationTarget:
         if key is not None and key in _kept:
             _kept.move_to_end(key)
             return _kept[key]
-    cloud = prepare(points, name)
+    cloud = prepare(points if key is None else np.array(points, dtype=np.float64), name)  # a kept one: its own copy
+    if key is not None:
+        cloud.points.flags.writeable = False  # shared by every caller with the same points: nobody changes it
     target = RegistrationTarget(points=cloud.points, frame=cloud.frame, flat=cloud.flat, name=name,
                                 tree=KDTree(cloud.points))
     if key is not None:

@@ -80,3 +80,18 @@ def test_a_target_of_the_same_points_is_built_once_and_kept_for_the_latest_few(m
     cold = register_icp(scan, build_target(design, "the design skin"), method="plane")
     np.testing.assert_array_equal(warm.tf, cold.tf)
     assert warm.rms_history == cold.rms_history
+
+
+def test_a_kept_target_is_its_own_copy_of_the_points(monkeypatch):
+    """A caller that changes its array after a registration does not change the target kept for that content."""
+    from mppf.registration import target as target_module
+
+    monkeypatch.setattr(target_module, "_kept", type(target_module._kept)())
+    design, _ = sampled_scan(2000, 10, seed=8)
+    original = design.copy()
+    kept = build_target(design)
+    design[:, 2] += 50.0  # the caller's array, changed in place
+    np.testing.assert_array_equal(kept.points, original)
+    assert build_target(original) is kept and build_target(design) is not kept
+    with pytest.raises(ValueError):
+        kept.points[0, 0] = 1.0  # read-only
