@@ -22,7 +22,7 @@ os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
 # cores, and OpenMP threads spin while they wait, so a second thread per worker only burned CPU (the suite's CPU
 # time was 14 % lower on one thread). Subprocesses of the tests inherit them.
 # mppf's own threads (a comparison's start fits, local fits and foot points: mppf.core.threads) likewise: on
-# cores the workers already fill, a comparison on two threads took 17 % more CPU than on one, for the same results
+# cores the workers already fill, a comparison on two threads took 15 % more CPU than on one, for the same results
 # (tests/core/test_threads.py checks that they do not depend on the count).
 for _name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS", "MPPF_THREADS"):
     os.environ.setdefault(_name, "1")
@@ -42,8 +42,10 @@ def pytest_xdist_auto_num_workers(config) -> int:
     A fifth of the tests' time is spent waiting (watchdogs, timeouts, a scan station's polls, real
     processes starting), one worker per core then leaves a core idle; the extra worker fills it.
     """
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    return cores + max(1, cores // 2)
+    from mppf.core.threads import cores
+
+    count = cores()
+    return count + max(1, count // 2)
 
 
 @pytest.fixture

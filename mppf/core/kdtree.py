@@ -135,7 +135,7 @@ def spatial_order(points: np.ndarray, strips: int = 64) -> np.ndarray:
     queries of a k-d tree in this order walk its branches in turn (fewer cache misses).
     """
     if points.shape[0] < 2 or points.shape[1] < 2:
-        return np.argsort(points[:, 0], kind="stable") if points.shape[0] else np.arange(0)
+        return np.argsort(points[:, 0], kind="stable")
     extent = np.ptp(points, axis=0)
     first, second = np.argsort(extent)[::-1][:2]
     width = max(float(extent[first]) / strips, 1e-9)

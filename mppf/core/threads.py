@@ -7,7 +7,7 @@ let go of the interpreter lock): the four principal-axes start fits
 On an idle machine two threads finish a comparison sooner; on a machine whose cores are already
 busy (a batch of plates, other programs, a test run with a worker per core) they finish no sooner
 and cost more CPU: measured on a 2-core machine whose cores were busy, a 12,000-point
-comparison took 1.41 s of CPU on two threads and 1.20 s on one, with the same results
+comparison took 1.32 s of CPU on two threads and 1.15 s on one, with the same results
 (the results never depend on the thread count).
 
 ``MPPF_THREADS`` (an integer from 1 to 64) sets the count for the whole process, as

@@ -166,8 +166,8 @@ class DesignSkin:
 
 
 def _foot_points(surface, local: np.ndarray) -> FootPoints:
-    """:func:`mppf.geometry.localize.foot_points` of many points in parts on as many threads (:func:`worker_threads`) (each
-    point's Newton iteration is its own: the same foot points; ``iterations`` is the slowest part's and
+    """:func:`mppf.geometry.localize.foot_points` of many points in parts, one per thread (:func:`worker_threads`;
+    each point's Newton iteration is its own: the same foot points; ``iterations`` is the slowest part's and
     ``mean_sq_change_mm2`` its last iteration's)."""
     n = local.shape[0]
     threads = worker_threads()

@@ -24,7 +24,6 @@ from mppf.core.threads import worker_threads
 CHUNK = 5000
 """Centres fitted at once (by each worker)."""
 
-
 RIDGE = 1e-9
 """Relative ridge on the normal equations (degenerate neighbourhoods: collinear points)."""
 

@@ -192,12 +192,16 @@ def build_target(points, name: str = "target") -> RegistrationTarget:
     InputError, GeometryError
         See :func:`check_cloud`.
     """
-    key = _key(points, name)
+    try:
+        data = np.ascontiguousarray(points, dtype=np.float64)
+    except (TypeError, ValueError):  # not an array of numbers: not kept, and prepare says what is wrong
+        data = None
+    key = None if data is None else (name, data.shape, hashlib.blake2b(data.tobytes(), digest_size=16).digest())
     with _kept_lock:
         if key is not None and key in _kept:
             _kept.move_to_end(key)
             return _kept[key]
-    cloud = prepare(points if key is None else np.array(points, dtype=np.float64), name)  # a kept one: its own copy
+    cloud = prepare(points if data is None else data.copy(), name)  # a kept one: its own copy
     if key is not None:
         cloud.points.flags.writeable = False  # shared by every caller with the same points: nobody changes it
     target = RegistrationTarget(points=cloud.points, frame=cloud.frame, flat=cloud.flat, name=name,
@@ -208,13 +212,3 @@ def build_target(points, name: str = "target") -> RegistrationTarget:
             while len(_kept) > KEPT_TARGETS:
                 _kept.popitem(last=False)
     return target
-
-
-def _key(points, name: str):
-    """The key of a target of ``points`` among the kept ones: (name, shape, digest); None for what is not an
-    array of numbers (:func:`prepare` then says what is wrong)."""
-    try:
-        data = np.ascontiguousarray(points, dtype=np.float64)
-    except (TypeError, ValueError):
-        return None
-    return name, data.shape, hashlib.blake2b(data.tobytes(), digest_size=16).digest()
