@@ -42,7 +42,8 @@ def press_cycle(history: History, record: CycleRecord, press: PressConfig, link:
 
 def press_step(history: History, record: CycleRecord, press: PressConfig, link: PressLink, reporter: Reporter,
                index: int, what: str = "") -> None:
-    """Press step ``index`` (1-based) of the cycle: recorded as started before anything is sent, done with its read-back.
+    """Press step ``index`` (1-based) of the cycle: recorded as started before anything is sent, done with its
+    read-back.
 
     ``what`` is said after the step's number (e.g. "(section 2, step 1 of 2)").
 

@@ -71,8 +71,8 @@ def test_every_section_is_pressed_then_the_whole_plate_is_measured_at_every_sect
     assert placed == [(1, None), (2, 1)]
     # the simulated plate was pressed with every step, each with its section's placement
     assert [s for _, s in scanner.pressed] == list(range(1, n_steps + 1))
-    assert np.allclose(scanner.plate.placement_mm, [job.sections[0].plate_centre_mm[0] - job.sections[1].plate_centre_mm[0],
-                                                    0.0])
+    shift_mm = job.sections[0].plate_centre_mm[0] - job.sections[1].plate_centre_mm[0]
+    assert np.allclose(scanner.plate.placement_mm, [shift_mm, 0.0])
     # one comparison of the whole plate; its punch deviations are section 1's (the job's top-level pose)
     sections = record.comparison["sections"]
     assert [s["index"] for s in sections] == [1, 2]
