@@ -118,6 +118,14 @@ class _Run:
             self.known["mark_need"] = needs_mark(self.design.points, max(rms, default=0.0))
         return self.known["mark_need"]
 
+    def job(self, record: CycleRecord):
+        """The cycle's job, checked against its recorded hash (:func:`load_cycle_job`) once per run, not once per
+        state handler."""
+        key = ("job", record.job_path, record.job_sha256)
+        if key not in self.known:
+            self.known[key] = load_cycle_job(record)
+        return self.known[key]
+
     def plausible(self, scan_path) -> bool:
         """Whether a scan could be of this plate at all (readable, of its size, margin included)."""
         job = load_job(self.history.cycles(self.plate.plate_id)[-1].job_path)
@@ -206,7 +214,7 @@ def _start_run(history, plate_id, link, scanner, reporter, on_cycle, place) -> _
 
 def _on_planned(run: _Run, record: CycleRecord) -> int:
     # press every step of the cycle (each step committed before and after); a plate in sections section by section
-    job = load_cycle_job(record)
+    job = run.job(record)
     if is_sectional(job):
         press_sections(run.history, record, run.press, run.link, run.reporter, job, run.place)
     else:
@@ -218,7 +226,7 @@ def _on_pressing(run: _Run, record: CycleRecord) -> int:
     # stopped while pressing: never press again, measure the plate as it is; "interrupted" only when a
     # step was really cut short (a crash after the last step was recorded done is not an interruption)
     cut = record.step_started > record.steps_done or record.steps_done < len(record.steps)
-    job = load_cycle_job(record)
+    job = run.job(record)
     if is_sectional(job) and record.steps_done < len(record.steps):
         # a plate in sections is measured whole: the steps not started are pressed, the one cut short never again
         run.reporter.info(f"cycle {record.cycle} stopped at step {record.step_started} of {len(record.steps)}: the "
@@ -253,7 +261,7 @@ def _on_pressed(run: _Run, record: CycleRecord) -> int:
 def _request(run: _Run, record: CycleRecord) -> PostedRequest:
     """The pressed cycle's scan request; whether the mark is required is worked out for a scanner station only."""
     required = run.mark_need().required if hasattr(run.scanner, "folder") else None
-    return post_request(run.plate, record, load_cycle_job(record), run.settings, run.scan_folder, run.reporter,
+    return post_request(run.plate, record, run.job(record), run.settings, run.scan_folder, run.reporter,
                         mark_required=required)
 
 
@@ -273,7 +281,7 @@ def _on_scanned(run: _Run, record: CycleRecord) -> int:
                       verdict=comparison.verdict)
     # record deviations and decision (a plate in sections: the deviations at every section's punches), tell the caller
     summary = comparison_summary(comparison, measured.scans, measured.stopped)
-    job = load_cycle_job(record)
+    job = run.job(record)
     if is_sectional(job):
         summary["sections"] = section_deviations(comparison, run.design.points, job)
     run.history.mark_compared(
@@ -291,7 +299,7 @@ def _on_compared(run: _Run, record: CycleRecord) -> int:
         run.history.mark_done(record.plate_id, record.cycle, record.decision)
     else:
         # correct the strokes and record the next cycle, or stop with the correction's verdict
-        if is_sectional(load_cycle_job(record)):
+        if is_sectional(run.job(record)):
             plan_next_sections(run.history, run.plate, record, run.press, run.settings)
             verdict = None
         else:

@@ -67,6 +67,26 @@ def test_a_refused_step_is_not_started_and_is_pressed_on_resume(planned_plate, t
         assert len(gos) == len(result.cycles[0].steps)
 
 
+def test_a_job_file_changed_since_it_was_recorded_is_refused_and_nothing_is_pressed(planned_plate, tmp_path):
+    from pathlib import Path
+
+    from mppf.core.errors import ConfigError
+
+    with History(tmp_path / "h.sqlite") as history, AuditLog(tmp_path / "audit.sqlite") as audit:
+        press = _record(tmp_path, planned_plate, history, "J1")
+        scanner = _scanner(history, "J1", press, planned_plate)
+        path = Path(history.cycle("J1", 1).job_path)
+        text = path.read_text()
+        edited = text.replace('"thickness_mm": 20.0', '"thickness_mm": 20.5', 1)
+        assert edited != text
+        path.write_text(edited)  # the job edited by hand after it was recorded
+        with InProcessPress(press, audit=audit) as link:
+            with pytest.raises(ConfigError, match="changed since it was recorded"):
+                run_loop(history, "J1", link, scanner)
+        assert history.cycle("J1", 1).state == "planned" and history.cycle("J1", 1).step_started == 0
+        assert _gos(audit, outcome=None) == []
+
+
 def test_a_fault_during_motion_leaves_the_cycle_pressing_and_resume_measures_it(planned_plate, tmp_path):
     with History(tmp_path / "h.sqlite") as history, AuditLog(tmp_path / "audit.sqlite") as audit:
         press = _record(tmp_path, planned_plate, history, "F1")
