@@ -22,6 +22,10 @@ IGES_SUFFIXES = (".igs", ".iges")
 STEP_SUFFIXES = (".stp", ".step")
 CAD_SUFFIXES = IGES_SUFFIXES + STEP_SUFFIXES
 
+CHORD_TOLERANCE_MM = 0.1
+"""Default chordal tolerance of a tessellation, mm at full scale (here, not in :mod:`mppf.geometry.cad_mesh`,
+so that reading a point file does not import the CAD reader)."""
+
 _SECTIONS = "SGDPT"
 _EXPORT_HINT = "export the surfaces from the CAD system again (IGES 5.3 or STEP AP203/AP214)"
 

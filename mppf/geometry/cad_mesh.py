@@ -17,10 +17,8 @@ import numpy as np
 from mppf.core.errors import InputError
 from mppf.core.validate import check_positive
 from mppf.geometry.cad import CadModel
+from mppf.geometry.cad_files import CHORD_TOLERANCE_MM
 from mppf.geometry.files import quiet
-
-CHORD_TOLERANCE_MM = 0.1
-"""Default chordal tolerance of a tessellation, mm at full scale."""
 
 MAX_TRIANGLES = 1_000_000
 """Largest tessellation made (OpenCASCADE makes 10,000 to 20,000 triangles a second)."""

@@ -20,8 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from mppf.core.errors import FileFormatError
-from mppf.geometry.cad_files import CAD_SUFFIXES
-from mppf.geometry.cad_mesh import CHORD_TOLERANCE_MM
+from mppf.geometry.cad_files import CAD_SUFFIXES, CHORD_TOLERANCE_MM
 from mppf.geometry.files import sha256_of
 from mppf.geometry.scans import E57_SUFFIXES, LAS_SUFFIXES, SCAN_SUFFIXES
 

@@ -15,7 +15,6 @@ import hashlib
 import os
 import re
 import sys
-import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -118,6 +117,8 @@ def quiet():
     except OSError:
         yield captured
         return
+    import tempfile  # here: reading a point file needs no temporary file
+
     with tempfile.TemporaryFile() as sink:
         os.dup2(sink.fileno(), 1)
         os.dup2(sink.fileno(), 2)

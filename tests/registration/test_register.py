@@ -238,9 +238,10 @@ def test_icp_bad_points():
         register_icp(pts, np.outer(np.arange(10.0), [1.0, 2.0, 3.0]))
 
 
-def test_the_register_command_runs_without_importing_scipy(tmp_path):
+def test_the_register_command_runs_without_importing_scipy_or_the_cad_reader(tmp_path):
     # scipy's import is most of a small registration's time (docs/math-registration.md section 9): the
-    # k-d trees (mppf.core.kdtree), the outline (mppf.core.polygon) and the frame's fit do without it
+    # k-d trees (mppf.core.kdtree), the outline (mppf.core.polygon) and the frame's fit do without it;
+    # a point file needs neither the CAD reader (gmsh's gate) nor a temporary file
     design, scan = sampled_scan(4000, 2000, seed=5)
     np.savetxt(tmp_path / "scan.csv", scan, delimiter=",")
     np.savetxt(tmp_path / "design.csv", design, delimiter=",")
@@ -248,7 +249,8 @@ def test_the_register_command_runs_without_importing_scipy(tmp_path):
               f"args = [{str(tmp_path / 'scan.csv')!r}, {str(tmp_path / 'design.csv')!r}]; "
               "codes = [main(['register', *args, '--method', 'plane', '--json', '-o', "
               f"{str(tmp_path / 'moved.csv')!r}]), main(['register', *args, '--init', 'identity'])]; "
-              "print(json.dumps([codes, sorted(m for m in sys.modules if m.partition('.')[0] == 'scipy')]))")
+              "print(json.dumps([codes, sorted(m for m in sys.modules if m.partition('.')[0] in ('scipy', 'gmsh', 'tempfile') "
+              "or m in ('mppf.geometry.cad', 'mppf.geometry.cad_mesh', 'mppf.geometry.gmsh_gate'))]))")
     proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, check=False,
                           cwd=Path(__file__).resolve().parents[2])  # this checkout's mppf
     assert proc.returncode == 0, proc.stderr
