@@ -28,7 +28,7 @@ from mppf.core.errors import InputError
 @click.option("--transition", "transition_mm", type=float, default=None,
               help="Least width in mm that neighbouring sections share (default: 3 punch pitches).")
 @click.option("-j", "--jobs", "workers", type=int, default=None,
-              help="Worker processes (default: every core).")
+              help="Worker processes (default: every core this process may run on).")
 @units_option
 def batch_command(designs, manifest, out_dir, press_path, thickness_mm, material, springback, margin_mm,
                   transition_mm, workers, units):
@@ -42,6 +42,7 @@ def batch_command(designs, manifest, out_dir, press_path, thickness_mm, material
     failed, 0 when every plate was planned or skipped.
     """
     from mppf.cli._common import RichReporter, console
+    from mppf.core.threads import cores
     from mppf.core.validate import check_number
     from mppf.planning.batch import BatchOptions, plates_from_files, read_manifest, run_batch
     from mppf.planning.batch_summary import totals, write_csv, write_html
@@ -56,8 +57,7 @@ def batch_command(designs, manifest, out_dir, press_path, thickness_mm, material
     for name, value in (("--thickness", thickness_mm), ("--margin", margin_mm), ("--transition", transition_mm)):
         if value is not None:
             check_number(name, value, low=0.0, low_open=name == "--thickness", unit="mm")
-    n_workers = (os.cpu_count() or 1) if workers is None else check_number("--jobs", workers, low=1, high=256,
-                                                                            integer=True)
+    n_workers = cores() if workers is None else check_number("--jobs", workers, low=1, high=256, integer=True)
     press_file = str(Path(press_path) if press_path else example_press_path())
     load_press(press_file)  # a bad press description is bad input for the whole batch, before any work
     plates = (read_manifest(manifest, thickness_mm, material) if manifest

@@ -76,3 +76,20 @@ def test_output_that_is_a_file_is_refused(designs, tmp_path, capsys):
     target.write_text("")
     assert main(["batch", str(designs[0]), "--thickness", "20", "-o", str(target)]) == 2
     assert "is a file" in capsys.readouterr().err
+
+
+def test_the_default_worker_count_is_the_cores_this_process_may_run_on(designs, tmp_path, capsys, monkeypatch):
+    # a process held to one core (CPU affinity, a container's CPU set) of a machine with many: no pool of
+    # os.cpu_count() workers fighting over it, the plates are planned in this process
+    import os
+
+    import mppf.planning.batch as batch
+
+    def no_pool(*args, **kwargs):
+        raise AssertionError("a process pool was started on a process that may run on one core")
+
+    monkeypatch.setattr(os, "cpu_count", lambda: 8)
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0}, raising=False)
+    monkeypatch.setattr(batch, "ProcessPoolExecutor", no_pool)
+    assert main(["batch", str(designs[0]), "--thickness", "20", "-o", str(tmp_path / "out")]) == 0
+    assert "1 plate(s): 1 planned" in capsys.readouterr().out
