@@ -83,7 +83,7 @@ def test_the_default_worker_count_is_the_cores_this_process_may_run_on(designs, 
     # os.cpu_count() workers fighting over it, the plates are planned in this process
     import os
 
-    import mppf.planning.batch as batch
+    from mppf.planning import batch
 
     def no_pool(*args, **kwargs):
         raise AssertionError("a process pool was started on a process that may run on one core")
