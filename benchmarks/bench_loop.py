@@ -74,9 +74,16 @@ EFFECTS = ("scatter", "compliance", "anisotropy", "hardening", "mismatch")
 
 def steel_plate(press, outline, seed: int, true_yield_mpa: float, off: str | None = None):
     """The simulated steel plate of one run, with the effect ``off`` turned off."""
+    from mppf.sim.plate.plate import SteelPlate
+
+    steel, options = steel_parts(true_yield_mpa, off)
+    return SteelPlate(press, outline, THICKNESS_MM, steel, seed=seed, **options)
+
+
+def steel_parts(true_yield_mpa: float, off: str | None = None):
+    """(steel, {"scatter", "compliance"}) of the simulated steel plate, with the effect ``off`` turned off."""
     from mppf.sim.plate.contact import Compliance
     from mppf.sim.plate.material import PlateSteel
-    from mppf.sim.plate.plate import SteelPlate
     from mppf.sim.plate.scatter import Scatter
 
     steel = PlateSteel.from_material(replace(NOMINAL, yield_stress_mpa=NOMINAL.yield_stress_mpa
@@ -92,7 +99,7 @@ def steel_plate(press, outline, seed: int, true_yield_mpa: float, off: str | Non
     elif off == "hardening":
         steel = replace(steel, swift_exponent=0.0, linear_hardening_mpa=0.0)
         scatter = replace(scatter, hardening_plate=0.0)
-    return SteelPlate(press, outline, THICKNESS_MM, steel, seed=seed, scatter=scatter, compliance=compliance)
+    return steel, {"scatter": scatter, "compliance": compliance}
 
 
 def simple_plate(press, outline, seed: int, true_yield_mpa: float):
@@ -179,26 +186,29 @@ def run_direct(press, planned: Planned, plate, max_cycles: int, use_edge: bool =
 
 
 def run_loop_mode(press, planned: Planned, seed: int, max_cycles: int, true_yield_mpa: float, work: Path,
-                  model: str) -> dict:
-    """:func:`mppf.loop.cycle.run_loop` on the in-process press with the simulated scanner."""
+                  model: str, off: str | None = None) -> dict:
+    """:func:`mppf.loop.cycle.run_loop` on the in-process press with the simulated scanner (``off``: as
+    :func:`steel_plate`)."""
     from mppf.loop.cycle import run_loop
     from mppf.loop.history import History
     from mppf.loop.plate import record_plate
     from mppf.loop.settings import LoopSettings
     from mppf.planning.job import load_job
-    from mppf.sim.plate.material import PlateSteel
     from mppf.sim.plc.link import InProcessPress
     from mppf.sim.shop import SimulatedPlateScanner
 
     design = read_points(planned.design_path)
-    plate_id = f"{planned.name}-{model}-s{seed}"
+    plate_id = f"{planned.name}-{model}{'' if off is None else '-no-' + off}-s{seed}"  # one history for every run
     started = time.monotonic()
     with History(work / "history.sqlite") as history:
         record_plate(history, design, planned.flat, press, THICKNESS_MM, planned.job, plate_id=plate_id,
                      work_dir=work / plate_id, settings=LoopSettings(max_cycles=max_cycles))
         job = load_job(history.cycle(plate_id, 1).job_path)
-        true = replace(NOMINAL, yield_stress_mpa=true_yield_mpa)
-        options = {"steel": PlateSteel.from_material(true)} if model == "steel" else {"material": true}
+        if model == "steel":
+            steel, parts = steel_parts(true_yield_mpa, off)
+            options = {"steel": steel, "plate_options": parts}
+        else:
+            options = {"material": replace(NOMINAL, yield_stress_mpa=true_yield_mpa)}
         scanner = SimulatedPlateScanner.for_job(press, THICKNESS_MM, job, planned.flat.points, seed=seed,
                                                 plate_model=model, **options)
         with InProcessPress(press) as link:
@@ -276,7 +286,7 @@ def main(argv=None) -> int:
                     p = planned[name]
                     try:
                         if args.mode == "loop":
-                            row = run_loop_mode(press, p, seed, args.max_cycles, args.true_yield, work, model)
+                            row = run_loop_mode(press, p, seed, args.max_cycles, args.true_yield, work, model, off)
                         else:
                             outline = p.job.layout.outline_mm
                             plate = (steel_plate(press, outline, seed, args.true_yield, off) if model == "steel"
