@@ -225,6 +225,19 @@ def test_estop_during_motion_stops_and_reports(start_sim, press, audit):
     assert result.max_error_mm <= press.position_tolerance_mm
 
 
+def test_an_estop_at_the_start_of_motion_is_named_not_reported_as_a_foreign_job(start_sim, press, audit):
+    """A PLC may fault between GO and the first status read (scan latency): the fault is what the operator sees."""
+    sim = start_sim(time_scale=50.0)
+    upper, lower = step_setpoints(press)
+    sim.inject("estop", after_s=0.0)  # at once when the motion starts
+    with ModbusPress(sim.url, press, audit=audit) as plc:
+        with pytest.raises(PressFault) as info:
+            plc.run_step(upper, lower)
+    message = str(info.value)
+    assert "ESTOP" in message and "STOP was sent" in message and "not our job" not in message
+    assert ("stop", "ok") in actions(audit)
+
+
 def test_stuck_punch_is_named_from_the_actual_positions(start_sim, press):
     sim = start_sim()
     upper, lower = step_setpoints(press)
