@@ -2,4 +2,5 @@
 
 from mppf.cli import main
 
-main()
+if __name__ == "__main__":  # not when a worker process (mppf.report.parallel) imports it
+    main()

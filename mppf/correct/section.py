@@ -85,30 +85,44 @@ class Section:
 
     def moment(self, kappa, state: SectionState) -> tuple[np.ndarray, SectionState]:
         """Moments (n, 3) N mm/mm at loaded curvatures ``kappa`` (n, 3), and the new plastic state."""
-        e_mod, nu, t = self.youngs_modulus_mpa, self.poisson, self.thickness_mm
-        stiff = np.array([e_mod / (1 - nu), e_mod / (1 + nu), e_mod / (2 * (1 + nu))])
-        lam = _YIELD_EIGEN
+        t = self.thickness_mm
         z = _XI * t / 2.0
         strain = z[None, :, None] * np.asarray(kappa, dtype=float)[:, None, :] - state.plastic_strain
-        trial = stiff * _to_eigen(strain)
+        trial = self._stiffness() * _to_eigen(strain)
         flow0 = self.yield_stress_mpa + self.hardening_mpa * state.alpha
-        yielding = np.sqrt(np.sum(lam * trial**2, axis=-1)) > flow0 * (1.0 + 1e-12)
+        yielding = np.sqrt(np.sum(_YIELD_EIGEN * trial**2, axis=-1)) > flow0 * (1.0 + 1e-12)
         dg = np.zeros(state.alpha.shape)
+        dg[yielding] = self._return(trial[yielding], flow0[yielding])  # the elastic layers keep dg = 0
+        stress = trial / (1.0 + dg[..., None] * _YIELD_EIGEN * self._stiffness())
+        sbar = np.sqrt(np.sum(_YIELD_EIGEN * stress**2, axis=-1))
+        new = SectionState(state.plastic_strain + _from_eigen(dg[..., None] * _YIELD_EIGEN * stress),
+                           state.alpha + dg * sbar)
+        moment = (t * t / 2.0) * np.sum((_WEIGHT * _XI)[None, :, None] * _from_eigen(stress), axis=1)
+        return moment, new
+
+    def _stiffness(self) -> np.ndarray:
+        """Plane-stress elasticity (3,) MPa in the eigen basis of :data:`_YIELD_EIGEN`."""
+        e_mod, nu = self.youngs_modulus_mpa, self.poisson
+        return np.array([e_mod / (1 - nu), e_mod / (1 + nu), e_mod / (2 * (1 + nu))])
+
+    def _return(self, trial: np.ndarray, flow0: np.ndarray) -> np.ndarray:
+        """Plastic multipliers (m,) of the yielding layers: trial stresses (m, 3) MPa (eigen basis), flow (m,) MPa.
+
+        Newton on the scalar consistency condition ``sbar(dg) = flow0 + H dg sbar(dg)``.
+        """
+        lam, stiff, hard = _YIELD_EIGEN, self._stiffness(), self.hardening_mpa
+        dg = np.zeros(flow0.shape)
+        lam2_stiff, trial2 = lam**2 * stiff, trial**2
         for _ in range(RETURN_ITERATIONS):
-            q = 1.0 + dg[..., None] * lam * stiff
-            sbar = np.sqrt(np.sum(lam * trial**2 / q**2, axis=-1))
-            dsbar = -np.sum(lam**2 * stiff * trial**2 / q**3, axis=-1) / np.maximum(sbar, 1e-300)
-            residual = sbar - flow0 - self.hardening_mpa * dg * sbar
-            slope = dsbar - self.hardening_mpa * (sbar + dg * dsbar)
-            step = np.where(yielding, -residual / np.where(yielding, slope, 1.0), 0.0)
+            q = 1.0 + dg[:, None] * lam * stiff
+            sbar = np.sqrt(np.sum(lam * trial2 / q**2, axis=-1))
+            dsbar = -np.sum(lam2_stiff * trial2 / q**3, axis=-1) / np.maximum(sbar, 1e-300)
+            residual = sbar - flow0 - hard * dg * sbar
+            step = -residual / (dsbar - hard * (sbar + dg * dsbar))
             dg = np.maximum(dg + step, 0.0)
             if np.max(np.abs(step) * stiff[0], initial=0.0) < 1e-10:
                 break
-        stress = trial / (1.0 + dg[..., None] * lam * stiff)
-        sbar = np.sqrt(np.sum(lam * stress**2, axis=-1))
-        new = SectionState(state.plastic_strain + _from_eigen(dg[..., None] * lam * stress), state.alpha + dg * sbar)
-        moment = (t * t / 2.0) * np.sum((_WEIGHT * _XI)[None, :, None] * _from_eigen(stress), axis=1)
-        return moment, new
+        return dg
 
     def press(self, kappa, state: SectionState) -> tuple[np.ndarray, SectionState]:
         """Bend to ``kappa`` (n, 3) and release: the unloaded curvatures (n, 3) and the new state."""

@@ -10,7 +10,7 @@ demo run (:func:`mppf.loop.demo.run_demo`).
 from __future__ import annotations
 
 import html
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +18,7 @@ from matplotlib.figure import Figure
 
 from mppf.loop.records import CycleRecord, PlateRecord
 from mppf.report.html import image_html, render_page, table_html
+from mppf.report.parallel import Task, draw
 from mppf.report.deviation import figure_png, punch_map_figure
 
 
@@ -123,6 +124,52 @@ def _figures(pictures: Sequence[tuple[str, bytes]]) -> str:
     return "\n".join(image_html(png, caption) + f"<p>{html.escape(caption)}</p>" for caption, png in pictures)
 
 
+def draw_pictures(first: Sequence[Task], comparisons: Mapping[int, object], job, out: Path,
+                  cycles: Sequence[CycleRecord], limits: Mapping[str, float],
+                  captions: Callable[[int], tuple[str, str]]) -> tuple[list[Path], dict[int, list[tuple[str, bytes]]]]:
+    """Draw a report's pictures on more than one core (:func:`mppf.report.parallel.draw`).
+
+    Parameters
+    ----------
+    first : sequence of (function, args)
+        Pictures before the cycles' (strain, strokes), each function returning its path.
+    comparisons : mapping cycle -> Comparison
+        Each gets a deviation map ``deviation-cycle-N.png`` and a punch map ``punch-deviation-cycle-N.png``.
+    job : Job
+        Its punch grid (the punch maps).
+    out : Path
+        The folder.
+    cycles : sequence of CycleRecord
+        For the convergence chart ``convergence.png``.
+    limits : mapping
+        ``tolerance_mm`` and ``rms_tolerance_mm``.
+    captions : callable
+        Cycle number -> (the deviation map's title, the punch map's caption).
+
+    Returns
+    -------
+    paths : list of Path
+        ``first``'s pictures, each cycle's map and punch map, the convergence chart.
+    cycle_pictures : dict
+        Cycle -> [(caption, png bytes)] of its two pictures (for :func:`loop_report`).
+    """
+    from mppf.report.deviation import plot_deviation
+
+    tasks = list(first)
+    numbers = sorted(comparisons)
+    for n in numbers:
+        tasks += [(plot_deviation, (comparisons[n], out / f"deviation-cycle-{n}.png", captions(n)[0])),
+                  (plot_punch_deviation, (comparisons[n], job.punch_x_mm, job.punch_y_mm,
+                                          out / f"punch-deviation-cycle-{n}.png"))]
+    tasks.append((plot_convergence, (cycles, out / "convergence.png", limits["tolerance_mm"],
+                                     limits["rms_tolerance_mm"])))
+    paths = draw(tasks)
+    at = len(first)
+    cycle_pictures = {n: [(caption, path.read_bytes()) for caption, path in zip(captions(n), paths[at + 2 * k:])]
+                      for k, n in enumerate(numbers)}
+    return paths, cycle_pictures
+
+
 def demo_report(run, intro: str) -> list[Path]:
     """The pictures and the HTML report of a demo run, written into its folder.
 
@@ -138,26 +185,17 @@ def demo_report(run, intro: str) -> list[Path]:
         The flat shape, the strain and strokes pictures, the deviation pictures of each
         cycle, the convergence chart and ``report.html``, in that order.
     """
-    from mppf.report.deviation import plot_deviation
     from mppf.report.strain import plot_strain
     from mppf.report.strokes import plot_strokes
 
     out, job = run.out, run.job
-    strain_title = f"{run.plate_name}: strain of the unfolding"
-    files = [run.flat_path, *([run.flat_dxf_path] if run.flat_dxf_path else []),
-             plot_strain(run.unfolding, out / "strain.png", strain_title),
-             plot_strokes(job, out / "strokes.png")]
-    cycle_pictures = {}
-    for n, comparison in sorted(run.comparisons.items()):
-        title = f"cycle {n}: deviation of the scan from the design"
-        punch_map = out / f"punch-deviation-cycle-{n}.png"
-        shots = [(title, plot_deviation(comparison, out / f"deviation-cycle-{n}.png", title)),
-                 (f"cycle {n}: deviation at the punches",
-                  plot_punch_deviation(comparison, job.punch_x_mm, job.punch_y_mm, punch_map))]
-        files += [path for _, path in shots]
-        cycle_pictures[n] = [(caption, path.read_bytes()) for caption, path in shots]
     limits = {"tolerance_mm": run.settings.tolerance_mm, "rms_tolerance_mm": run.settings.rms_tolerance_mm}
-    files.append(plot_convergence(run.result.cycles, out / "convergence.png", **limits))
+    first = [(plot_strain, (run.unfolding, out / "strain.png", f"{run.plate_name}: strain of the unfolding")),
+             (plot_strokes, (job, out / "strokes.png"))]
+    drawn, cycle_pictures = draw_pictures(
+        first, run.comparisons, job, out, run.result.cycles, limits,
+        lambda n: (f"cycle {n}: deviation of the scan from the design", f"cycle {n}: deviation at the punches"))
+    files = [run.flat_path, *([run.flat_dxf_path] if run.flat_dxf_path else []), *drawn]
     page = loop_report(
         run.plate, run.result.cycles, **limits, cycle_pictures=cycle_pictures, intro=intro,
         pictures=[("strain of the unfolding", (out / "strain.png").read_bytes()),

@@ -46,29 +46,17 @@ def write_plate_report(out_dir, plate: PlateRecord, cycles: Sequence[CycleRecord
         The strokes picture, each measured cycle's deviation map and punch map, the
         convergence chart and ``report.html``.
     """
-    from mppf.report.convergence import (
-        loop_report,
-        plot_convergence,
-        plot_punch_deviation,
-    )
-    from mppf.report.deviation import plot_deviation
+    from mppf.report.convergence import draw_pictures, loop_report
     from mppf.report.strokes import plot_strokes
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     made = made_utc or datetime.now(UTC)
-    files = [plot_strokes(job, out / "strokes.png")]
-    cycle_pictures = {}
-    for n, comparison in sorted(comparisons.items()):
-        title = f"plate {plate.plate_id}, cycle {n}: deviation of the scan from the design"
-        shots = [(title, plot_deviation(comparison, out / f"deviation-cycle-{n}.png", title)),
-                 (f"cycle {n}: deviation at the punches (mm)",
-                  plot_punch_deviation(comparison, job.punch_x_mm, job.punch_y_mm,
-                                       out / f"punch-deviation-cycle-{n}.png"))]
-        files += [path for _, path in shots]
-        cycle_pictures[n] = [(caption, path.read_bytes()) for caption, path in shots]
     limits = {"tolerance_mm": tolerance_mm, "rms_tolerance_mm": rms_tolerance_mm}
-    files.append(plot_convergence(cycles, out / "convergence.png", **limits))
+    files, cycle_pictures = draw_pictures(
+        [(plot_strokes, (job, out / "strokes.png"))], comparisons, job, out, cycles, limits,
+        lambda n: (f"plate {plate.plate_id}, cycle {n}: deviation of the scan from the design",
+                   f"cycle {n}: deviation at the punches (mm)"))
     details = [("report made (UTC)", made.strftime("%Y-%m-%d %H:%M:%S")),
                ("operator", operator or "(not given: --operator)"),
                ("press", press_name or str(plate.press.get("name", "press"))),
