@@ -242,9 +242,10 @@ class Handshake:
             self._clock.sleep(self._poll_s)
             raw = self._status_raw()
         self._stop_after_trouble(f"job {seq} did not start")
-        if raw["state_name"] == "FAULT":  # e.g. the e-stop pressed between GO and the start: say which fault
+        if raw["state_name"] == "FAULT":  # e.g. the e-stop pressed at the start of motion: say which fault
             raise PressFault(f"after GO for job {seq} the PLC went to FAULT "
-                             f"({self.map.fault_text(raw['fault_code'])}) before our job executed; STOP was sent",
+                             f"({self.map.fault_text(raw['fault_code'])}) before the driver saw our job executing "
+                             "(the punches may have begun to move); STOP was sent",
                              hint="remove the cause, then 'mppf reset' and run the step again")
         raise PressFault(f"after GO for job {seq} the PLC reports state {raw['state_name']} and motion job "
                          f"{raw['motion_sequence']} (CRC 0x{raw['motion_crc']:08X}), not our job executing; "

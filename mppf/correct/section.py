@@ -85,15 +85,15 @@ class Section:
 
     def moment(self, kappa, state: SectionState) -> tuple[np.ndarray, SectionState]:
         """Moments (n, 3) N mm/mm at loaded curvatures ``kappa`` (n, 3), and the new plastic state."""
-        t = self.thickness_mm
+        t, stiff = self.thickness_mm, self._stiffness()
         z = _XI * t / 2.0
         strain = z[None, :, None] * np.asarray(kappa, dtype=float)[:, None, :] - state.plastic_strain
-        trial = self._stiffness() * _to_eigen(strain)
+        trial = stiff * _to_eigen(strain)
         flow0 = self.yield_stress_mpa + self.hardening_mpa * state.alpha
         yielding = np.sqrt(np.sum(_YIELD_EIGEN * trial**2, axis=-1)) > flow0 * (1.0 + 1e-12)
         dg = np.zeros(state.alpha.shape)
-        dg[yielding] = self._return(trial[yielding], flow0[yielding])  # the elastic layers keep dg = 0
-        stress = trial / (1.0 + dg[..., None] * _YIELD_EIGEN * self._stiffness())
+        dg[yielding] = self._return(trial[yielding], flow0[yielding], stiff)  # the elastic layers keep dg = 0
+        stress = trial / (1.0 + dg[..., None] * _YIELD_EIGEN * stiff)
         sbar = np.sqrt(np.sum(_YIELD_EIGEN * stress**2, axis=-1))
         new = SectionState(state.plastic_strain + _from_eigen(dg[..., None] * _YIELD_EIGEN * stress),
                            state.alpha + dg * sbar)
@@ -105,12 +105,13 @@ class Section:
         e_mod, nu = self.youngs_modulus_mpa, self.poisson
         return np.array([e_mod / (1 - nu), e_mod / (1 + nu), e_mod / (2 * (1 + nu))])
 
-    def _return(self, trial: np.ndarray, flow0: np.ndarray) -> np.ndarray:
-        """Plastic multipliers (m,) of the yielding layers: trial stresses (m, 3) MPa (eigen basis), flow (m,) MPa.
+    def _return(self, trial: np.ndarray, flow0: np.ndarray, stiff: np.ndarray) -> np.ndarray:
+        """Plastic multipliers (m,) of the yielding layers: trial stresses (m, 3) MPa (eigen basis), flow (m,) MPa,
+        the elasticity ``stiff`` (3,) MPa of :meth:`_stiffness`.
 
         Newton on the scalar consistency condition ``sbar(dg) = flow0 + H dg sbar(dg)``.
         """
-        lam, stiff, hard = _YIELD_EIGEN, self._stiffness(), self.hardening_mpa
+        lam, hard = _YIELD_EIGEN, self.hardening_mpa
         dg = np.zeros(flow0.shape)
         lam2_stiff, trial2 = lam**2 * stiff, trial**2
         for _ in range(RETURN_ITERATIONS):
