@@ -107,6 +107,8 @@ class SimulatedPlateScanner:
         (``yield_scatter``, ``thickness_scatter``).
     noise_mm, occlusion_fraction, outlier_fraction : float
         Scanner imperfections (see :class:`mppf.sim.scanner.SimulatedScanner`).
+    spacing_mm : float
+        The scanner's point spacing on the plate (mm; :class:`mppf.sim.scanner.SimulatedScanner`'s default 20).
     suffix : str
         Scan file format (".ply" or ".csv").
     reference_mark : bool
@@ -120,8 +122,8 @@ class SimulatedPlateScanner:
     def __init__(self, press, thickness_mm: float, outline_xy_mm, *, seed: int = 0,
                  material: Material = Material(), plate_model: str = "steel", steel=None,
                  plate_options: dict | None = None, noise_mm: float = 0.3, occlusion_fraction: float = 0.2,
-                 outlier_fraction: float = 0.01, suffix: str = ".ply", reference_mark: bool = True,
-                 net_outline_xy_mm=None):
+                 outlier_fraction: float = 0.01, spacing_mm: float = 20.0, suffix: str = ".ply",
+                 reference_mark: bool = True, net_outline_xy_mm=None):
         if plate_model not in PLATE_MODELS:
             raise InputError(f"unknown simulated plate model {plate_model!r}", hint=f"use {' or '.join(PLATE_MODELS)}")
         self.press = press
@@ -135,6 +137,7 @@ class SimulatedPlateScanner:
         self.noise_mm = noise_mm
         self.occlusion_fraction = occlusion_fraction
         self.outlier_fraction = outlier_fraction
+        self.spacing_mm = float(spacing_mm)
         self.suffix = suffix
         self.net_outline_xy_mm = (self.outline_xy_mm if net_outline_xy_mm is None
                                   else np.asarray(net_outline_xy_mm, dtype=float))
@@ -197,14 +200,16 @@ class SimulatedPlateScanner:
         pose = self._take(cycle).sample(formed, self.mark_xy_mm).tf_scan_press  # the first take, drawn again
         aim = [r["corners_press_mm"] for r in context.regions if r.get("corners_press_mm")]
         take = SimulatedScanner(noise_mm=self.noise_mm, occlusion_fraction=0.0 if aim else self.occlusion_fraction,
-                                outlier_fraction=self.outlier_fraction, seed=[self.seed, int(cycle), int(number)])
+                                outlier_fraction=self.outlier_fraction, spacing_mm=self.spacing_mm,
+                                seed=[self.seed, int(cycle), int(number)])
         return take.scan(formed, context.work_dir / f"scan-cycle-{cycle:02d}-rescan-{number}{self.suffix}",
                          tf_scan_press=pose, aim_xy_mm=aim)
 
     def _take(self, cycle: int) -> SimulatedScanner:
         """The scanner of the cycle's first take (its seed)."""
         return SimulatedScanner(noise_mm=self.noise_mm, occlusion_fraction=self.occlusion_fraction,
-                                outlier_fraction=self.outlier_fraction, seed=self.seed * 1000 + cycle)
+                                outlier_fraction=self.outlier_fraction, spacing_mm=self.spacing_mm,
+                                seed=self.seed * 1000 + cycle)
 
     def _formed(self, cycle: int, context: ScanContext):
         """The plate pressed with every step of the cycle not yet pressed on it (its state saved)."""

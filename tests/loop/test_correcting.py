@@ -52,8 +52,9 @@ def test_a_cycle_counts_with_its_read_back_steps_and_the_interrupted_one_last():
     assert not done.interrupted and not done.measured and len(done.steps_mid_mm) == 1
 
 
-# The correction's tests see the whole plate without stray returns: no rescans (they have their own tests).
-CLEAR_VIEW = {"occlusion_fraction": 0.0, "outlier_fraction": 0.0}
+# The correction's tests see the whole plate without stray returns (no rescans: they have their own tests), at a
+# coarser point spacing than the scanner's default (the correction, not the scan, is under test here).
+CLEAR_VIEW = {"occlusion_fraction": 0.0, "outlier_fraction": 0.0, "spacing_mm": 35.0}
 
 
 def _plate(tmp_path, planned_plate, history, plate_id, max_cycles):

@@ -38,7 +38,8 @@ def _scanner(history, plate_id, press, planned_plate):
     The scanner sees the whole plate without stray returns: no rescans (they have their own tests)."""
     job = load_job(history.cycle(plate_id, 1).job_path)
     return SimulatedPlateScanner.for_job(press, 20.0, job, planned_plate[1].points, seed=1, plate_model="planner",
-                                         occlusion_fraction=0.0, outlier_fraction=0.0)
+                                         occlusion_fraction=0.0, outlier_fraction=0.0,
+                                         spacing_mm=35.0)  # the cycle, not the scan, is under test
 
 
 def _gos(audit, outcome="ok"):

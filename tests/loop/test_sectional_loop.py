@@ -48,7 +48,7 @@ def _start(tmp_path, long_plate, history, plate_id, max_cycles):
                  settings=LoopSettings(max_cycles=max_cycles))
     scanner = SimulatedPlateScanner.for_job(press, THICKNESS_MM, job, flat.points, seed=3,
                                             plate_options={"grid_spacing_mm": 150.0}, occlusion_fraction=0.0,
-                                            outlier_fraction=0.0)
+                                            outlier_fraction=0.0, spacing_mm=35.0)  # the sections are under test
     return press, scanner
 
 

@@ -82,8 +82,9 @@ def targets(seed=0):
 
 
 @pytest.fixture
-def plc():
-    with run_simulated_plc(PRESS, time_scale=SCALE, watchdog_s=None) as sim:
+def plc(request):
+    """(sim, claimed master); ``@pytest.mark.parametrize("plc", [scale], indirect=True)`` sets the time scale."""
+    with run_simulated_plc(PRESS, time_scale=getattr(request, "param", SCALE), watchdog_s=None) as sim:
         master = Master(sim)
         assert master.command("CLAIM") == "ACCEPTED"
         yield sim, master
@@ -124,6 +125,11 @@ def test_writes_to_read_only_registers_are_undone_at_the_next_scan(plc):
 
 
 # -------------------------------------------------------------------- motion ------
+MOTION_SCALE = 25.0
+"""The timed motion's scale: about 1 s long, so that it is still moving when read back on a busy machine."""
+
+
+@pytest.mark.parametrize("plc", [MOTION_SCALE], indirect=True)
 def test_motion_completes_at_the_setpoints(plc):
     sim, master = plc
     upper, lower = targets()
@@ -144,7 +150,7 @@ def test_motion_completes_at_the_setpoints(plc):
     assert master.field("motion_sequence") == 7 and master.field("motion_crc") == crc
     # trapezoid: longest travel 400 + 60 mm (lower park -400 -> -40 ... -60) at 20 mm/s
     travel = max(np.abs(upper - PRESS.upper.park_mm).max(), np.abs(lower - PRESS.lower.park_mm).max())
-    expected_s = (travel / PRESS.speed_mm_s + PRESS.speed_mm_s / PRESS.accel_mm_s2) / SCALE
+    expected_s = (travel / PRESS.speed_mm_s + PRESS.speed_mm_s / PRESS.accel_mm_s2) / MOTION_SCALE
     assert 0.8 * expected_s < elapsed < expected_s + 0.5
     hb = master.read("plc_heartbeat")[0]
     time.sleep(0.1)
