@@ -29,6 +29,7 @@ from mppf.sim.plate.contact import Compliance, Punches
 from mppf.sim.plate.formed import FormedSteelPlate
 from mppf.sim.plate.grid import PlateGrid
 from mppf.sim.plate.material import PlateSteel
+from mppf.sim.plate.mismatch import edge_field
 from mppf.sim.plate.predict import ContactPredictor
 from mppf.sim.plate.scatter import PhysicalPlate, Scatter, sample_plate
 from mppf.sim.plate.section import LAYERS, LayerLaw, SectionState
@@ -78,15 +79,24 @@ class SteelPlate:
         False: the formed shape is the loaded one (the plate stays as held).
     cylindrical : bool
         Plane-strain kinematics w(u) (closed-form checks of wide plates).
+    edge_yield_factor, edge_band_mm : float
+        Factor on the yield stress at the plate's edges, fading to 1 over the band (model
+        mismatch, :mod:`mppf.sim.plate.mismatch`).
+    response_factor : float
+        The permanent shape (about the flat plate) the scanner sees is this times the one the
+        plate equations give (model mismatch: a plate answering more or less than modelled).
     """
 
     def __init__(self, press: PressConfig, outline_xy_mm, thickness_mm: float, steel: PlateSteel = PlateSteel(), *,
                  seed: int | None = 0, scatter: Scatter = Scatter(), compliance: Compliance = Compliance(),
                  grid_spacing_mm: float = GRID_SPACING_MM, layers: int = LAYERS,
                  load_increments: int = LOAD_INCREMENTS, unload_increments: int = 1,
-                 springback: bool = True, cylindrical: bool = False):
+                 springback: bool = True, cylindrical: bool = False, edge_yield_factor: float = 1.0,
+                 edge_band_mm: float = 150.0, response_factor: float = 1.0):
         options = {"grid_spacing_mm": grid_spacing_mm, "layers": layers, "load_increments": load_increments,
-                   "unload_increments": unload_increments, "springback": springback, "cylindrical": cylindrical}
+                   "unload_increments": unload_increments, "springback": springback, "cylindrical": cylindrical,
+                   "edge_yield_factor": edge_yield_factor, "edge_band_mm": edge_band_mm,
+                   "response_factor": response_factor}
         self._build(press, outline_xy_mm, sample_plate(steel, thickness_mm, scatter, seed), compliance, options)
 
     @classmethod
@@ -101,11 +111,13 @@ class SteelPlate:
         plate : PhysicalPlate
         **options
             ``grid_spacing_mm``, ``layers``, ``load_increments``, ``unload_increments``,
-            ``springback``, ``cylindrical`` (defaults as for the constructor).
+            ``springback``, ``cylindrical``, ``edge_yield_factor``, ``edge_band_mm``,
+            ``response_factor`` (defaults as for the constructor).
         """
         self = cls.__new__(cls)
         defaults = {"grid_spacing_mm": GRID_SPACING_MM, "layers": LAYERS, "load_increments": LOAD_INCREMENTS,
-                    "unload_increments": 1, "springback": True, "cylindrical": False}
+                    "unload_increments": 1, "springback": True, "cylindrical": False, "edge_yield_factor": 1.0,
+                    "edge_band_mm": 150.0, "response_factor": 1.0}
         unknown = set(options) - set(defaults)
         if unknown:
             raise InputError(f"unknown plate option(s) {', '.join(sorted(unknown))}",
@@ -124,6 +136,11 @@ class SteelPlate:
             "unload_increments": check_number("unload increments", options["unload_increments"], low=1, high=1000,
                                               integer=True),
             "springback": bool(options["springback"]), "cylindrical": bool(options["cylindrical"]),
+            "edge_yield_factor": check_number("edge yield factor", options.get("edge_yield_factor", 1.0), low=0.05,
+                                              high=20.0),
+            "edge_band_mm": check_number("edge band", options.get("edge_band_mm", 150.0), low=0.0, unit="mm"),
+            "response_factor": check_number("response factor", options.get("response_factor", 1.0), low=0.05,
+                                            high=20.0),
         }
         self.grid = PlateGrid(outline_xy_mm, self.options["grid_spacing_mm"], cylindrical=self.options["cylindrical"])
         self.law, self._placed = LayerLaw(plate.steel, self.options["layers"]), {}
@@ -150,6 +167,9 @@ class SteelPlate:
                 raise GeometryError(f"the plate covers {punches.count} punch pair(s) of the press, "
                                     "at least 3 are needed", hint="give the plate's outline in press x, y (mm)")
             model = PlateModel(self.grid, self.law, self.plate, punches, self.compliance)
+            model.yield_factor = model.yield_factor * edge_field(self.grid.gauss_uv, self.grid.size_mm,
+                                                                 self.options["edge_yield_factor"],
+                                                                 self.options["edge_band_mm"])
             self._placed[key] = (punches, model, ContactPredictor(model))
         self.placement_mm = np.array(key)
         self.punches, self.model, self.predictor = self._placed[key]
@@ -267,7 +287,9 @@ class SteelPlate:
         """The plate as it is now (unloaded after its last step), scanner compatible."""
         key = (self.steps, id(self.q))
         if getattr(self, "_formed_key", None) != key:
-            self._formed = FormedSteelPlate.build(self.grid, self.plate, self.loaded_q, self.q, self.punches,
+            flat = np.full(self.grid.n_dof, 0.5 * self.plate.thickness_mm)  # the flat plate's unknowns
+            shown = flat + self.options["response_factor"] * (self.q - flat)
+            self._formed = FormedSteelPlate.build(self.grid, self.plate, self.loaded_q, shown, self.punches,
                                                   self.force_n)
             self._formed_key = key
         return self._formed
