@@ -27,6 +27,14 @@ os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
 for _name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS", "MPPF_THREADS"):
     os.environ.setdefault(_name, "1")
 
+# Job files are sealed with the installation's key (mppf.core.seal), kept in the data folder; the tests use
+# their own key, one for the run, shared by every test process and every `mppf` subprocess (the tests give
+# subprocesses data folders of their own), never the user's.
+if "MPPF_SEAL_KEY" not in os.environ:
+    import tempfile
+
+    os.environ["MPPF_SEAL_KEY"] = os.path.join(tempfile.mkdtemp(prefix="mppf-test-key-"), "seal.key")
+
 import numpy  # noqa: F401 - loaded before the BLAS limit below, so that it applies
 import pytest
 from threadpoolctl import threadpool_limits

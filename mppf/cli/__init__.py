@@ -24,7 +24,7 @@ COMMAND_MODULES = {
     "press": "press_cmd", "status": "press_cmd", "stop": "press_cmd", "reset": "press_cmd",
     "compare": "compare_cmd", "loop": "loop_cmd", "history": "history_cmd", "demo": "demo_cmd",
     "panel": "panel_cmd", "extract": "extract_cmd",
-    "batch": "batch_cmd",
+    "batch": "batch_cmd", "reseal": "reseal_cmd",
 }
 """Every command of ``mppf`` and the module of :mod:`mppf.cli` that defines it (in its ``COMMANDS``)."""
 
@@ -97,8 +97,8 @@ def _run_click(args: list[str], as_json: bool) -> int:
     import click
 
     try:
-        _cli().main(args=args, prog_name="mppf", standalone_mode=False)
-        return 0
+        code = _cli().main(args=args, prog_name="mppf", standalone_mode=False)  # a command's click Exit(code)
+        return code if isinstance(code, int) and not isinstance(code, bool) else 0
     except click.exceptions.Exit as exc:
         return exc.exit_code
     except click.ClickException as exc:

@@ -81,7 +81,9 @@ def _result_table(step: int, result, tolerance_mm: float):
               help="A plate in sections: press only section N (1-based). Default: every section in order.")
 @click.option("--yes", is_flag=True, help="Do not ask for confirmation before moving the press at --plc.")
 @click.option("--press", "press_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Press description the job must have been planned for (every key is compared).")
+              help="This machine's press description (default: the installed $MPPF_HOME/press.toml; dry runs "
+                   "without one: the bundled example press). The job must have been planned for it, every key "
+                   "equal; the job's own press block is never used.")
 @audit_option
 @click.option("--timeout", "timeout_s", type=click.FloatRange(min=0.1), default=None,
               help="Motion timeout per step in s (default: from the longest move, speed and acceleration).")
@@ -104,36 +106,37 @@ def press_command(job_path, plc_url, step, section, yes, press_path, audit_path,
     """
     from mppf.cli._common import RichReporter, check_db_path, console
     from mppf.cli._placement import placement_lines
-    from mppf.planning.press import load_press
+    from mppf.planning.press import machine_press
     from mppf.planning.validate import load_checked_job, validate_job
 
     if timeout_s is not None and not math.isfinite(timeout_s):
         raise InputError(f"--timeout must be a finite number of seconds, got {timeout_s}",
                          hint="leave it out for the default (from the longest move)")
-    job = load_checked_job(job_path)  # numbers where numbers belong, before anything else
+    job = load_checked_job(job_path)  # numbers where numbers belong, the seal, before anything else
     if section is not None and job.sections is None:
         raise InputError(f"--section {section}: the job {job_path.name} is a single piece (no sections)",
                          hint="leave --section out for a single-piece job")
     steps = _select_steps(job, step) if job.sections is None else []
-    press_file = load_press(press_path) if press_path else None
     if plc_url:
         parse_plc_url(plc_url)
+    press, press_source = machine_press(press_path, dry_run=plc_url is None)
     if audit_path is not None:
         check_db_path(audit_path, "the audit log", "--audit")
-    # a job for another press than the press file: refused before any PLC is connected (or simulated);
-    # the whole validation runs against the PLC below, recorded in the audit log
-    if press_file is not None and press_file != job.press:
-        try:
-            validate_job(job, press_file=press_file, press_source=str(press_path))
-        except (ConfigError, LimitError) as exc:  # name the job file
-            raise type(exc)(f"job {job_path}: {exc.message}", hint=exc.hint) from None
+    # the machine's press, never the job's own press block: a job planned for another press (identity or
+    # limits), or one whose placements do not follow from its plan, is refused before any PLC is connected
+    # (or simulated); the whole validation runs again against the PLC below, recorded in the audit log
+    try:
+        validate_job(job, press_file=press, press_source=press_source)
+    except (ConfigError, LimitError) as exc:  # name the job file
+        raise type(exc)(f"job {job_path}: {exc.message}", hint=exc.hint) from None
+    job.press = press  # equal to the job's block (checked): park heights and tolerances are the machine's
     dry_run = plc_url is None
-    with sigterm_as_ctrl_c(), press_link(job.press, plc_url, audit=open_audit(audit_path), time_scale=time_scale,
+    with sigterm_as_ctrl_c(), press_link(press, plc_url, audit=open_audit(audit_path), time_scale=time_scale,
                                          reporter=RichReporter(), word_order=word_order,
                                          job_sha256=job.sha256()) as plc:
-        # the one job validator, against this PLC and the press file, before any write
+        # the one job validator, against this PLC's identity and limits and the machine's press, before any write
         try:
-            plc.check_job(job, press_file, str(press_path))
+            plc.check_job(job, press, press_source)
         except (ConfigError, LimitError) as exc:  # name the job file (the refusal is in the audit log)
             raise type(exc)(f"job {job_path}: {exc.message}", hint=exc.hint) from None
         if job.sections is not None:  # a plate larger than the bed: section by section (docs/sections.md)
@@ -147,7 +150,7 @@ def press_command(job_path, plc_url, step, section, yes, press_path, audit_path,
             console.print(f"{'dry run: ' if dry_run else ''}{n} step(s) pressed, all punches in position "
                           f"within {job.press.position_tolerance_mm} mm")
             return
-        setpoints = {k: job.steps[k - 1].setpoints_mm(job.press) for k in steps}
+        setpoints = {k: job.steps[k - 1].setpoints_mm(press) for k in steps}
         for k in steps:
             plc.check_setpoints(*setpoints[k], active=job.steps[k - 1].active)
         # where to lay the plate; at --plc the operator confirms it lies there and the press is clear

@@ -1,8 +1,11 @@
 """The job file: the planned strokes of a plate, the contract between planner and press.
 
-A job is JSON, versioned (``"format": "mppf-job"``, ``"version": 2``; version-1 files are
-read too; a plate formed section by section is ``"version": 3`` with its ``"sections"``,
-:mod:`mppf.planning.job_sections`); see ``docs/file-formats.md`` and ``docs/sections.md``.
+A job is JSON, versioned (``"format": "mppf-job"``, ``"version": 4``: sealed; a plate formed
+section by section has its ``"sections"``, :mod:`mppf.planning.job_sections`); see
+``docs/file-formats.md`` and ``docs/sections.md``. :func:`save_job` seals the file with the
+installation's key (:mod:`mppf.core.seal`) and :func:`load_job` refuses a job whose content does
+not match its seal, naming the parts that changed; older, unsealed jobs (versions 1-3) are read
+only where nothing is pressed (``require_seal=False``: compare, history, reports).
 In memory, stroke arrays are (rows, cols) float mm with NaN where a punch is inactive; in the
 file, inactive entries are ``null``. Inactive punches are driven to their parking heights by
 the press driver. The parts (steps, plate layout) are :mod:`mppf.planning.job_parts`.
@@ -35,12 +38,15 @@ from mppf.planning.job_sections import Section, sections_from_json
 from mppf.planning.press import PressConfig, press_from_dict
 
 JOB_FORMAT = "mppf-job"
-JOB_VERSION = 2
-"""The version of single-piece jobs (unchanged, so every reader of version 2 reads them)."""
+JOB_VERSION = 4
+"""The version written: a sealed job (single piece or in sections); older readers refuse it."""
+SEALED_VERSION = 4
+"""The first version that must carry a seal (:mod:`mppf.core.seal`)."""
 SECTIONS_VERSION = 3
-"""The version of jobs with sections (a plate larger than the bed): older readers refuse them."""
-READ_VERSIONS = (1, 2, 3)
-"""Job file versions this mppf reads (version 1: the plate layout in loose top-level keys)."""
+"""The first version that may hold sections (a plate larger than the bed)."""
+READ_VERSIONS = (1, 2, 3, 4)
+"""Job file versions this mppf reads (version 1: the plate layout in loose top-level keys; 1-3 unsealed,
+read only where nothing is pressed)."""
 
 
 @dataclass
@@ -86,7 +92,7 @@ class Job:
         """The JSON document of this job."""
         doc = {
             "format": JOB_FORMAT,
-            "version": JOB_VERSION if self.sections is None else SECTIONS_VERSION,
+            "version": JOB_VERSION,
             "press": self.press.to_dict(),
             "thickness_mm": float(self.thickness_mm),
             "tf_press_design": tf_to_list(self.tf_press_design),
@@ -104,7 +110,8 @@ class Job:
         return doc
 
     def to_json(self) -> str:
-        """Serialized job (stable key order, so its hash is reproducible)."""
+        """Serialized job (stable key order, so its hash is reproducible; the seal of the file it was read from
+        or saved to is in ``extra["seal"]``)."""
         return json.dumps(self.to_dict(), indent=1, allow_nan=False)
 
     def sha256(self) -> str:
@@ -121,17 +128,7 @@ def job_from_dict(doc: dict, source: str = "job") -> Job:
     ConfigError
         Wrong format or version, missing keys, or grids that do not match the press.
     """
-    if not isinstance(doc, dict) or doc.get("format") != JOB_FORMAT:
-        raise ConfigError(
-            f"{source}: not an mppf job file (format {doc.get('format') if isinstance(doc, dict) else None!r})",
-            hint="make one with 'mppf plan'",
-        )
-    if doc.get("version") not in READ_VERSIONS:
-        raise ConfigError(
-            f"{source}: job file version {doc.get('version')!r} is not supported (this mppf reads "
-            f"{', '.join(str(v) for v in READ_VERSIONS)})",
-            hint="re-plan the plate with this version of mppf",
-        )
+    _check_format(doc, source)
     for key in ("press", "thickness_mm", "steps"):
         if key not in doc:
             raise ConfigError(f"{source}: missing key '{key}'")
@@ -205,15 +202,68 @@ def _axis_from_json(values, count: int, name: str, source: str) -> np.ndarray:
     return arr
 
 
-def load_job(path) -> Job:
-    """Read and validate a job file.
+def load_job(path, *, require_seal: bool = True) -> Job:
+    """Read a job file and check it: the format, numbers where numbers belong, the seal, the rest.
+
+    The one loader of job files (``mppf press``, ``mppf loop``, the panel, batch, ``compare --job``).
+
+    Parameters
+    ----------
+    path : path-like
+    require_seal : bool
+        True (what presses or plans from the job): an older, unsealed job (versions 1-3) is
+        refused. False (what only reads it: compare, history, reports): an unsealed older job
+        is read. A job that carries a seal (every version-4 job must) is refused whenever
+        its content does not match it.
 
     Raises
     ------
     InputError
-        Missing or unreadable file, invalid JSON, or an invalid job.
+        Missing or unreadable file, invalid JSON, values that are not numbers, a seal that does
+        not match (naming what changed), an unsealed job where one is required, an invalid job.
     """
-    return job_from_dict(read_job_document(path), source=str(path))
+    from mppf.planning.validate import check_job_document
+
+    source = str(path)
+    doc = read_job_document(path)
+    _check_format(doc, source)
+    check_job_document(doc, source)
+    check_seal(doc, source, require_seal=require_seal)
+    return job_from_dict(doc, source=source)
+
+
+def check_seal(doc: dict, source: str, *, require_seal: bool = True) -> None:
+    """Refuse a job document whose seal does not match (or that has none where one is required).
+
+    Raises
+    ------
+    ConfigError
+        See :func:`mppf.core.seal.verify_document`; an unsealed version-1..3 job when ``require_seal``.
+    """
+    from mppf.core.seal import SEAL_KEY, verify_document
+
+    if doc.get("version") in READ_VERSIONS and doc["version"] < SEALED_VERSION and SEAL_KEY not in doc:
+        if require_seal:
+            raise ConfigError(f"{source}: an older, unsealed job (version {doc['version']}): nothing ties its "
+                              "strokes to the plan, so it is not pressed",
+                              hint=f"re-plan the plate with 'mppf plan', or check the job and run 'mppf reseal "
+                                   f"{source} --reason \"...\" --press PRESS.toml'")
+        return
+    verify_document(doc, source)
+
+
+def _check_format(doc, source: str) -> None:
+    if not isinstance(doc, dict) or doc.get("format") != JOB_FORMAT:
+        raise ConfigError(
+            f"{source}: not an mppf job file (format {doc.get('format') if isinstance(doc, dict) else None!r})",
+            hint="make one with 'mppf plan'",
+        )
+    if isinstance(doc.get("version"), bool) or doc.get("version") not in READ_VERSIONS:
+        raise ConfigError(
+            f"{source}: job file version {doc.get('version')!r} is not supported (this mppf reads "
+            f"{', '.join(str(v) for v in READ_VERSIONS)})",
+            hint="re-plan the plate with this version of mppf",
+        )
 
 
 def read_job_document(path) -> dict:
@@ -238,9 +288,31 @@ def read_job_document(path) -> dict:
     return doc
 
 
-def save_job(job: Job, path) -> Path:
-    """Write a job file atomically (a temporary file renamed into place)."""
+def save_job(job: Job, path, *, sealed_by: str = "mppf plan", reason: str | None = None) -> Path:
+    """Seal a job with the installation's key and write it atomically (a temporary file renamed into place).
+
+    The seal (:func:`mppf.core.seal.seal_document`) replaces any the job carried and is kept in
+    ``job.extra["seal"]``, so ``job.sha256()`` is the hash of the file written.
+
+    Parameters
+    ----------
+    job : Job
+    path : path-like
+    sealed_by : str
+        What sealed it, recorded in the seal (``"mppf plan"``, ``"mppf loop"``, ``"mppf reseal by NAME"``).
+    reason : str, optional
+        Why (``mppf reseal``).
+
+    Raises
+    ------
+    InputError
+        The file cannot be written, or the seal key cannot be read or made.
+    """
+    from mppf.core.seal import SEAL_KEY, load_key, seal_document
+
     path = Path(path)
+    doc = seal_document(job.to_dict(), load_key(), sealed_by=sealed_by, reason=reason)
+    job.extra = {**{k: v for k, v in job.extra.items() if k != SEAL_KEY}, SEAL_KEY: doc[SEAL_KEY]}
     tmp = path.with_name(path.name + ".tmp")
     try:
         tmp.write_text(job.to_json())

@@ -290,3 +290,47 @@ def load_press(path) -> PressConfig:
 def example_press_path() -> Path:
     """Path of the bundled example press description."""
     return Path(__file__).resolve().parents[1] / "examples" / "press.toml"
+
+
+def press_to_toml(press: PressConfig) -> str:
+    """A press description as TOML text that :func:`load_press` reads back equal (its name, then each table).
+
+    For installing a machine's press (``$MPPF_HOME/press.toml``) and for tests.
+    """
+    import json
+
+    lines, tables = [], []
+    for key, value in press.to_dict().items():
+        if isinstance(value, dict):
+            tables.append((key, value))
+        else:
+            lines.append(f"{key} = {json.dumps(value)}")
+    for table, block in tables:
+        lines += ["", f"[{table}]"] + [f"{key} = {json.dumps(value)}" for key, value in block.items()]
+    return "\n".join(lines) + "\n"
+
+
+def machine_press(press_path=None, *, dry_run: bool = False) -> tuple[PressConfig, str]:
+    """This machine's press description, and how to name it: ``press_path``, else the installed one.
+
+    The installed press is :func:`mppf.core.paths.installed_press_path` (copied there once per
+    installation); without one a dry run uses the bundled example press, anything else is
+    refused. The press block a job carries is never the machine's press.
+
+    Raises
+    ------
+    ConfigError
+        No press description (not a dry run), or one that cannot be read.
+    """
+    from mppf.core.paths import installed_press_path
+
+    if press_path is not None:
+        return load_press(press_path), str(press_path)
+    installed = installed_press_path()
+    if installed.exists():
+        return load_press(installed), f"the installed press {installed}"
+    if dry_run:
+        return load_press(example_press_path()), "the example press (dry run, no press installed)"
+    raise ConfigError(f"no press description for this machine: no --press given and none installed at {installed}",
+                      hint=f"give --press PRESS.toml (this machine's press), or copy it once to {installed}; "
+                           "the press block a job carries is never used")

@@ -16,7 +16,12 @@ held to the same rules whoever made it or edited it:
 - parked (inactive) punches at their parking heights: no stroke in the job, park heights in
   the setpoints;
 - the job's press equal to the press file when one is given, its matrix and limits those
-  of the PLC when connected (:func:`validate_job`).
+  of the PLC when connected (:func:`validate_job`);
+- its placements, marks, sections and step counts re-derived from the plan
+  (:func:`mppf.planning.job_checks.check_plan`).
+
+Before any of these, :func:`mppf.planning.job.load_job` refuses a job file whose seal does not
+match (:mod:`mppf.core.seal`).
 
 A violation raises :class:`~mppf.core.errors.LimitError` or
 :class:`~mppf.core.errors.ConfigError` (exit code 2) naming the punch the way the press
@@ -33,7 +38,7 @@ import numpy as np
 
 from mppf.core.errors import ConfigError, InputError, LimitError
 from mppf.core.grid import neighbour_differences
-from mppf.planning.job import Job, StepStrokes, job_from_dict, read_job_document
+from mppf.planning.job import Job, StepStrokes, load_job
 from mppf.planning.press import PressConfig
 from mppf.planning.steps import flat_heights
 
@@ -131,17 +136,18 @@ def _labeller(doc: dict):
     return lambda r, c: f"row {r + base}, col {c + base}"
 
 
-def load_checked_job(path) -> Job:
-    """Read a job file, refusing non-numbers where numbers belong (:func:`check_job_document`).
+def load_checked_job(path, *, require_seal: bool = True) -> Job:
+    """Read a job file through the one strict loader, :func:`mppf.planning.job.load_job`.
+
+    Numbers where numbers belong (:func:`check_job_document`), then the seal, then the format.
 
     Raises
     ------
     InputError
-        Missing or unreadable file, invalid JSON, values that are not numbers, an invalid job.
+        Missing or unreadable file, invalid JSON, values that are not numbers, a seal that does
+        not match, an invalid job.
     """
-    doc = read_job_document(path)
-    check_job_document(doc, str(path))
-    return job_from_dict(doc, source=str(path))
+    return load_job(path, require_seal=require_seal)
 
 
 # ---------------------------------------------------------------- setpoints ---
@@ -344,7 +350,10 @@ def validate_job(job: Job, *, press_file: PressConfig | None = None, plc_shape: 
     LimitError
         The job's press reaches beyond the PLC's limits, or a step fails :func:`validate_steps`.
     """
+    from mppf.planning.job_checks import check_plan
+
     press = job.press
+    check_plan(job)  # placements, marks, sections and step counts re-derived from the plan
     if press_file is not None and press_file != press:
         raise ConfigError(f"the job was planned for another press than {press_source}: "
                           + "; ".join(_press_differences(press, press_file, press_source)[:MAX_LISTED]),

@@ -12,7 +12,9 @@ from driver_helpers import small_job, small_press
 
 from mppf.cli import main
 from mppf.drivers.audit import AuditLog
+from mppf.core.seal import load_key, seal_document
 from mppf.planning.job import save_job
+from mppf.planning.press import press_to_toml
 from mppf.sim.plc.host import start_simulated_plc
 
 
@@ -34,9 +36,11 @@ def sim(press):
 
 
 @pytest.fixture(autouse=True)
-def mppf_home(tmp_path, monkeypatch):
-    """Keep the default audit log out of the user's home."""
+def mppf_home(tmp_path, monkeypatch, press):
+    """Keep the default audit log out of the user's home; this machine's press (installed there) is the small one."""
     monkeypatch.setenv("MPPF_HOME", str(tmp_path / "home"))
+    (tmp_path / "home").mkdir()
+    (tmp_path / "home" / "press.toml").write_text(press_to_toml(press))
     return tmp_path / "home"
 
 
@@ -224,8 +228,11 @@ TAMPERED = {
     "thickness": "the plate thickness 60 mm is above the largest plate this press takes, [forming] "
                  "max_thickness_mm 50 mm",
     "parks": "[upper] park_mm -300 mm is below [lower] park_mm 300 mm: the parked tips would cross",
-    "plc_limits": "[upper] max_mm 500 mm of the job's press is beyond the PLC's limit 400 mm",
+    "plc_limits": ("the job was planned for another press than the installed press",
+                   "[upper] max_mm is 500.0 in the job, 400.0 in"),
 }
+RESEALED = {"limit", "gap", "dimpling", "reversal", "thickness", "parks", "plc_limits"}
+"""Tampered jobs sealed again (the seal alone would refuse them): the job validator's own refusals."""
 
 
 @pytest.mark.parametrize("kind", sorted(TAMPERED))
@@ -233,6 +240,8 @@ def test_every_tampered_job_exits_2_naming_punch_value_and_limit_and_writes_noth
         kind, job_path, tmp_path, sim, capsys):
     doc = json.loads(job_path.read_text())
     _edit(doc, kind)
+    if kind in RESEALED:  # sealed again as if by someone with the key: the validator must still refuse it
+        doc = seal_document(doc, load_key(), sealed_by="a test")
     path = tmp_path / f"tampered-{kind}.json"
     path.write_text(json.dumps(doc))
     audit = tmp_path / "audit.sqlite"
@@ -261,6 +270,10 @@ def test_a_job_for_another_press_file_or_another_matrix_exits_2(job_path, tmp_pa
     assert f"the job was planned for another press than {press_toml}: [forming] max_neighbour_diff_mm is 30.0 " \
            f"in the job, 25.0 in {press_toml}" in err
     wide = save_job(small_job(small_press(5, 6)), tmp_path / "wide.json")
-    assert main(["press", str(wide), "--plc", sim.url, "--yes"]) == 2
+    assert main(["press", str(wide), "--plc", sim.url, "--yes"]) == 2  # another press than the installed one
+    assert "[matrix] rows is 5 in the job, 4 in the installed press" in " ".join(capsys.readouterr().err.split())
+    wide_toml = tmp_path / "wide.toml"
+    wide_toml.write_text(press_to_toml(small_press(5, 6)))
+    assert main(["press", str(wide), "--plc", sim.url, "--yes", "--press", str(wide_toml)]) == 2  # and the PLC's
     assert "drives 4 x 6 punches" in " ".join(capsys.readouterr().err.split())
     assert sim.server.master_writes == 0

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from mppf.cli import main
+from mppf.core.seal import load_key, seal_document
 from mppf.geometry.read import read_points
 from mppf.geometry.write import write_points
 
@@ -142,7 +143,7 @@ def test_a_job_marks_its_punch_centres_on_the_flat(sphere_cap, tmp_path, capsys)
     doc = json.loads(job_path.read_text())
     doc["inputs"]["design"]["sha256"] = "0" * 64
     other = tmp_path / "other.json"
-    other.write_text(json.dumps(doc))
+    other.write_text(json.dumps(seal_document(doc, load_key(), sealed_by="a test")))  # sealed: the design is checked
     assert main(["unfold", str(sphere_cap), "-o", str(tmp_path / "x.dxf"), "--job", str(other)]) == 2
     assert "planned for another design" in " ".join(capsys.readouterr().err.split())
     assert not (tmp_path / "x.dxf").exists()

@@ -35,7 +35,7 @@ def _job(n_steps: int = 2) -> Job:
 def test_document_layout():
     job = _job()
     doc = json.loads(job.to_json())
-    assert doc["format"] == JOB_FORMAT == "mppf-job" and doc["version"] == JOB_VERSION == 2
+    assert doc["format"] == JOB_FORMAT == "mppf-job" and doc["version"] == JOB_VERSION == 4
     assert doc["press"] == PRESS.to_dict()
     assert doc["thickness_mm"] == T
     # 4 x 4 row-major nested lists: the translation is the last column of the first three rows
@@ -109,7 +109,7 @@ def _set(doc, path, value):
     "path, value, message",
     [
         (("format",), "something", "not an mppf job file (format 'something')"),
-        (("version",), 4, "job file version 4 is not supported"),
+        (("version",), 5, "job file version 5 is not supported"),
         (("press",), KeyError, "missing key 'press'"),
         (("thickness_mm",), KeyError, "missing key 'thickness_mm'"),
         (("steps",), KeyError, "missing key 'steps'"),

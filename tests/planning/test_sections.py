@@ -193,7 +193,7 @@ def test_each_section_has_its_placement_and_marks(press, cylinder_job):
 
 def test_sectional_job_file_round_trip_and_versions(press, cylinder_job, tmp_path):
     doc = json.loads(cylinder_job.to_json())
-    assert doc["version"] == SECTIONS_VERSION == 3 and len(doc["sections"]) == 6
+    assert doc["version"] == JOB_VERSION == 4 and SECTIONS_VERSION == 3 and len(doc["sections"]) == 6
     back = job_from_dict(doc)
     assert back.to_json() == cylinder_job.to_json()
     assert [len(s.steps) for s in back.sections] == [len(s.steps) for s in cylinder_job.sections]
@@ -212,7 +212,7 @@ def test_sectional_job_file_round_trip_and_versions(press, cylinder_job, tmp_pat
 def test_a_plate_that_fits_is_planned_in_one_piece(press):
     design, flat = cylinder_plate(3000.0, 2000.0, 8000.0, spacing_mm=100.0)
     one = plan_plate(design, flat, press, T_MM)
-    assert one.sections is None and json.loads(one.to_json())["version"] == JOB_VERSION == 2
+    assert one.sections is None and json.loads(one.to_json())["version"] == JOB_VERSION == 4
     assert one.to_json() == plan_job(design, flat, press, T_MM).to_json()
     long_design, long_flat = cylinder_plate(5000.0, 2000.0, 8000.0, spacing_mm=100.0)
     with pytest.raises(LimitError, match="does not fit on the bed"):
@@ -322,7 +322,7 @@ def test_corrections_per_section_blend_like_the_plan(press, cylinder_job):
     diff = second.steps[-1].upper_mm[act] - planned.steps[-1].upper_mm[act]
     assert np.allclose(diff, 2.0 * (1.0 - planned.own_weight[act]), atol=1e-9)
     assert first.sections[1].extra["validation"]["min_gap_mm"] >= T_MM - 0.01
-    assert json.loads(first.to_json())["version"] == SECTIONS_VERSION
+    assert json.loads(first.to_json())["version"] == JOB_VERSION
 
 
 def test_sections_whose_over_bends_disagree_are_warned_of(press, springback_job):
