@@ -229,6 +229,27 @@ def setpoint_crc32(upper_words, lower_words) -> int:
     return zlib.crc32(data.astype(">u2").tobytes()) & 0xFFFFFFFF
 
 
+def auth_crc32(nonce: int, words) -> int:
+    """The auth word of an owner's request: CRC-32 of the nonce and the request's other registers.
+
+    The bytes are the nonce as 4 bytes, most significant first, then each register word as
+    two bytes, high byte first (the same CRC-32 as :func:`setpoint_crc32`; no numpy).
+
+    Parameters
+    ----------
+    nonce : int, 0..2**32-1
+        The owner's nonce (the PLC's, from the CLAIM's ``claim_reply``).
+    words : sequence of int, (n,)
+        The request's registers in address order, without the auth registers.
+
+    Returns
+    -------
+    int, 0..2**32-1
+    """
+    data = (int(nonce) & 0xFFFFFFFF).to_bytes(4, "big") + b"".join(int(w & 0xFFFF).to_bytes(2, "big") for w in words)
+    return zlib.crc32(data) & 0xFFFFFFFF
+
+
 def chunks(start: int, words, max_regs: int = 122) -> list[tuple[int, list[int]]]:
     """Split a write of ``words`` at register ``start`` into requests of at most ``max_regs``.
 

@@ -95,6 +95,8 @@ REQUIRED_REGISTERS = (
     "stop_request", "stop_master", "status_word", "state", "fault_code", "ack_counter", "ack_master", "ack_command",
     "result_code", "owner_master", "validated_crc", "validated_sequence", "motion_sequence", "motion_crc",
     "plc_heartbeat", "refused_writes", "last_sequence", "stop_count", "last_stop_master", "stop_cause",
+    "command_auth", "heartbeat_auth", "owner_ack_counter", "owner_ack_command", "owner_result_code", "claim_reply",
+    "positioning_timeout_ms", "rest_speed", "rest_time_ms", "dimpling_limit", "tip_gap_min", "refused_setpoint_writes",
 )
 REQUIRED_BITS = ("ready", "busy", "in_position", "fault", "estop", "remote_enabled", "owned", "lease_ok",
                  "setpoints_locked")
@@ -114,7 +116,7 @@ def _check_consistency(rmap: RegisterMap, src: str) -> None:
     for name in REQUIRED_BITS:
         if name not in rmap.status_bits:
             raise ConfigError(f"{src}: [[status_bit]] lacks {name!r}")
-    for first, last in (("command", "command_sequence"), ("heartbeat_master", "heartbeat_counter"),
+    for first, last in (("command", "command_sequence"), ("heartbeat_counter", "heartbeat_auth"),
                         ("stop_request", "stop_master")):
         fields = [f for f in rmap.fields.values() if rmap[first].address <= f.address < rmap[last].end]
         if sum(f.count for f in fields) != rmap[last].end - rmap[first].address:

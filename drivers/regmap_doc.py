@@ -27,9 +27,15 @@ def _values(rmap) -> dict:
         "magic": rmap.magic, "magic_span": f"{rmap['magic'].address}-{rmap['magic'].end - 1}",
         "rows": rmap["rows"].address, "cols": rmap["cols"].address,
         **first_last("mailbox", "command", "command_sequence"),
-        **first_last("hb", "heartbeat_master", "heartbeat_counter"),
+        **first_last("hb", "heartbeat_counter", "heartbeat_auth"),
         **first_last("stop", "stop_request", "stop_master"),
-        **first_last("status", "stop_request", "stop_cause"),
+        **first_last("status", "stop_request", "refused_setpoint_writes"),
+        **first_last("auth", "command_auth", "command_auth"),
+        **first_last("crc", "command_crc", "command_crc"),
+        "hb_last_but_auth": rmap["heartbeat_auth"].address - 1,
+        "identity_last": max(f.end for f in rmap.group("identity")) - 1,
+        **{name: rmap[name].address for name in ("command_sequence", "heartbeat_master", "claim_reply",
+                                                  "owner_ack_counter")},
         **rmap.timing,
     }
     for key, block in (("upper", "upper_setpoints"), ("lower", "lower_setpoints"), ("uact", "upper_actuals"),
@@ -96,5 +102,5 @@ def render_markdown(rmap) -> str:
                     [(f.code, f.name, f["punches"], f.text) for f in rmap.faults], "---:|---|---|---")
     lines += ["`stop_cause`: why the PLC stopped last.", ""]
     lines += _table(["code", "cause", "meaning"], [(c.code, c.name, c.text) for c in rmap.stop_causes], "---:|---|---")
-    lines += text(prose.CONFORMANCE)
+    lines += text(prose.CONFORMANCE) + text(prose.ANSWERS)
     return "\n".join(lines).rstrip("\n") + "\n"

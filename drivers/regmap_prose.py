@@ -24,6 +24,12 @@ by a Modbus exception. A job is started only by the master that **owns** the PLC
 the **job token** (sequence and CRC) it validated, and only with the key switch in remote;
 the owner keeps its ownership alive with a **heartbeat**, and the PLC stops the motion when
 the heartbeat goes stale. **STOP** has its own register and is obeyed from anyone, always.
+Ownership cannot be borrowed: CLAIM returns a **nonce** chosen by the PLC (masked, so no
+register ever shows it), and every command and heartbeat of the owner carries an **auth**
+word computed from it, so a master that copies the owner's id from the readable registers is
+refused (section 7). The owner's commands are acknowledged in registers of their own, so no
+other master's command can hide them. A job ends COMPLETE only with every punch **at rest in
+its band** (section 3, step 6), never because no punch happens to be moving.
 """
 
 CONVENTIONS = """\
@@ -33,8 +39,9 @@ CONVENTIONS = """\
   (one register) is accepted too. Addresses are 0-based protocol addresses (mbpoll: `-0`).
   The map spans registers 0 to {last_address}.
 - **Unit id**: 1 unless configured otherwise (1-247); the master's URL says which
-  (`unit=N`). A PLC answers only requests to its own unit id (others: no reply, or exception
-  11 from a gateway); mppf then reports "not an mppf press PLC with unit id N".
+  (`unit=N`). A request for another unit id is never acted on: the PLC gives no reply, or an
+  exception (11 from a gateway, 4 from some stacks); mppf treats a timeout or any exception
+  to its identity read as "not an mppf press PLC with unit id N".
 - **Exceptions**: the only Modbus exception the PLC sends is {illegal_address} (ILLEGAL DATA
   ADDRESS), for a request that reaches outside registers 0-{last_address} (and the standard
   ones for a malformed request). Every write inside the map is accepted by the PLC's
@@ -53,45 +60,70 @@ CONVENTIONS = """\
   `index = row * cols + col` (rows and columns counted from 0 here; the operator's messages
   count from 1), with `rows`/`cols` in registers {rows} and {cols}. Punch `index` uses
   registers `block + 2*index` and `+1`; its fault bit is bit `index % 16` (bit 0 = least
-  significant) of register `block + index // 16`. Registers past the matrix in use are
-  ignored (they may hold anything).
+  significant) of register `block + index // 16`. Setpoint registers past the matrix in use
+  are ignored (a write there is stored, never checked nor counted); actual and fault-bit
+  registers past the matrix read 0 and, being read-only, a write there is undone and counted.
 - **Read-only registers** (access `ro`) are written by the PLC only: it rewrites them at
   every scan. A master write to one, or to a reserved register (the addresses between the
   fields, which read 0), is undone at the next scan and counted in `refused_writes`.
 - **Master ids** are 32-bit numbers, never 0, chosen by each master (mppf draws a random
-  one per connection and records it in its audit log).
+  one per connection and records it in its audit log). An id is a name, not a proof: the
+  nonce and the auth words of section 7 are what make a master the owner.
 """
 
 SCAN = """\
 ## 3. The scan
 
-The PLC program runs in a cycle (its **scan**, at most {scan_time_max_ms} ms, stated in
-`scan_time_max_ms`). Whatever a master wrote lands in the registers at once; the program
-looks at it only in its next scan, in this order:
+The PLC program runs in a cycle (its **scan**). `scan_time_max_ms` states the longest scan
+period: the time from the start of one scan to the start of the next, at its longest (at most
+{scan_time_max_ms} ms); a write is therefore acted on at most that long after it lands.
+Whatever a master wrote lands in the registers at once; the program looks at it only in its
+next scan, in this order:
 
 1. **Inputs.** An open e-stop circuit latches fault ESTOP (state FAULT) in any state; the
-   hardware has already cut the valves. The remote-enable key switch is read.
+   hardware has already cut the valves. With another fault already latched, `fault_code`
+   keeps the first fault and the `estop` bit is set; RESET is refused (ESTOP_ACTIVE) while
+   the e-stop is pressed. The remote-enable key switch is read.
 2. **Setpoint guard.** The setpoint registers in use (`2 x rows x cols` per block) are
    compared with the PLC's own copy. If they changed: in IDLE, LOADED or VALIDATED the copy
    takes them, the state becomes LOADED and a validated job is dropped; in every other state
-   the registers are written back from the copy and `refused_writes` counts the scan. A
-   changed read-only or reserved register is restored and counted too (once per scan).
+   the registers are written back from the copy and `refused_writes` and
+   `refused_setpoint_writes` count the scan. A changed read-only or reserved register is
+   restored and counted in `refused_writes` (once per scan).
 3. **STOP.** `stop_request` not 0: `stop_count` + 1, `last_stop_master` = `stop_master`,
-   `stop_request` = 0, and STOP is carried out (section 8).
-4. **Heartbeat and lease.** A changed pair (`heartbeat_master`, `heartbeat_counter`) whose
-   master is the owner renews the owner's lease. A lease not renewed for `watchdog_ms` ends:
-   no owner; in EXECUTING fault WATCHDOG (the punches brake), in LOADED or VALIDATED the job
-   is dropped (IDLE). The key switch turned to local during EXECUTING stops the motion
-   (STOPPING, `stop_cause` REMOTE_DISABLED).
-5. **Mailbox.** A (`command_counter`, `command_master`) pair other than that of the last
-   command taken is one new command (at most one per scan). Its refusals are tested in the
-   order of the command table (section 5); the first that applies is its result, otherwise it
-   is carried out (result ACCEPTED). Then `ack_counter`, `ack_master`, `ack_command` and
-   `result_code` are written. A refused command is taken too: the same pair is never
-   carried out later.
-6. **Motion.** The punches move toward the goal of the last GO. EXECUTING with every punch at
-   rest becomes COMPLETE; STOPPING at rest becomes STOPPED. A positioning timeout latches
-   STUCK_PUNCH with the punch's fault bit.
+   `stop_cause` = STOP_REQUEST, `stop_request` = 0, and STOP is carried out (section 8).
+4. **Heartbeat and lease.** The heartbeat registers ({hb_first}-{hb_last}) are compared with
+   what they held at the previous scan; when they changed, the beat counts if
+   `heartbeat_master` is the owner, `heartbeat_counter` is newer than the counter of the
+   owner's last accepted beat (`(new - last) mod 65536` from 1 to 32767; any counter for the
+   first beat after CLAIM) and `heartbeat_auth` is right (section 7); a beat that counts
+   renews the lease. A lease not renewed for `watchdog_ms` ends in every state: no owner,
+   the nonce forgotten; in EXECUTING fault WATCHDOG (the punches brake), in LOADED or
+   VALIDATED the job is dropped (IDLE); in STOPPING the punches go on braking to STOPPED; in
+   COMPLETE, STOPPED and FAULT the state stays. The key switch turned to local during
+   EXECUTING stops the motion (STOPPING, `stop_cause` REMOTE_DISABLED).
+5. **Mailbox.** A (`command_counter`, `command_master`, `command_auth`) triple other than
+   that of the last command taken is one new command. The mailbox holds one command: a second
+   command written before the scan overwrites the first, which is never taken nor
+   acknowledged (a master writes its next command only after the acknowledgement of its
+   last). Its refusals are tested in the order of the command table (section 5); the first
+   that applies is its result, otherwise it is carried out (result ACCEPTED); an unknown
+   code is BAD_COMMAND before any other check. Then `ack_counter`, `ack_master`,
+   `ack_command` and `result_code` are written; a command that carried the owner's valid
+   auth (and an accepted CLAIM) is also written to `owner_ack_counter`, `owner_ack_command`
+   and `owner_result_code`. A refused command changes nothing but these registers: the state,
+   a validated job and the lease stay as they were. A command taken is never carried out
+   again. The scan that takes a CLAIM writes `command_crc` (the claim key) back to 0.
+6. **Motion.** The punches move toward their **goal**: the setpoints of the last GO (before
+   the first GO, the positions at power-on). A punch is **at rest** when its speed has stayed
+   under `rest_speed` for `rest_time_ms`; it is **in its band** when |actual - goal| <=
+   `position_tolerance`. EXECUTING becomes COMPLETE only when every punch is at rest AND in its
+   band: "no punch moving" is not enough (in the scan of GO the valves may not have opened
+   yet). EXECUTING with every punch at rest but one outside its band for
+   `positioning_timeout_ms` latches STUCK_PUNCH with the fault bits of the punches outside
+   their band. STOPPING becomes STOPPED when every punch is at rest (no band: a stopped motion
+   ends short). A fault halts or brakes the punches; the press is at rest again when every
+   punch is.
 7. **Outputs.** Every read-only register is written: status, state, codes, tokens,
    counters, actual positions, fault bits; `plc_heartbeat` + 1.
 
@@ -115,7 +147,13 @@ LOADED. STOP: EXECUTING --> STOPPING --at rest--> STOPPED; IDLE, LOADED, VALIDAT
 --> STOPPED at once. Any fault --> FAULT. RESET (owner) from IDLE, LOADED, VALIDATED, COMPLETE,
 STOPPED or FAULT (cause removed) --> IDLE. RELEASE or a lost lease in LOADED or VALIDATED -->
 IDLE. STOP and RESET always drop the validated job: no GO is possible until the owner
-validates again with a new sequence.
+validates again with a new sequence. `validated_sequence` / `validated_crc` keep the token
+through EXECUTING and COMPLETE (GO does not clear them; GO is accepted only in VALIDATED, so a
+token starts one motion at most); STOP, RESET, a fault, a setpoint change and the end of a
+lease in LOADED or VALIDATED set them to 0. RESET from FAULT clears any latched fault
+(OVERPRESSURE and STUCK_PUNCH too) once the e-stop is released; a cause still present
+latches its fault again at the next scan, and punches halted by STUCK_PUNCH stay where they
+stopped (the next job moves them from there).
 """
 
 COMMANDS = """\
@@ -123,11 +161,16 @@ COMMANDS = """\
 
 The master writes registers {mailbox_first}-{mailbox_last} in **one** function-16 request:
 `command`, `command_counter` (a new value for every command, 1-65535), `command_master`
-(its id), `command_crc` and `command_sequence` (the job token for VALIDATE and GO, 0
-otherwise). The PLC takes a pair (`command_counter`, `command_master`) once. The master then
-reads the status block until `ack_counter` and `ack_master` are its own pair; `result_code`
-is the result and `state` the state after it. A master that sees another pair acknowledged
-after its timeout assumes its command was lost (mppf then reports it; after GO it sends STOP).
+(its id), `command_crc` (the job's CRC for VALIDATE and GO, the claim key for CLAIM, 0
+otherwise), `command_auth` (section 7) and `command_sequence` (the job's sequence for VALIDATE
+and GO, 0 otherwise). The owner then reads the status block until `owner_ack_counter` is its
+counter (with `owner_master` its id): `owner_result_code` is the result; a master that is not
+the owner (before its CLAIM is accepted) looks at `ack_counter` / `ack_master` /
+`result_code` instead. The shared `ack_*` registers show the last command of any master, and
+any master may overwrite them a scan later (a NONE, say): the owner never relies on them.
+After GO the owner also recognises its motion by `motion_sequence` / `motion_crc`. A master
+that sees no acknowledgement within its timeout assumes its command was lost (mppf then
+reports it; after GO it reads the state and sends STOP).
 
 `checks` lists the refusals the PLC tests for the command, in the order it tests them.
 """
@@ -146,25 +189,43 @@ and LIMIT only when the CRC matches.
 """
 
 OWNERSHIP = """\
-## 7. Ownership, lease, heartbeat and watchdog
+## 7. Ownership, nonce, lease, heartbeat and watchdog
 
-- A master **claims** the PLC with CLAIM before it writes setpoints. CLAIM is accepted when
-  there is no owner, or the claimer is the owner; while another master holds a live lease it
-  is refused (OWNED_BY_OTHER). `owner_master` names the owner, status bit `owned` says there
-  is one.
-- VALIDATE, GO, RESET and RELEASE are accepted only from the owner (NOT_OWNER otherwise).
-  The PLC cannot tell who wrote a setpoint register; a foreign write is caught by the job
-  token (the CRC is the owner's, computed over what it wrote and read back) and by the rule
-  that any setpoint change drops a validated job.
-- The owner writes `heartbeat_master` (its id) and a new `heartbeat_counter` in one request
-  ({hb_first}-{hb_last}) at least every quarter of `watchdog_ms` (mppf: every tenth, at most
-  250 ms). Each scan that sees a changed pair with the owner's id renews the **lease**
-  (status bit `lease_ok`). Beats of other masters are ignored (but overwrite the registers:
-  only the owner should beat).
-- A lease not renewed for `watchdog_ms` ends the ownership. During motion this is the
-  **watchdog**: fault WATCHDOG, every punch brakes to a standstill. `watchdog_ms` = 0 means
-  no watchdog and a lease that never lapses (test benches only: a press must have one).
-- The owner gives the PLC back with RELEASE when its work is done (mppf does on closing).
+- A master **claims** the PLC with CLAIM before it writes setpoints. It puts a **claim key**,
+  a random 32-bit number other than 0, in `command_crc`. CLAIM is accepted when there is no
+  live lease, or when it carries the owner's valid auth (a renewal); otherwise it is refused
+  OWNED_BY_OTHER. On acceptance the PLC draws a new random 32-bit **nonce** (never 0), makes
+  the claimer the owner (`owner_master`, status bit `owned`), writes `claim_reply` = nonce
+  XOR claim key, and in the same scan writes `command_crc` back to 0. The claimer computes
+  nonce = `claim_reply` XOR its key. No register ever holds the nonce itself.
+- Every later command of the owner (RELEASE, VALIDATE, GO, RESET, and CLAIM to renew) and
+  every heartbeat carries an **auth** word: the CRC-32 of section 9 over the 4 bytes of the
+  nonce (most significant first) followed by the request's other registers, each high byte
+  first, in address order: registers {mailbox_first}-{crc_last} and {command_sequence} for the mailbox (`command_auth`
+  itself left out), {hb_first}-{hb_last_but_auth} for the heartbeat. A command is the owner's only if
+  its `command_master` is the owner, its auth is right and its `command_counter` is newer than
+  that of the owner's last command (`(new - last) mod 65536` from 1 to 32767); otherwise
+  the owner commands are refused BAD_AUTH (NOT_OWNER when the id is not the owner's at all).
+  The counters' rule stops a replay of a recorded request.
+- **Why:** master ids, `owner_master` and the validated token are readable by every master;
+  without the nonce a master that copied them could send GO as the owner, or keep a dead
+  owner's lease alive with beats in its name so that the watchdog never fires. The nonce
+  reaches only the master that chose the claim key. This protects against masters that
+  borrow ids, by mistake or by copying registers; it is not cryptography (Modbus has none:
+  anyone who can sniff the network or write the claim key's registers within the CLAIM's
+  scan sees everything), so the press network must still be kept to the press's masters.
+- The owner writes `heartbeat_counter`, `heartbeat_master` (its id) and `heartbeat_auth` in
+  one request ({hb_first}-{hb_last}) at least every quarter of `watchdog_ms` (mppf: every tenth,
+  at most 250 ms). Each beat that counts (section 3, step 4) renews the **lease** (status bit
+  `lease_ok`). Other masters' beats, and beats with a wrong auth or an old counter, never
+  renew it.
+- A lease not renewed for `watchdog_ms` ends the ownership and the nonce (section 3, step 4).
+  During motion this is the **watchdog**: fault WATCHDOG, every punch brakes to a standstill.
+  `watchdog_ms` = 0 means no watchdog and a lease that never lapses (test benches only: a
+  press must have one).
+- RELEASE is refused (WRONG_STATE) during EXECUTING and STOPPING: the owner keeps its lease,
+  and its heartbeat, until the press is at rest. mppf releases the PLC when its work is done
+  and nothing moves.
 - GO also needs the **remote-enable key switch** at the machine in remote (status bit
   `remote_enabled`), else REMOTE_DISABLED; turning it to local during motion stops the motion.
 """
@@ -178,8 +239,14 @@ accepted too) in one request ({stop_first}-{stop_last}). At its next scan the PL
 `stop_request` back to 0, counts it in `stop_count`, records `last_stop_master` and:
 
 - EXECUTING: STOPPING, every punch brakes at the acceleration limit; at rest STOPPED;
-- IDLE, LOADED, VALIDATED, COMPLETE: STOPPED at once (the job is dropped);
+- IDLE, LOADED, VALIDATED, COMPLETE: STOPPED at once (the job is dropped); a punch still
+  moving brakes;
 - STOPPING, STOPPED, FAULT: the state stays; anything still moving brakes.
+
+Every STOP request sets `stop_cause` to STOP_REQUEST, also in STOPPED and FAULT; faults never
+change `stop_cause` (`fault_code` says which). A master that finds `stop_count` higher than
+when it last looked knows someone stopped the press (`last_stop_master` says who); mppf tells
+the operator and asks before it RESETs a STOPPED press.
 
 STOP is obeyed from anyone, in every state, without ownership. A master knows the PLC took
 it when `stop_request` reads 0 again. After STOP only a RESET by the owner, then a new
@@ -200,9 +267,21 @@ A **job** is the two setpoint blocks as written. Its **token** is the pair (sequ
   `last_sequence` (the newest it validated since power-on): `(sequence - last_sequence) mod
   65536` between 1 and 32767. A sequence is never accepted twice; 0 never.
 
-VALIDATE checks, on the PLC's copy of the setpoints, that the CRC matches `command_crc` and
+VALIDATE checks, on the PLC's copy of the setpoints, that the CRC matches `command_crc`,
 that every setpoint in use lies within `upper_min`..`upper_max` and `lower_min`..`lower_max`,
-then stores the token in `validated_sequence` / `validated_crc` (state VALIDATED). GO must
+and two machine-safety checks of its own, whatever the master believes about the press:
+
+- **Neighbour step** (NEIGHBOUR_STEP): a punch's move is its setpoint minus its actual
+  position at VALIDATE; for every two neighbouring punches of one matrix (same row, adjacent
+  columns, or same column, adjacent rows) the moves may differ by at most `dimpling_limit`.
+- **Tip gap** (TIP_GAP): for every punch pair, upper setpoint minus lower setpoint (both are
+  tip heights on the same z axis, so nothing else is subtracted) must be at least
+  `tip_gap_min`.
+
+A **parked** pair (upper and lower setpoints both within `position_tolerance` of the park
+heights in the PLC's own press configuration) is left out of both checks. `dimpling_limit`
+and `tip_gap_min` come from the PLC's configuration (its press file), never from a master.
+When every check passes the PLC stores the token in `validated_sequence` / `validated_crc` (state VALIDATED). GO must
 carry exactly that token (TOKEN_MISMATCH otherwise); it copies it to `motion_sequence` /
 `motion_crc` and moves every punch to the validated setpoints. The master follows the motion
 until COMPLETE with its own token in `motion_sequence` / `motion_crc`.
@@ -223,6 +302,10 @@ TIMING_ROWS = [
     ("STOP", "acted on at the next scan", "writes it in one request, never retried; confirms `stop_request` = 0"),
     ("PLC heartbeat", "`plc_heartbeat` + 1 every scan",
      "during motion, unchanged for 1 s = PLC program halted: STOP, report"),
+    ("rest", "`rest_speed` at most {rest_speed_max} (0.01 mm/s), `rest_time_ms` at least {rest_time_min_ms} ms",
+     "after any trouble waits, heartbeat on, for `busy` clear AND actual positions still for the rest time"),
+    ("reconnect", "accept a new connection at any time, also after dropping one",
+     "after a lost link tries to reconnect (and read the status) for {reconnect_ms} ms, then STOP"),
     ("TCP connections", "at least {tcp_connections_min} at once; when none is free refuse the new one, never drop "
      "an open one", "one per mppf process: the pressing master (its heartbeat shares it), `mppf stop`, "
      "`mppf status`, a spare"),
@@ -260,8 +343,8 @@ SAFETY_ROWS = [
     ("e-stop pressed (any state)", "halt at once: the e-stop circuit closes the valves", "FAULT (ESTOP)",
      "release the e-stop; RESET (refused ESTOP_ACTIVE while pressed)"),
     ("overpressure", "halt at once", "FAULT (OVERPRESSURE)", "RESET"),
-    ("a punch misses its setpoint (positioning timeout)", "halt at once; its fault bit set", "FAULT (STUCK_PUNCH)",
-     "RESET"),
+    ("a punch outside its band `positioning_timeout_ms` after every punch came to rest", "halt at once",
+     "FAULT (STUCK_PUNCH)", "RESET"),
     ("PLC program stopped (PLC in STOP mode)", "outputs off: valves closed", "frozen",
      "mppf sees `plc_heartbeat` stale and reports it"),
 ]
@@ -271,17 +354,74 @@ Latched faults are never reset by mppf on its own: only an operator's `mppf rese
 """
 
 CONFORMANCE = """\
-## 15. What mppf checks of a PLC
+## 15. Testing your PLC against mppf
 
-A PLC written from this page is tested with mppf's own driver and a bare Modbus master:
-identity and word order both ways; a job completed at its scan time; a job without travel
-(COMPLETE in the scan of its GO); GO refused without validation, with a stale or foreign
-token, after STOP, and with the key switch in local; VALIDATE refused with a reused sequence,
-a wrong CRC and beyond the limits; setpoint writes during motion undone and counted; a
-second master's CLAIM, VALIDATE, GO and RESET refused while another owns the PLC; STOP from
-a master that never claimed obeyed during motion; the watchdog stopping the motion within
-`watchdog_ms` when the master is killed; the e-stop refusing RESET until released; the
-refusal precedence of section 6; `mppf status` and `mppf stop` beside a running job.
+A PLC written from this page is tested with mppf's own driver (`mppf press`, `mppf status`,
+`mppf stop`, `mppf reset` with `--plc tcp://your-plc:502?unit=1`) and a bare Modbus master
+(mbpoll). Run every scenario below; each must end with the press at rest, a true message
+and the documented exit code. The simulated PLC (`mppf sim --quirk ...`, docs/simulator.md)
+shows what mppf does against a PLC that gets one of them wrong.
+
+1. Identity and word order both ways; another `map_version` is refused (exit 3).
+2. A job completed at your scan time; a job without travel (COMPLETE in the scan of its GO).
+3. **At rest:** a PLC that opens its valves a scan after GO must not report COMPLETE in the
+   GO scan (quirk `literal-complete`: mppf sees COMPLETE far sooner than the move can take,
+   or punches out of their band, sends STOP, waits until the punches are still, exit 4).
+4. Status bits one to three scans late (quirk `late-status:N`): jobs still complete.
+5. GO refused without validation, with a stale token, after STOP, with the key switch in
+   local; VALIDATE refused with a reused sequence, a wrong CRC, beyond the stroke limits, with
+   a neighbour step above `dimpling_limit`, with a tip gap below `tip_gap_min`.
+6. **Borrowed ids** (quirk `borrow-ids`): a master sending GO with the owner's id and the
+   published token is refused BAD_AUTH; beats in the owner's name do not keep a dead owner's
+   lease (kill -9 the pressing mppf: the watchdog stops the motion within `watchdog_ms`).
+7. **A foreign NONE after GO** (quirk `none-after-go`): the owner still sees its GO in
+   `owner_ack_counter` and follows the motion.
+8. **A foreign STOP** during the motion (quirk `foreign-stop@T`): mppf reports who stopped
+   the press; the next `mppf press` names the STOP and asks before its RESET (`--yes`
+   answers; without a terminal it refuses, exit 4).
+9. Setpoint writes during motion undone and counted (`refused_setpoint_writes`); mppf names
+   them after the job.
+10. A second master's CLAIM, VALIDATE, GO and RESET refused while another owns the PLC; STOP
+    from a master that never claimed obeyed during motion.
+11. Kill -9, SIGSTOP, SIGTERM and SIGHUP of `mppf press` during motion (the watchdog, or the
+    driver's STOP, ends it); the link lost during motion (mppf reconnects for
+    {reconnect_ms} ms and sends STOP); the e-stop refusing RESET until released; a stuck punch
+    latching STUCK_PUNCH after `positioning_timeout_ms`.
+12. `mppf status` and `mppf stop` beside a running job (STOP on the wire within 0.3 s of
+    `mppf stop` starting).
+"""
+
+ANSWERS = """\
+## 16. Rules in one sentence each
+
+- **At rest**: a punch whose speed has stayed under `rest_speed` for `rest_time_ms`; COMPLETE
+  needs every punch at rest and within `position_tolerance` of its goal (section 3, step 6).
+- **`scan_time_max_ms`**: the longest time from the start of one scan to the start of the next.
+- **Validated token**: kept through EXECUTING and COMPLETE, cleared by STOP, RESET, a fault, a
+  setpoint change and a lease ending in LOADED or VALIDATED.
+- **A lease ending** in STOPPING, COMPLETE, STOPPED or FAULT ends the ownership and changes
+  nothing else (STOPPING still brakes to STOPPED); in EXECUTING it is fault WATCHDOG.
+- **BAD_COMMAND**: an unknown command code, tested before every other check for every master.
+- **A refused VALIDATE while VALIDATED** changes nothing: the old job stays validated.
+- **RESET from FAULT** clears OVERPRESSURE and STUCK_PUNCH like any fault once the e-stop is
+  released; a cause still present latches again at the next scan.
+- **Positioning timeout**: `positioning_timeout_ms`, counted from the moment every punch came
+  to rest with one outside its band.
+- **`in_position` before the first GO**: set while every punch is at rest on its power-on
+  position (the goal until the first GO).
+- **`stop_cause`**: set to STOP_REQUEST by every STOP request in every state, to
+  REMOTE_DISABLED by the key switch during motion, never by a fault.
+- **Registers past the matrix**: setpoints there are ignored; actuals and fault bits there
+  read 0 and a write to them is undone and counted.
+- **Wrong unit id**: never acted on; no reply or an exception, both read by mppf as "not an
+  mppf press PLC with unit id N".
+- **A changed heartbeat**: the heartbeat registers differ from what the previous scan saw; the
+  beat counts only with the owner's id, a newer counter and the right auth.
+- **E-stop with another fault latched**: `fault_code` keeps the first fault, the `estop` bit
+  is set and RESET is refused until the e-stop is released.
+- **Status bits 9-15**: reserved, read 0, ignored by masters.
+- **A second command in one scan**: the later write overwrites the earlier, which is never
+  taken nor acknowledged.
 """
 
 # The timed example of section 10: (time, request, registers and values, what the PLC does).
@@ -297,39 +437,46 @@ every 100 ms from the claim on) and its status polls (`R {status_first}-{status_
 """
 
 WIRE_EXAMPLE = [
-    ("0", "R 0-15", "identity: magic, map version 2, 4 x 6, scan 10 ms, limits, watchdog 1000 ms", "answers"),
+    ("0", "R 0-{identity_last}", "identity: magic, map version 3, 4 x 6, scan 10 ms, limits, watchdog 1000 ms, "
+     "tolerance, positioning timeout, rest threshold, dimpling limit, tip gap", "answers"),
     ("1", "R {status_first}-{status_last}", "state 1 IDLE, no owner, `last_sequence` 0", "answers"),
-    ("2", "W {mailbox_first}-{mailbox_last}", "CLAIM: 1, counter 101, 0x1A2B 0x3C4D, 0 0, 0", "stores"),
-    ("~8", "", "", "scan: CLAIM accepted, owner 0x1A2B3C4D, ack 101, result 0"),
-    ("10", "R {status_first}-{status_last}", "ack 101 of 0x1A2B3C4D, result 0 ACCEPTED, owned, lease_ok", "answers"),
-    ("11", "W {hb_first}-{hb_last}", "heartbeat: 0x1A2B 0x3C4D, counter 1 (then every 100 ms)", "stores"),
+    ("2", "W {mailbox_first}-{mailbox_last}", "CLAIM: 1, counter 101, 0x1A2B 0x3C4D, claim key 0x5A5A 0x0F0F, "
+     "auth (ignored), 0", "stores"),
+    ("~8", "", "", "scan: CLAIM accepted, owner 0x1A2B3C4D, nonce drawn, `claim_reply` = nonce XOR key, "
+     "`command_crc` = 0, ack 101 and owner ack 101, result 0"),
+    ("10", "R {status_first}-{status_last}", "owner ack 101, result 0 ACCEPTED, owned, lease_ok, `claim_reply`: "
+     "the master computes the nonce", "answers"),
+    ("11", "W {hb_first}-{hb_last}", "heartbeat: counter 1, 0x1A2B 0x3C4D, auth (then every 100 ms)", "stores"),
     ("12", "W {upper_first}-{upper_last}", "upper setpoints, 24 x int32", "stores"),
     ("13", "W {lower_first}-{lower_last}", "lower setpoints, 24 x int32", "stores"),
     ("14", "R {upper_first}-{upper_last}, R {lower_first}-{lower_last}",
      "read back, compared by the master",
      "answers"),
-    ("16", "W {mailbox_first}-{mailbox_last}", "VALIDATE: 3, counter 102, 0x1A2B 0x3C4D, CRC, sequence 1", "stores"),
+    ("16", "W {mailbox_first}-{mailbox_last}", "VALIDATE: 3, counter 102, 0x1A2B 0x3C4D, CRC, auth, sequence 1",
+     "stores"),
     ("~18", "",
      "",
-     "scan: setpoints changed: LOADED; VALIDATE: CRC and limits pass, sequence 1 new: VALIDATED, ack 102 result 0"),
+     "scan: setpoints changed: LOADED; VALIDATE: auth, CRC, limits, neighbour step, tip gap pass, sequence 1 new: "
+     "VALIDATED, owner ack 102 result 0"),
     ("20", "R {status_first}-{status_last}",
-     "ack 102 ACCEPTED, state 3 VALIDATED, validated token (1, CRC)",
+     "owner ack 102 ACCEPTED, state 3 VALIDATED, validated token (1, CRC)",
      "answers"),
     ("21", "R {uact_first}-{uact_last}, R {lact_first}-{lact_last}", "actual positions (start of the move)", "answers"),
-    ("22", "W {mailbox_first}-{mailbox_last}", "GO: 4, counter 103, 0x1A2B 0x3C4D, CRC, sequence 1", "stores"),
-    ("~28", "", "", "scan: GO, token = validated: EXECUTING, motion token (1, CRC), ack 103 result 0"),
-    ("30", "R {status_first}-{status_last}", "ack 103 ACCEPTED, state 4 EXECUTING, busy, our motion token", "answers"),
+    ("22", "W {mailbox_first}-{mailbox_last}", "GO: 4, counter 103, 0x1A2B 0x3C4D, CRC, auth, sequence 1", "stores"),
+    ("~28", "", "", "scan: GO, token = validated: EXECUTING, motion token (1, CRC), owner ack 103 result 0"),
+    ("30", "R {status_first}-{status_last}", "owner ack 103 ACCEPTED, state 4 EXECUTING, busy, our motion token",
+     "answers"),
     ("80 ...", "R {status_first}-{status_last}", "every 50 ms: EXECUTING (actual positions every 250 ms)", "answers"),
-    ("~20530", "", "", "scan: every punch at rest: COMPLETE, in_position"),
+    ("~20530", "", "", "scan: every punch at rest in its band for `rest_time_ms`: COMPLETE, in_position"),
     ("20560", "R {status_first}-{status_last}", "state 5 COMPLETE, motion token ours, in_position", "answers"),
     ("20561", "R {uact_first}-{uact_last}, R {lact_first}-{lact_last}",
      "actual positions: the master checks every punch itself",
      "answers"),
     ("20563", "W {mailbox_first}-{mailbox_last}",
-     "RELEASE: 2, counter 104, 0x1A2B 0x3C4D, 0 0, 0 (end of the job)",
+     "RELEASE: 2, counter 104, 0x1A2B 0x3C4D, 0 0, auth, 0 (end of the job)",
      "stores"),
-    ("~20568", "", "", "scan: RELEASE accepted, no owner; the state stays COMPLETE"),
-    ("20570", "R {status_first}-{status_last}", "ack 104 ACCEPTED; the master stops its heartbeat", "answers"),
+    ("~20568", "", "", "scan: RELEASE accepted, no owner, nonce forgotten; the state stays COMPLETE"),
+    ("20570", "R {status_first}-{status_last}", "owner ack 104 ACCEPTED; the master stops its heartbeat", "answers"),
 ]
 
 WIRE_EXAMPLE_OUTRO = """\

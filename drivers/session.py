@@ -26,7 +26,7 @@ from mppf.drivers import codec, regmap as rm
 from mppf.drivers.audit import NULL_AUDIT, Audited
 from mppf.drivers.identity import identify
 
-STATUS_SPAN = ("stop_request", "stop_cause")
+STATUS_SPAN = ("stop_request", "refused_setpoint_writes")
 """The registers read for a status: the STOP register and the whole status block (one request)."""
 ACK_MARGIN_S = 0.25
 """Added to the acknowledgement timeout: the time a loaded master takes to poll."""
@@ -112,7 +112,8 @@ class PlcSession:
         self.master_id = int(master_id) if master_id else new_master_id()
         self._clock = clock if clock is not None else WallClock()
         self._counter = int.from_bytes(os.urandom(2), "big") % 0xFFFF + 1
-        self._beat_counter = 0
+        self._beat_counter = int.from_bytes(os.urandom(2), "big") % 0xFFFF
+        self._nonce = 0  # the PLC's nonce for this master's lease (never written anywhere as it is)
         self._owner = False
         self._plc_halted = False
         self._last_sequence = 0
@@ -184,10 +185,11 @@ class PlcSession:
         """Start measuring the heartbeat gap afresh (at the start of a step)."""
 
     def _beat(self) -> None:
-        """One heartbeat: the master id and a new counter, in one request."""
+        """One heartbeat: a newer counter, the master id and the auth of the nonce, in one request."""
         self._beat_counter = self._beat_counter % 0xFFFF + 1
-        words = codec.u32_to_words(self.master_id, self.identity.word_order) + [self._beat_counter]
-        self._io.write_command(self.map["heartbeat_master"].address, words, urgent=True)
+        words = [self._beat_counter] + codec.u32_to_words(self.master_id, self.identity.word_order)
+        words += codec.u32_to_words(codec.auth_crc32(self._nonce, words), self.identity.word_order)
+        self._io.write_command(self.map["heartbeat_counter"].address, words, urgent=True)
 
     # ------------------------------------------------------------------ status ---
     def _status_raw(self) -> dict[str, int]:
@@ -223,7 +225,7 @@ class PlcSession:
         """Everything ``mppf status`` shows: identity, state, status bits, codes, owner, tokens, counters."""
         raw = self._status_raw()
         ident = self.identity
-        hb_first, hb_count = self.map.span("heartbeat_master", "heartbeat_counter")
+        hb_first, hb_count = self.map.span("heartbeat_counter", "heartbeat_master")
         hb = self._io.read_holding(hb_first, hb_count)
         return {
             "plc": str(self.url), "word_order": ident.word_order, "map_version": ident.map_version,
@@ -242,25 +244,40 @@ class PlcSession:
             "stops": {"count": raw["stop_count"], "last_master": raw["last_stop_master"],
                       "cause": self.map.stop_causes.name(raw["stop_cause"])},
             "plc_heartbeat": raw["plc_heartbeat"],
-            "heartbeat": {"master": codec.words_to_u32(hb[:2], ident.word_order), "counter": hb[2]},
+            "heartbeat": {"master": codec.words_to_u32(hb[1:3], ident.word_order), "counter": hb[0]},
+            "refused_setpoint_writes": raw["refused_setpoint_writes"],
         }
 
     # ----------------------------------------------------------------- mailbox ---
     def _send(self, name: str, *, sequence: int = 0, crc: int = 0) -> int:
-        """Write the mailbox (one request, one attempt, never retried); return the command counter."""
+        """Write the mailbox with the auth of the nonce (one request, one attempt, never retried); the counter."""
         self._counter = self._counter % 0xFFFF + 1
         order = self.identity.word_order
-        words = ([self.map.command(name), self._counter] + codec.u32_to_words(self.master_id, order)
-                 + codec.u32_to_words(crc, order) + [sequence])
-        self._io.write_command(self.map["command"].address, words)
+        head = [self.map.command(name), self._counter] + codec.u32_to_words(self.master_id, order)
+        head += codec.u32_to_words(crc, order)
+        auth = codec.auth_crc32(self._nonce, head + [sequence])
+        self._io.write_command(self.map["command"].address, head + codec.u32_to_words(auth, order) + [sequence])
         return self._counter
+
+    def _acknowledged(self, raw: dict, counter: int) -> dict | None:
+        """The status with ``result_code`` of this master's command ``counter``, once the PLC took it.
+
+        The owner's acknowledgement registers are looked at first (no other master's command
+        changes them); the shared ones only name a command of this master that the PLC refused
+        before it knew us as the owner (a refused CLAIM).
+        """
+        if raw["owner_master"] == self.master_id and raw["owner_ack_counter"] == counter:
+            return dict(raw, result_code=raw["owner_result_code"])
+        if raw["ack_counter"] == counter and raw["ack_master"] == self.master_id:
+            return raw
+        return None
 
     def _await_ack(self, counter: int) -> dict | None:
         """Poll until the PLC acknowledges ``counter`` of this master; the status then, or None on timeout."""
         deadline = self._clock.now() + self.ack_timeout_s
         while True:
-            raw = self._status_raw()
-            if raw["ack_counter"] == counter and raw["ack_master"] == self.master_id:
+            raw = self._acknowledged(self._status_raw(), counter)
+            if raw is not None:
                 return raw
             if self._clock.now() >= deadline:
                 return None
@@ -298,7 +315,7 @@ class PlcSession:
         """
         raw = self._status_raw()
         owner, lease_ok = raw["owner_master"], raw["flags"]["lease_ok"]
-        if owner == self.master_id and lease_ok:
+        if owner == self.master_id and lease_ok and self._nonce:
             self._owner = True
             self._start_heartbeat()
             return
@@ -308,9 +325,13 @@ class PlcSession:
             raise PressRefused(f"the PLC at {self.url} is owned by master 0x{owner:08X}, whose lease is alive: "
                                "another master is driving the press; nothing was written",
                                hint="wait until it has finished (see 'mppf status'), or stop it with 'mppf stop'")
+        key = new_master_id()  # the claim key: any 32-bit number but 0
         with Audited(self, "claim", detail=f"master 0x{self.master_id:08X}") as row:
-            raw = self._command("CLAIM")
-            if raw["result_code"]:
+            self._nonce = 0
+            raw = self._command("CLAIM", crc=key)
+            if not raw["result_code"]:
+                self._nonce = raw["claim_reply"] ^ key
+            else:
                 row.outcome, row.detail = "refused", self.map.result_text(raw["result_code"])
                 raise PressRefused(f"the PLC at {self.url} refused CLAIM: {row.detail}; nothing was written",
                                    hint="wait until the other master has finished (see 'mppf status')")

@@ -20,11 +20,15 @@ def small_press(rows: int = 4, cols: int = 6, **forming):
 
 
 def step_setpoints(press, upper_mm: float = 30.0, lower_mm: float = 10.0, seed: int = 0):
-    """(upper, lower) setpoints with a little variation per punch, within the limits."""
+    """(upper, lower) setpoints with a little variation per punch, within the limits.
+
+    Every pair's tips stay at least 25 mm apart and neighbours differ by at most 25 mm, so the
+    PLC's own tip-gap and neighbour-step checks pass from the parks.
+    """
     rng = np.random.default_rng(seed)
     upper = upper_mm + np.round(rng.uniform(0, 20, press.shape), 2)
     lower = lower_mm + np.round(rng.uniform(0, 20, press.shape), 2)
-    return upper, lower
+    return np.maximum(upper, lower + 25.0), lower
 
 
 def small_job(press, n_steps: int = 2, *, beyond_limit: bool = False) -> Job:
@@ -85,11 +89,12 @@ class HookReporter:
 
 
 class RawMaster:
-    """A bare master speaking register map v2 on any register store (the test's own, not the driver).
+    """A bare master speaking register map v3 on any register store (the test's own, not the driver).
 
     ``write(address, words)`` and ``read(address, count)`` are the transport (the program's
     ``store``/``read`` in-process, a pymodbus client over a socket); ``scan()`` lets the PLC
-    act (one program scan in-process, a wait on a socket).
+    act (one program scan in-process, a wait on a socket). CLAIM sends a claim key and keeps
+    the nonce the PLC returns; owner commands and beats carry the auth computed with it.
     """
 
     def __init__(self, rmap, write, read, scan, master_id: int, word_order: str = "ABCD"):
@@ -97,6 +102,8 @@ class RawMaster:
         self.master_id, self.word_order = master_id, word_order
         self.counter = 0
         self.beats = 0
+        self.nonce = 0
+        self.claim_key = 0x5EED0000 + (master_id & 0xFFFF)
 
     def u32(self, value: int) -> list[int]:
         return codec.u32_to_words(value, self.word_order)
@@ -115,23 +122,33 @@ class RawMaster:
     def result(self) -> str:
         return self.map.results.name(self.field("result_code"))
 
-    def send(self, name: str, sequence: int = 0, crc: int = 0, *, master: int | None = None) -> None:
-        """Write the mailbox in one request (no wait)."""
+    def send(self, name: str, sequence: int = 0, crc: int = 0, *, master: int | None = None,
+             nonce: int | None = None) -> None:
+        """Write the mailbox in one request (no wait); the auth uses ``nonce`` (default: this master's)."""
         self.counter = self.counter % 0xFFFF + 1
         master = self.master_id if master is None else master
-        self._write(self.map["command"].address,
-                    [self.map.command(name), self.counter] + self.u32(master) + self.u32(crc) + [sequence])
+        if name == "CLAIM" and not crc:
+            crc = self.claim_key
+        head = [self.map.command(name), self.counter] + self.u32(master) + self.u32(crc)
+        auth = codec.auth_crc32(self.nonce if nonce is None else nonce, head + [sequence])
+        self._write(self.map["command"].address, head + self.u32(auth) + [sequence])
 
-    def command(self, name: str, sequence: int = 0, crc: int = 0, *, master: int | None = None) -> str:
+    def command(self, name: str, sequence: int = 0, crc: int = 0, *, master: int | None = None,
+                nonce: int | None = None) -> str:
         """Send a command, let the PLC scan, return the result's name (checks the acknowledgement)."""
-        self.send(name, sequence, crc, master=master)
+        self.send(name, sequence, crc, master=master, nonce=nonce)
         self.scan()
         assert self.field("ack_counter") == self.counter, "the PLC did not acknowledge the command"
-        return self.result()
+        result = self.result()
+        if name == "CLAIM" and result == "ACCEPTED" and master in (None, self.master_id):
+            self.nonce = self.field("claim_reply") ^ (crc or self.claim_key)
+        return result
 
-    def beat(self) -> None:
+    def beat(self, *, master: int | None = None, nonce: int | None = None) -> None:
         self.beats = self.beats % 0xFFFF + 1
-        self._write(self.map["heartbeat_master"].address, self.u32(self.master_id) + [self.beats])
+        head = [self.beats] + self.u32(self.master_id if master is None else master)
+        auth = codec.auth_crc32(self.nonce if nonce is None else nonce, head)
+        self._write(self.map["heartbeat_counter"].address, head + self.u32(auth))
 
     def stop(self) -> None:
         self._write(self.map["stop_request"].address, [1] + self.u32(self.master_id))

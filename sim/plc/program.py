@@ -39,6 +39,7 @@ from mppf.planning.press import PressConfig
 from mppf.sim.hydraulics import Hydraulics
 from mppf.sim.plc.commands import MATRICES, Commands
 from mppf.sim.plc.program_faults import ProgramFaults
+from mppf.sim.plc.quirks import Quirks
 
 MAX_STEP_S = 0.02
 """Longest integration step of the motion (simulated s)."""
@@ -50,7 +51,7 @@ BEATS_KEPT = 20000
 """Owner heartbeats whose arrival times are kept (:attr:`PlcProgram.beats`)."""
 
 
-class PlcProgram(Commands, ProgramFaults):
+class PlcProgram(Commands, ProgramFaults, Quirks):
     """The simulated press PLC's program (no communication, no threads).
 
     Parameters
@@ -73,6 +74,12 @@ class PlcProgram(Commands, ProgramFaults):
         The scan period the host keeps (0 < scan_s <= 0.2 s); written to ``scan_time_max_ms``.
     remote : bool
         Position of the remote-enable key switch at power-on (True: remote, GO allowed).
+    limits : dict, optional
+        The PLC's own configuration beyond the press description: ``positioning_timeout_s``
+        (simulated s, default 2), ``rest_speed_mm_s`` (0.5), ``rest_time_s`` (0.05),
+        ``tip_gap_min_mm`` (5); the dimpling limit is the press's ``max_neighbour_diff_mm``.
+    quirks : sequence of str, optional
+        Misbehaviours of a PLC written from a misread map (:mod:`mppf.sim.plc.quirks`).
     regmap : RegisterMap, optional
         Register map (default: the packaged one).
     clock : callable, optional
@@ -93,7 +100,8 @@ class PlcProgram(Commands, ProgramFaults):
 
     def __init__(self, press: PressConfig, *, word_order: str = "ABCD", time_scale: float = 1.0,
                  watchdog_s: float | None = 1.0, seed: int = 0, noise_mm: float = 0.0, scan_s: float = 0.01,
-                 remote: bool = True, regmap: RegisterMap | None = None, clock: Callable[[], float] | None = None):
+                 remote: bool = True, regmap: RegisterMap | None = None, clock: Callable[[], float] | None = None,
+                 limits: dict | None = None, quirks=()):
         self.press = press
         self.map = regmap or load_register_map()
         self.map.check_shape(press.rows, press.cols)
@@ -112,6 +120,7 @@ class PlcProgram(Commands, ProgramFaults):
         self.scan_s = float(scan_s)
         self.noise_mm = float(noise_mm)
         self.remote_key = bool(remote)
+        self._configure(limits or {})
         self.now_s = 0.0
         self._clock = clock if clock is not None else (lambda: self.now_s)
         self._rng = np.random.default_rng(seed)
@@ -122,6 +131,7 @@ class PlcProgram(Commands, ProgramFaults):
         self._ro_spans = self._read_only_spans()
         self.beats: deque[float] = deque(maxlen=BEATS_KEPT)
         self._init_faults()
+        self._init_quirks(quirks)
         self._power_on()
 
     # ------------------------------------------------------------------ state ---
@@ -134,7 +144,7 @@ class PlcProgram(Commands, ProgramFaults):
         self.fault_code = 0
         self.punch_faults = np.zeros((2, self.press.rows, self.press.cols), dtype=bool)
         self.motion_time_s = 0.0
-        self._arrived_at_s: float | None = None
+        self._still_s = float("inf")  # simulated s since a punch last moved
         self.heartbeat = 0
         self._reset_commands()
         if self.estop_pressed:
@@ -168,6 +178,11 @@ class PlcProgram(Commands, ProgramFaults):
         put("scan_time_max_ms", [max(1, math.ceil(self.scan_s * 1000 - 1e-9))])
         put("watchdog_ms", [round((self.watchdog_s or 0.0) * 1000)])
         put("position_tolerance", [round(p.position_tolerance_mm / m.count_mm)])
+        put("positioning_timeout_ms", [min(65535, round(self.positioning_timeout_s * 1000))])
+        put("rest_speed", [round(self.rest_speed_mm_s / m.count_mm)])
+        put("rest_time_ms", [round(self.rest_time_s * 1000)])
+        put("dimpling_limit", encode_int32(mm_to_counts([self.dimpling_limit_mm], m.count_mm), self.word_order))
+        put("tip_gap_min", encode_int32(mm_to_counts([self.tip_gap_min_mm], m.count_mm), self.word_order))
         for side in MATRICES:
             limits = getattr(p, side)
             put(f"{side}_min", encode_int32(mm_to_counts([limits.min_mm], m.count_mm), self.word_order))
@@ -245,14 +260,17 @@ class PlcProgram(Commands, ProgramFaults):
         self.now_s += dt_s
         if self.frozen:
             return
+        self._quirk_scan_start()     #    (a literal PLC's valves open a scan after GO)
         self._read_inputs()          # 1. e-stop circuit, key switch
         self._guard_registers()      # 2. setpoint changes, writes to read-only registers
         self._handle_stop_request()  # 3. STOP, from anyone
         self._check_lease()          # 4. the owner's heartbeat, lease, watchdog, key switch in motion
+        self._took_go = False
         self._handle_mailbox()       # 5. one new command, acknowledged
         self._run_motion(dt_s)       # 6. hydraulics, fault timers, end of motion
         self.heartbeat = (self.heartbeat + 1) & 0xFFFF
         self.publish()               # 7. status, tokens, actual positions
+        self._quirk_after_scan(self._took_go)  # foreign masters' writes land after the scan
 
     def _guard_registers(self) -> None:
         """Take setpoint changes while they are allowed, undo them (and foreign writes) otherwise."""
@@ -266,6 +284,8 @@ class PlcProgram(Commands, ProgramFaults):
                 else:
                     self._set(f"{side}_setpoints", self._copy[side])
                     refused = True
+        if refused:
+            self.refused_setpoint_writes = (self.refused_setpoint_writes + 1) & 0xFFFF
         if changed:
             self._drop_job("LOADED")
         for start, end in self._ro_spans:
@@ -275,25 +295,50 @@ class PlcProgram(Commands, ProgramFaults):
         if refused:
             self.refused_writes = (self.refused_writes + 1) & 0xFFFF
 
+    def _configure(self, limits: dict) -> None:
+        """The PLC's own configuration: positioning timeout, rest threshold, neighbour step, tip gap."""
+        known = {"positioning_timeout_s": 2.0, "rest_speed_mm_s": 0.5, "rest_time_s": 0.05, "tip_gap_min_mm": 5.0}
+        unknown = sorted(set(limits) - set(known))
+        if unknown:
+            raise InputError(f"unknown PLC setting {unknown[0]!r}", hint=f"known: {', '.join(known)}")
+        for key, default in known.items():
+            value = limits.get(key, default)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and 0 <= value <= 65.0):
+                raise InputError(f"PLC setting {key} must be a number from 0 to 65, got {value!r}")
+            setattr(self, key, float(value))
+        self.dimpling_limit_mm = float(self.press.max_neighbour_diff_mm)
+
     def _run_motion(self, dt_s: float) -> None:
         """Advance the hydraulics by the scan's simulated time; end motion when every punch is at rest."""
         sim_dt = dt_s * self.time_scale
         steps = min(max(1, math.ceil(sim_dt / MAX_STEP_S - 1e-9)), MAX_STEPS_PER_SCAN)
         for _ in range(steps):
             self.hydraulics.step(sim_dt / steps)
+            self._still_s = 0.0 if self.hydraulics.moving else self._still_s + sim_dt / steps
             if self.state != "EXECUTING":
                 continue
             self.motion_time_s += sim_dt / steps
             self._run_motion_faults()
             if self.frozen:  # the program halted in this step: this scan publishes its last image
                 return
-            self._check_stuck()
-        if self.hydraulics.moving:
+        if self._quirk_end_of_motion():
             return
-        if self.state == "EXECUTING" and not self._stuck_pending():
-            self.state = "COMPLETE"
-        elif self.state == "STOPPING":
+        if self.state == "EXECUTING" and self.at_rest:
+            self._check_stuck()
+            if self.state == "EXECUTING" and self.in_band:
+                self.state = "COMPLETE"
+        elif self.state == "STOPPING" and self.at_rest:
             self.state = "STOPPED"
+
+    @property
+    def at_rest(self) -> bool:
+        """Every punch slower than the rest speed for the rest time (the map's definition, speed part)."""
+        return not self.hydraulics.moving and self._still_s >= self.rest_time_s - 1e-9
+
+    @property
+    def in_band(self) -> bool:
+        """Every punch within the position tolerance of its goal."""
+        return bool(np.all(np.abs(self.hydraulics.position - self.goal_mm) <= self.press.position_tolerance_mm))
 
     def _latch(self, name: str, *, halt: bool = True) -> None:
         """Latch fault ``name`` (the first fault keeps its code), drop the job, stop the punches."""
@@ -309,14 +354,12 @@ class PlcProgram(Commands, ProgramFaults):
     # ----------------------------------------------------------------- status ---
     def status_bits(self) -> dict[str, bool]:
         """Status-word flags by name."""
-        moving = self.hydraulics.moving
-        in_position = not moving and bool(
-            np.all(np.abs(self.hydraulics.position - self.goal_mm) <= self.press.position_tolerance_mm))
+        rest = self.at_rest
         return {
             "ready": self.state in ("IDLE", "LOADED", "VALIDATED", "COMPLETE", "STOPPED")
             and not self.fault_code and not self.estop_pressed,
-            "busy": self.state in ("EXECUTING", "STOPPING") or moving,
-            "in_position": in_position,
+            "busy": self.state in ("EXECUTING", "STOPPING") or not rest,
+            "in_position": rest and self.in_band,
             "fault": self.fault_code != 0,
             "estop": self.estop_pressed,
             "remote_enabled": self.remote_key,
@@ -335,8 +378,11 @@ class PlcProgram(Commands, ProgramFaults):
             self._set(f"{side}_actuals", self._actual_words(k, actual[k]))
             self._set(f"{side}_fault_bits", pack_bits(self.punch_faults[k].ravel()))
         counter, master, command, result = self.ack
-        self._set("status_word", [m.status_word(**self.status_bits())])
-        for name, value in (("state", m.states.code(self.state)), ("fault_code", self.fault_code),
+        self._set("status_word", [self._late_status_word(m.status_word(**self.status_bits()))])
+        for name, value in (("state", self._published_state()), ("fault_code", self.fault_code),
+                            ("owner_ack_counter", self.owner_ack[0]), ("owner_ack_command", self.owner_ack[1]),
+                            ("owner_result_code", self.owner_ack[2]),
+                            ("refused_setpoint_writes", self.refused_setpoint_writes),
                             ("ack_counter", counter), ("ack_command", command), ("result_code", result),
                             ("validated_sequence", self.validated[0]), ("motion_sequence", self.motion[0]),
                             ("plc_heartbeat", self.heartbeat), ("refused_writes", self.refused_writes),
@@ -344,7 +390,8 @@ class PlcProgram(Commands, ProgramFaults):
                             ("stop_cause", m.stop_causes.code(self.stop_cause))):
             self._set(name, [value])
         for name, value in (("ack_master", master), ("owner_master", self.owner), ("validated_crc", self.validated[1]),
-                            ("motion_crc", self.motion[1]), ("last_stop_master", self.last_stop_master)):
+                            ("motion_crc", self.motion[1]), ("last_stop_master", self.last_stop_master),
+                            ("claim_reply", self.claim_reply)):
             self._set_u32(name, value)
         self._shadow = self.regs[: m.total_registers]
 
@@ -372,5 +419,5 @@ class PlcProgram(Commands, ProgramFaults):
 
     @property
     def busy(self) -> bool:
-        """Motion in progress (state EXECUTING or STOPPING, or a punch still braking)."""
-        return self.state in ("EXECUTING", "STOPPING") or self.hydraulics.moving
+        """Motion in progress (state EXECUTING or STOPPING, or a punch not at rest)."""
+        return self.state in ("EXECUTING", "STOPPING") or not self.at_rest

@@ -49,8 +49,8 @@ class ProgramFaults:
         **params
             stuck: ``matrix`` ("upper"/"lower"), ``row``, ``col`` (0-based), ``percent`` (of
             each move done before it sticks, default 50), ``fault_after_s`` (simulated s
-            after the other punches arrived until fault STUCK_PUNCH and the punch's fault
-            bit; None: no fault, motion simply ends short). estop / overpressure / freeze /
+            after every punch came to rest until fault STUCK_PUNCH and the punch's fault
+            bit; None: the PLC's positioning timeout). estop / overpressure / freeze /
             local (key switch to local): ``after_s`` (simulated s into the motion of the
             current or next GO; None: now).
 
@@ -119,28 +119,16 @@ class ProgramFaults:
         if self.estop_pressed and self.state != "FAULT":
             self._latch("ESTOP")
 
-    def _stuck_short(self) -> np.ndarray:
-        """(2, rows, cols) bool: stuck punches short of their goal."""
-        stuck = ~np.isnan(self.hydraulics.stuck_fraction)
-        off = np.abs(self.hydraulics.position - self.goal_mm) > self.press.position_tolerance_mm
-        return stuck & off
-
-    def _stuck_pending(self) -> bool:
-        """A stuck punch whose fault timer is still running keeps the motion going."""
-        if self.fault_code:
-            return False
-        return any(self._stuck_short()[idx] for idx in self._stuck_fault_after_s)
-
     def _check_stuck(self) -> None:
-        if self.fault_code or not self._stuck_fault_after_s or self.hydraulics.moving:
+        """EXECUTING, every punch at rest: a punch outside its band for the positioning timeout latches
+        STUCK_PUNCH with the fault bits of the punches outside their band."""
+        if self.fault_code:
             return
-        if self._arrived_at_s is None:
-            self._arrived_at_s = self.motion_time_s
-        short = self._stuck_short()
-        for idx, after_s in self._stuck_fault_after_s.items():
-            if short[idx] and self.motion_time_s - self._arrived_at_s >= after_s:
-                self.punch_faults[idx] = True
-                self._latch("STUCK_PUNCH")
+        timeout_s = min(self._stuck_fault_after_s.values(), default=self.positioning_timeout_s)
+        off = np.abs(self.hydraulics.position - self.goal_mm) > self.press.position_tolerance_mm
+        if off.any() and self._still_s >= timeout_s:
+            self.punch_faults[off] = True
+            self._latch("STUCK_PUNCH")
 
     # ------------------------------------------------------ operator inputs ---
     def release_estop(self) -> None:

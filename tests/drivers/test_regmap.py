@@ -23,7 +23,7 @@ def test_map_loads_with_magic_first(rmap):
     assert rmap.magic == 0x4D505046
     assert struct.pack(">I", rmap.magic) == b"MPPF"
     assert (rmap["magic"].address, rmap["magic"].count, rmap["magic"].type) == (0, 2, "int32")
-    assert rmap["map_version"].address == 2 and rmap.version == 2
+    assert rmap["map_version"].address == 2 and rmap.version == 3
     assert set(rmap.commands.by_name) == {"NONE", "CLAIM", "RELEASE", "VALIDATE", "GO", "RESET"}
     assert "STOP" not in rmap.commands  # STOP has its own register, never the mailbox
     assert len(set(rmap.status_bits.values())) == len(rmap.status_bits)
@@ -50,13 +50,17 @@ def test_status_registers_are_read_only_and_control_writable(rmap):
     for name in ("magic", "watchdog_ms", "status_word", "state", "fault_code", "ack_counter", "owner_master",
                  "validated_crc", "plc_heartbeat", "refused_writes", "upper_actuals"):
         assert not rmap[name].writable, name
-    for name in ("command", "command_counter", "command_master", "command_crc", "command_sequence",
-                 "heartbeat_master", "heartbeat_counter", "stop_request", "stop_master", "lower_setpoints"):
+    for name in ("owner_ack_counter", "owner_result_code", "claim_reply", "positioning_timeout_ms", "dimpling_limit",
+                 "tip_gap_min", "rest_speed", "rest_time_ms", "refused_setpoint_writes"):
+        assert not rmap[name].writable, name
+    for name in ("command", "command_counter", "command_master", "command_crc", "command_sequence", "command_auth",
+                 "heartbeat_master", "heartbeat_counter", "heartbeat_auth", "stop_request", "stop_master",
+                 "lower_setpoints"):
         assert rmap[name].writable, name
     # one request each: the mailbox, the heartbeat, the STOP
-    assert rmap.span("command", "command_sequence") == (16, 7)
-    assert rmap.span("heartbeat_master", "heartbeat_counter") == (24, 3)
-    assert rmap.span("stop_request", "stop_master") == (27, 3)
+    assert rmap.span("command", "command_sequence") == (24, 9)
+    assert rmap.span("heartbeat_counter", "heartbeat_auth") == (33, 5)
+    assert rmap.span("stop_request", "stop_master") == (39, 3)
 
 
 def test_overlapping_map_is_refused():
@@ -119,14 +123,15 @@ def test_the_wire_example_is_what_the_driver_writes(rmap):
     from mppf.drivers.regmap_doc import EXAMPLE_COLS, EXAMPLE_ROWS, wire_example
     from mppf.sim.plc.link import InProcessPress
 
-    heartbeat = rmap.span("heartbeat_master", "heartbeat_counter")
+    heartbeat = rmap.span("heartbeat_counter", "heartbeat_auth")
+    mailbox = rmap["command"].address
     documented = []
     for _, request, values, _ in wire_example(rmap):
         for part in request.split(", "):
             if part.startswith("W "):
                 first, last = (int(a) for a in part[2:].split("-"))
                 if (first, last - first + 1) != heartbeat:
-                    documented.append((first, last - first + 1, values.split(":")[0] if first == 16 else "setpoints"))
+                    documented.append((first, last - first + 1, values.split(":")[0] if first == mailbox else "setpoints"))
     press = small_press(EXAMPLE_ROWS, EXAMPLE_COLS)
     link = InProcessPress(press)
     written = []
@@ -138,6 +143,7 @@ def test_the_wire_example_is_what_the_driver_writes(rmap):
             written.append((address, len(words), name))
             if address == rmap["command"].address:
                 assert words[2:4] == u32_to_words(link.master_id)  # the master id in the same request
+                assert any(words[6:8])  # and the auth of the nonce
         return store(address, words)
 
     link.program.store = record

@@ -293,7 +293,7 @@ def test_identity_states_the_scan_time_watchdog_and_tolerance():
     program = PlcProgram(PRESS, watchdog_s=0.75, scan_s=0.05, word_order="CDAB")
     words = program.read(0, 16)
     assert codec.detect_word_order(words[0:2], MAP.magic) == "CDAB"
-    assert words[MAP["map_version"].address] == 2
+    assert words[MAP["map_version"].address] == 3
     assert words[MAP["scan_time_max_ms"].address] == 50 and words[MAP["watchdog_ms"].address] == 750
     assert words[MAP["position_tolerance"].address] == round(PRESS.position_tolerance_mm / MAP.count_mm)
     with pytest.raises(InputError, match="at most 200 ms, got 250 ms"):

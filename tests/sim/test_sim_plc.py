@@ -98,7 +98,7 @@ def test_magic_and_identity_in_both_word_orders(word_order):
         master = Master(sim, word_order)
         words = master.read("magic")
         assert codec.detect_word_order(words, MAP.magic) == word_order
-        assert master.read("map_version") == [MAP.version] == [2]
+        assert master.read("map_version") == [MAP.version] == [3]
         assert master.read("rows") + master.read("cols") == [PRESS.rows, PRESS.cols]
         assert master.read("scan_time_max_ms") + master.read("watchdog_ms") == [20, 800]
         limit = codec.decode_int32(master.read("upper_max"), word_order)[0]
@@ -289,19 +289,20 @@ def test_watchdog_stops_motion_when_the_heartbeat_goes_stale():
 
 
 # -------------------------------------------------------------------- faults ------
-def test_stuck_punch_ends_short_without_a_fault(plc):
+def test_stuck_punch_is_never_complete_and_latches_after_the_positioning_timeout(plc):
     sim, master = plc
     upper, lower = targets()
     sim.inject("stuck", matrix="lower", row=2, col=3, percent=25)
     crc = master.validated(upper, lower, 1)
     assert master.command("GO", 1, crc) == "ACCEPTED"
-    flags = master.wait_state("COMPLETE")
-    assert not flags["in_position"] and not flags["fault"] and flags["ready"]
+    flags = master.wait_state("FAULT")  # out of its band: never COMPLETE (map v3, "at rest")
+    assert flags["fault"] and not flags["in_position"] and master.read("fault_code") == [MAP.fault("STUCK_PUNCH")]
     error = np.abs(master.actuals_mm("lower", PRESS.shape) - lower)
     assert error[2, 3] == pytest.approx(0.75 * abs(lower[2, 3] - PRESS.lower.park_mm), abs=0.01)
     error[2, 3] = 0
     assert error.max() < 0.006
-    assert not any(master.read("lower_fault_bits", 2))
+    bits = codec.unpack_bits(master.read("lower_fault_bits", 2), PRESS.rows * PRESS.cols)
+    assert bits.sum() == 1 and bits[2 * PRESS.cols + 3]
 
 
 def test_stuck_punch_with_fault_timer_sets_its_fault_bit(plc):
