@@ -28,7 +28,7 @@ def write_report(history, plate_id: str, comparisons: dict, *, operator: str | N
                 reporter.info(f"report of plate {plate_id}: comparing the scan of cycle {c.cycle} again")
                 comparisons[c.cycle] = compare_recorded(plate, c, design, settings)
     out = Path(plate.settings["work_dir"])
-    files = write_plate_report(out, plate, cycles, comparisons, load_job(cycles[0].job_path),
+    files = write_plate_report(out, plate, cycles, comparisons, load_job(cycles[0].job_path, require_seal=False),
                                tolerance_mm=settings.tolerance_mm, rms_tolerance_mm=settings.rms_tolerance_mm,
                                operator=operator, press_name=str(plate.press.get("name", "press")))
     return files[-1]

@@ -59,8 +59,11 @@ def batch_command(designs, manifest, out_dir, press_path, thickness_mm, material
             check_number(name, value, low=0.0, low_open=name == "--thickness", unit="mm")
     n_workers = cores() if workers is None else check_number("--jobs", workers, low=1, high=256, integer=True)
     press_file = str(Path(press_path) if press_path else example_press_path())
-    load_press(press_file)  # a bad press description is bad input for the whole batch, before any work
-    plates = (read_manifest(manifest, thickness_mm, material) if manifest
+    press = load_press(press_file)  # a bad press description is bad input for the whole batch, before any work
+    if thickness_mm is not None:
+        check_number("--thickness", thickness_mm, low=0.0, low_open=True, high=press.max_thickness_mm, unit="mm",
+                     hint=f"the press takes plates up to {press.max_thickness_mm:g} mm ([forming] max_thickness_mm)")
+    plates = (read_manifest(manifest, thickness_mm, material, max_thickness_mm=press.max_thickness_mm) if manifest
               else plates_from_files(designs, thickness_mm, material, springback))
     _check_out_dir(out_dir)
     options = BatchOptions(press_path=press_file, out_dir=out_dir, units=units, margin_mm=margin_mm,

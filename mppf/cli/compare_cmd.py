@@ -44,6 +44,28 @@ def parse_mark(text: str | None):
     return values
 
 
+MARK_REACH_MM = 500.0
+"""How far outside the scan's bounding box a --mark may lie (a mark on the plate's very corner, a scan with holes)."""
+
+
+def check_mark_on_scan(mark_mm, scan_points, scan_path) -> None:
+    """Refuse a ``--mark`` far from every point of the scan (a typo, another unit, another scan's coordinates).
+
+    Raises
+    ------
+    InputError
+        The mark lies more than :data:`MARK_REACH_MM` outside the scan's bounding box.
+    """
+    lo, hi = scan_points.min(axis=0), scan_points.max(axis=0)
+    outside = float(np.linalg.norm(np.maximum(0.0, np.maximum(lo - mark_mm, mark_mm - hi))))
+    if outside > MARK_REACH_MM:
+        span = ", ".join(f"{a:.0f}..{b:.0f}" for a, b in zip(lo, hi))
+        raise InputError(f"--mark {','.join(f'{v:g}' for v in mark_mm)} lies {outside:.0f} mm outside the scan "
+                         f"{scan_path} (its points span x, y, z {span} mm)",
+                         hint="give where the reference-corner mark is in the scan's own coordinates (mm, or the "
+                              "scan's units with --scan-units)")
+
+
 @click.command("compare")
 @click.argument("design", type=click.Path(dir_okay=False, path_type=str))
 @click.argument("measured", type=click.Path(dir_okay=False, path_type=str))
@@ -116,6 +138,11 @@ def compare_command(design: str, measured: str, tolerance: float, rms_tolerance:
     if scale_mm is not None:
         check_positive("--scale", scale_mm, unit="mm")
     mark_mm = parse_mark(mark)
+    if margin is not None:
+        from mppf.planning.plan import MAX_MARGIN_MM
+
+        check_number("--margin", margin, low=0.0, high=MAX_MARGIN_MM, unit="mm",
+                     hint="the trim margin the scanned plate still carries, e.g. --margin 100 (0: trimmed)")
     gaps = check_gaps(GAP_MM if gap_mm is None else gap_mm, MAX_GAP_MM if max_gap_mm is None else max_gap_mm)
     for path, what, suffixes, kind in ((plot, "the deviation map (--plot)", PICTURE_SUFFIXES, "picture"),
                                        (report, "the report (--report)", None, "file"),
@@ -125,6 +152,8 @@ def compare_command(design: str, measured: str, tolerance: float, rms_tolerance:
     # 2. the files: design, scan (its own units), job
     design_cloud = read_points(design, units=units)
     measured_cloud = read_points(measured, units=scan_units or units)
+    if mark_mm is not None:
+        check_mark_on_scan(mark_mm, measured_cloud.points, measured)
     options = _options(job_path, design_cloud.points, measured, skin, thickness, margin, mark_mm)
     # 3. compare and decide
     result = compare(design_cloud.points, measured_cloud.points, tolerance_mm=tolerance,
@@ -138,11 +167,13 @@ def compare_command(design: str, measured: str, tolerance: float, rms_tolerance:
                     "measured_sha256": measured_cloud.sha256, "skin": skin or ("top" if job_path else "mid"),
                     "job": job_path})
         print_json(doc)
-        return
-    _print_result(result, design, measured)
-    for name, path in (("deviation map", plot), ("report", report), ("export", export_path)):
-        if path:
-            err_console.print(f"{name} written to {path}")
+    else:
+        _print_result(result, design, measured)
+        for name, path in (("deviation map", plot), ("report", report), ("export", export_path)):
+            if path:
+                err_console.print(f"{name} written to {path}")
+    if result.verdict is not None and result.verdict.exit_code:  # 5 out of tolerance, 6 needs review (README)
+        raise click.exceptions.Exit(result.verdict.exit_code)
 
 
 def _options(job_path, design_points, scan_path, skin, thickness, margin, mark_mm) -> dict:
@@ -154,7 +185,7 @@ def _options(job_path, design_points, scan_path, skin, thickness, margin, mark_m
         from mppf.measure.job_options import job_compare_options
         from mppf.planning.job import load_job
 
-        job = load_job(job_path)
+        job = load_job(job_path, require_seal=False)  # only read: an older unsealed job too, never a broken seal
         offset = None if skin is None else skin_offset_mm(skin, job.thickness_mm if thickness is None else thickness)
         options = job_compare_options(job, design_points, scan_path, offset_mm=offset, mark_mm=mark_mm)
     if margin is not None:

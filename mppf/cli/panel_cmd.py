@@ -63,8 +63,10 @@ def panel(host, port, plc_url, press_path, job_path, history_path, audit_path, t
         from mppf.drivers.url import parse_plc_url
 
         parse_plc_url(plc_url)
-    if job_path is not None and not job_path.is_file():
-        raise InputError(f"job file {job_path} does not exist", hint="give the job that 'mppf press' presses")
+    if job_path is not None:  # read, checked and its seal verified now: a job that cannot be pressed is not served
+        from mppf.planning.job import load_job
+
+        load_job(job_path)
     history_path = history_path or default_history_path()
     cfg = PanelConfig(history_path=history_path, audit_path=audit_path or default_audit_path(history_path),
                       plc_url=plc_url, press=load_press(press_path) if press_path else None, job_path=job_path,

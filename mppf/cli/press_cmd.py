@@ -127,7 +127,10 @@ def press_command(job_path, plc_url, step, section, yes, press_path, audit_path,
     # (or simulated); the whole validation runs again against the PLC below, recorded in the audit log
     try:
         validate_job(job, press_file=press, press_source=press_source)
-    except (ConfigError, LimitError) as exc:  # name the job file
+    except (ConfigError, LimitError) as exc:  # name the job file; the refusal goes to the audit log
+        with open_audit(audit_path) as audit:
+            audit.record(plc_url or "dry run", "limits", "refused", job_sha256=job.sha256(),
+                         detail=f"job {job_path}: {exc.message}"[:500])
         raise type(exc)(f"job {job_path}: {exc.message}", hint=exc.hint) from None
     job.press = press  # equal to the job's block (checked): park heights and tolerances are the machine's
     dry_run = plc_url is None

@@ -122,15 +122,21 @@ class _Panel:
         return RedirectResponse("/live", status_code=303)
 
     async def place(self, request):
-        ctx = await run_in_threadpool(views.place, self.cfg, request.query_params.get("plate"),
-                                      request.query_params.get("section"))
+        try:
+            ctx = await run_in_threadpool(views.place, self.cfg, request.query_params.get("plate"),
+                                          request.query_params.get("section"))
+        except InputError as exc:  # an unknown or malformed plate id (e.g. a path): said, never a traceback
+            return HTMLResponse(f"<p>{html.escape(exc.message)}</p>", 404)
         return self.page(request, "place.html", ctx)
 
     async def live(self, request):
         return self.page(request, "live.html", views.live(self.cfg, self.monitor.press))
 
     async def loop(self, request):
-        ctx = await run_in_threadpool(views.loop, self.cfg, request.query_params.get("plate"))
+        try:
+            ctx = await run_in_threadpool(views.loop, self.cfg, request.query_params.get("plate"))
+        except InputError as exc:
+            return HTMLResponse(f"<p>{html.escape(exc.message)}</p>", 404)
         return self.page(request, "loop.html", ctx)
 
     async def history(self, request):

@@ -26,6 +26,7 @@ from pathlib import Path
 
 from mppf.core.errors import FileFormatError, InputError, MppfError
 from mppf.core.progress import NULL_REPORTER
+from mppf.core.validate import check_name
 from mppf.forming.material import MATERIALS
 
 MANIFEST_COLUMNS = ("name", "design", "flat", "thickness_mm", "material", "springback")
@@ -97,11 +98,20 @@ def plates_from_files(paths, thickness_mm, material: str | None = None, springba
     if thickness_mm is None:
         raise InputError("the plate thickness is missing", hint="give --thickness MM (or a manifest with thickness_mm)")
     plates = [Plate(Path(p).stem, str(p), None, float(thickness_mm), material, springback) for p in paths]
+    for plate in plates:
+        check_name(f"the plate name (the stem of {plate.design})", plate.name,
+                   hint="the job is written as <name>.job.json in -o; rename the file, or use a --manifest with names")
     return _checked(plates, "the design files")
 
 
-def read_manifest(path, default_thickness_mm=None, default_material: str | None = None) -> list[Plate]:
+def read_manifest(path, default_thickness_mm=None, default_material: str | None = None, *,
+                  max_thickness_mm: float | None = None) -> list[Plate]:
     """The plates of a CSV manifest (columns :data:`MANIFEST_COLUMNS`; paths relative to its folder).
+
+    A plate's name (the ``name`` column, else its design file's stem) names its job and flat
+    files in the output folder, so it must be a plain name (:func:`mppf.core.validate.check_name`):
+    never a path. A row with more fields than the header, or a thickness above
+    ``max_thickness_mm`` (the press's), is refused with its line.
 
     Raises
     ------
@@ -120,15 +130,21 @@ def read_manifest(path, default_thickness_mm=None, default_material: str | None 
         raise FileFormatError(path, f"a manifest needs a header with at least 'design' (and 'thickness_mm'); "
                                     f"got {list(rows[0]) if rows else 'no rows'}",
                               hint=f"columns: {', '.join(MANIFEST_COLUMNS)}")
-    plates = [_manifest_plate(row, path, line, default_thickness_mm, default_material)
+    plates = [_manifest_plate(row, path, line, default_thickness_mm, default_material, max_thickness_mm)
               for line, row in enumerate(rows, start=2)]
     return _checked(plates, str(path))
 
 
-def _manifest_plate(row: dict, path: Path, line: int, default_thickness_mm, default_material) -> Plate:
+def _manifest_plate(row: dict, path: Path, line: int, default_thickness_mm, default_material,
+                    max_thickness_mm=None) -> Plate:
     def bad(message: str, hint: str | None = None):
         return FileFormatError(path, message, line=line, hint=hint)
 
+    if row.get(None):  # csv.DictReader puts the fields beyond the header's under None
+        extra = row[None]
+        raise bad(f"the row has {len(extra)} field(s) more than the header's {len(row) - 1} column(s): "
+                  f"{', '.join(repr(v) for v in extra[:3])}",
+                  "remove them, or quote a value that holds a comma (\"a,b\")")
     design = (row.get("design") or "").strip()
     if not design:
         raise bad("no design file", "every row names its design file")
@@ -141,6 +157,9 @@ def _manifest_plate(row: dict, path: Path, line: int, default_thickness_mm, defa
         raise bad(f"thickness_mm {text!r} is not a number", "e.g. 20") from None
     if not 0.0 < thickness < float("inf"):
         raise bad(f"thickness_mm {thickness:g} is not a positive number of mm", "e.g. 20")
+    if max_thickness_mm is not None and thickness > max_thickness_mm:
+        raise bad(f"thickness_mm {thickness:g} mm is above the largest plate the press takes, {max_thickness_mm:g} mm",
+                  "check the thickness column (mm)")
     material = (row.get("material") or "").strip() or default_material
     if material is not None and material not in MATERIALS:
         raise bad(f"material {material!r} is not known", f"one of {', '.join(sorted(MATERIALS))}")
@@ -151,7 +170,12 @@ def _manifest_plate(row: dict, path: Path, line: int, default_thickness_mm, defa
         raise bad("springback needs the plate's material", "fill the material column (steel, ah36)")
     flat = (row.get("flat") or "").strip()
     base = path.parent
-    return Plate(name=(row.get("name") or "").strip() or Path(design).stem, design=str(base / design),
+    name = (row.get("name") or "").strip() or Path(design).stem
+    try:
+        check_name("plate name", name, hint="the job is written as <name>.job.json in -o; e.g. B12-P3")
+    except InputError as exc:
+        raise bad(exc.message, exc.hint) from None
+    return Plate(name=name, design=str(base / design),
                  flat=str(base / flat) if flat else None, thickness_mm=thickness, material=material,
                  springback=springback in ("yes", "true", "1"))
 

@@ -90,8 +90,8 @@ def test_strokes_beyond_limits_exit_2_before_anything_moves(tmp_path, press, sim
     code = main(["press", str(path), "--plc", sim.url, "--yes", "--audit", str(audit)])
     assert code == 2
     assert "beyond the stroke limits" in capsys.readouterr().err
-    # step 2 is out of limits: not even step 1 was uploaded
-    assert [a[0] for a in audit_actions(audit)] == ["connect", "limits"]
+    # step 2 is out of limits: not even step 1 was uploaded; refused before the PLC was connected, and audited
+    assert [a[:2] for a in audit_actions(audit)] == [("limits", "refused")]
     assert (sim.actual_positions_mm()[0] == before[0]).all()
 
 

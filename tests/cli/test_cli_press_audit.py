@@ -9,12 +9,16 @@ from driver_helpers import small_job, small_press
 from mppf.cli import main
 from mppf.drivers.audit import AuditLog
 from mppf.planning.job import save_job
+from mppf.planning.press import press_to_toml
 from mppf.sim.plc.host import start_simulated_plc
 
 
 @pytest.fixture(autouse=True)
 def mppf_home(tmp_path, monkeypatch):
+    """The data folder, with this machine's press (the small one) installed."""
     monkeypatch.setenv("MPPF_HOME", str(tmp_path / "home"))
+    (tmp_path / "home").mkdir()
+    (tmp_path / "home" / "press.toml").write_text(press_to_toml(small_press()))
 
 
 def test_a_full_audit_log_exits_2_and_the_press_gets_nothing(tmp_path, monkeypatch, capsys):

@@ -31,12 +31,14 @@ def env(tmp_path):
 
 @pytest.fixture
 def press_toml(tmp_path):
-    """The example press cut down to ROWS x COLS, as a file for ``mppf sim --press``."""
+    """The example press cut down to ROWS x COLS, as a file for ``mppf sim --press`` (and installed as this
+    machine's press in the data folder, for ``mppf press --plc``)."""
     text = example_press_path().read_text()
     text, n_rows = re.subn(r"(?m)^rows = \d+", f"rows = {ROWS}", text)
     text, n_cols = re.subn(r"(?m)^cols = \d+", f"cols = {COLS}", text)
     assert n_rows == n_cols == 1
-    path = tmp_path / "press.toml"
+    path = tmp_path / "home" / "press.toml"
+    path.parent.mkdir(exist_ok=True)
     path.write_text(text)
     return path
 

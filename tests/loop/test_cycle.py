@@ -82,7 +82,7 @@ def test_a_job_file_changed_since_it_was_recorded_is_refused_and_nothing_is_pres
         assert edited != text
         path.write_text(edited)  # the job edited by hand after it was recorded
         with InProcessPress(press, audit=audit) as link:
-            with pytest.raises(ConfigError, match="changed since it was recorded"):
+            with pytest.raises(ConfigError, match="changed after it was sealed.*changed: thickness"):
                 run_loop(history, "J1", link, scanner)
         assert history.cycle("J1", 1).state == "planned" and history.cycle("J1", 1).step_started == 0
         assert _gos(audit, outcome=None) == []
