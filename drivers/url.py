@@ -112,6 +112,8 @@ def parse_plc_url(url: str) -> PlcUrl:
     if not isinstance(url, str) or not url.strip():
         raise InputError(f"PLC URL must be a non-empty string, got {url!r}", hint=_HINT)
     url = url.strip()
+    if any(ch.isspace() or ord(ch) < 32 or ord(ch) == 127 for ch in url):  # urlsplit drops tabs, keeps spaces
+        raise InputError(f"PLC URL {url!r} holds a space or control character", hint=_HINT)
     try:
         parts = urlsplit(url)
         port = parts.port

@@ -130,6 +130,11 @@ def _report(exc: BaseException, as_json: bool, debug: bool) -> int:
         kind, message, hint, code = "Cancelled", "cancelled by the operator", None, EXIT_CANCELLED
     elif isinstance(exc, MppfError):
         kind, message, hint, code = type(exc).__name__, exc.message, exc.hint or _default_hint(exc), exc.exit_code
+    elif isinstance(exc, OSError) and exc.errno == 36:  # ENAMETOOLONG, from any path a user gave: bad input
+        name = str(exc.filename or "")
+        kind, message, code = "InputError", (f"the path {name[:60]!r}... ({len(name)} characters) is too long for "
+                                             f"this system: {exc.strerror}"), 2
+        hint = "give a shorter path (each folder or file name at most 255 bytes, the whole path at most 4096)"
     else:
         kind, message, code = "InternalError", f"{type(exc).__name__}: {exc}", EXIT_BUG
         hint = "a bug in mppf: run again with --debug for the traceback and report it"

@@ -157,6 +157,14 @@ class RichReporter:
             self._progress.stop()
             self._progress = None
 
+    def abandon(self, why: str) -> None:
+        """End the task without calling it done (the plain lines say why)."""
+        if self._lines is not None:
+            self._lines.abandon(why)
+        if self._progress is not None:
+            self._progress.stop()
+            self._progress = None
+
     def info(self, message: str) -> None:
         if self._lines is not None:
             self._lines.info(message)
@@ -258,6 +266,9 @@ def check_output_path(path, what: str, suffixes=None, kind: str = "file"):
 
     from mppf.core.errors import InputError
 
+    if not str(path).strip():
+        raise InputError(f"{what}: the output path is empty ({str(path)!r})",
+                         hint="give a file name after the option, e.g. -o flat.csv")
     path = Path(path)
     if suffixes is not None and path.suffix.lower() not in suffixes:
         raise InputError(f"cannot write {what} {path}: unknown {kind} type {path.suffix or '(no suffix)'!r}",

@@ -152,6 +152,13 @@ def compare_command(design: str, measured: str, tolerance: float, rms_tolerance:
     # 2. the files: design, scan (its own units), job
     design_cloud = read_points(design, units=units)
     measured_cloud = read_points(measured, units=scan_units or units)
+    from mppf.measure.checks import MIN_POINTS
+
+    if measured_cloud.n_points < MIN_POINTS:
+        from mppf.core.errors import GeometryError
+
+        raise GeometryError(f"the scan {measured} has {measured_cloud.n_points} point(s), a comparison needs at least "
+                            f"{MIN_POINTS}", hint="check the scan export (the whole plate, not a selection)")
     if mark_mm is not None:
         check_mark_on_scan(mark_mm, measured_cloud.points, measured)
     options = _options(job_path, design_cloud.points, measured, skin, thickness, margin, mark_mm)

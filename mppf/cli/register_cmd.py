@@ -57,6 +57,11 @@ def register_command(source: str, target: str, method: str, init: str, robust: s
         check_output_path(output, "the moved points (-o)", WRITE_SUFFIXES, kind="point file")
     src = read_points(source, units=units)
     tgt = read_points(target, units=units)
+    if method != "paired":
+        from mppf.registration.register import check_icp_points
+
+        for path, cloud in ((source, src), (target, tgt)):
+            check_icp_points(cloud.n_points, path)
     try:
         if method == "paired":
             result = register_paired(src.points, tgt.points)

@@ -199,6 +199,7 @@ def _read_ply(path: Path, data: bytes) -> tuple[np.ndarray, np.ndarray | None]:
             path, "is not a PLY file (it does not start with 'ply')", line=1,
             hint="is it a text point file? give it a .csv/.txt/.xyz suffix",
         )
+    _check_ply_counts(path, data)  # before plyfile allocates what the header announces
     try:
         ply = plyfile.PlyData.read(str(path))
     except Exception as exc:  # plyfile raises several types for a broken file
@@ -225,6 +226,39 @@ def _read_ply(path: Path, data: bytes) -> tuple[np.ndarray, np.ndarray | None]:
             raise FileFormatError(path, f"PLY faces lack 'vertex_indices' (have {face_props})")
         faces = _fan_triangles(path, list(face[key]), points.shape[0])
     return points, faces
+
+
+_PLY_TYPE_BYTES = {"char": 1, "int8": 1, "uchar": 1, "uint8": 1, "short": 2, "int16": 2, "ushort": 2, "uint16": 2,
+                   "int": 4, "int32": 4, "uint": 4, "uint32": 4, "float": 4, "float32": 4, "double": 8, "float64": 8}
+
+
+def _check_ply_counts(path: Path, data: bytes) -> None:
+    """Refuse a PLY header whose element counts the file cannot hold (checked before anything is allocated).
+
+    Each row of an element takes at least its properties' bytes (binary; a list at least its
+    count) or two characters per property (ASCII: a digit and a separator); the counts times
+    those must fit in the bytes after the header.
+    """
+    end = data.find(b"end_header")
+    if end < 0:
+        return  # plyfile names the broken header
+    header = data[:end].decode("ascii", errors="replace").splitlines()
+    body = len(data) - (data.find(b"\n", end) + 1 if data.find(b"\n", end) >= 0 else len(data))
+    ascii_format = any(line.split()[:2] == ["format", "ascii"] for line in header if line.strip())
+    elements: list[list] = []  # [name, count, least bytes per row]
+    for line in header:
+        words = line.split()
+        if len(words) == 3 and words[0] == "element" and words[2].isdigit():
+            elements.append([words[1], int(words[2]), 0])
+        elif words[:1] == ["property"] and elements and len(words) >= 3:
+            size = _PLY_TYPE_BYTES.get(words[2] if words[1] == "list" else words[1], 1)
+            elements[-1][2] += 2 if ascii_format else size
+    need = sum(count * max(least, 1) for _, count, least in elements)
+    if need > body:
+        name, count, _ = max(elements, key=lambda e: e[1] * max(e[2], 1))
+        raise FileFormatError(path, f"its PLY header announces {count:,} {name} element(s), which need at least "
+                                    f"{need:,} bytes, but only {body:,} bytes follow the header",
+                              hint="the file is truncated or its header is corrupt; export it again")
 
 
 def _fan_triangles(path: Path, polygons: list, n_points: int) -> np.ndarray:

@@ -196,9 +196,13 @@ def _axis_from_json(values, count: int, name: str, source: str) -> np.ndarray:
         arr = np.asarray(values, dtype=float)
     except (TypeError, ValueError):
         raise ConfigError(f"{source}: {name} must be a list of numbers (mm), got {values!r:.60}") from None
-    if arr.shape != (count,) or not np.all(np.isfinite(arr)):
+    if arr.shape != (count,):
         raise ConfigError(f"{source}: {name} must hold {count} finite numbers (one per punch), got shape "
                           f"{arr.shape}", hint="re-plan the plate with 'mppf plan'")
+    if not np.all(np.isfinite(arr)):
+        k = int(np.argmin(np.isfinite(arr)))
+        raise ConfigError(f"{source}: {name} must hold {count} finite numbers (one per punch), got {arr[k]} at "
+                          f"position {k + 1}", hint="re-plan the plate with 'mppf plan'")
     return arr
 
 

@@ -109,8 +109,26 @@ def check_job_document(doc, source: str = "job") -> None:
                 elif value is not None and active.get((r, c)) is False:
                     problems.add([f"{where}step {k} {side} punch ({label(r, c)}) is parked (not active) but has a "
                                   f"stroke {value:.2f} mm; parked punches stand at park {parks.get(side, '?')} mm"])
+    problems.add(f"{where} is {value} (not a finite number)" for where, value in _non_finite(
+        {k: v for k, v in doc.items() if k not in ("steps", "sections")}))
+    for i, sec in enumerate(sections, start=1):
+        if isinstance(sec, dict):
+            problems.add(f"section {i} {where} is {value} (not a finite number)"
+                         for where, value in _non_finite({k: v for k, v in sec.items() if k != "steps"}))
     problems.raise_if_any(f"{source}: the job holds values that cannot be pressed",
                           "re-plan the plate with 'mppf plan'; never edit strokes by hand", ConfigError)
+
+
+def _non_finite(value, where: str = ""):
+    """(JSON path, value) of every NaN or infinite number in a JSON value (``punch_x_mm[3]``)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        yield where, value
+    elif isinstance(value, dict):
+        for key, item in value.items():
+            yield from _non_finite(item, f"{where}.{key}" if where else str(key))
+    elif isinstance(value, list):
+        for k, item in enumerate(value):
+            yield from _non_finite(item, f"{where}[{k}]")
 
 
 def _is_number(value) -> bool:

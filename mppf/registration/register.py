@@ -213,6 +213,26 @@ def _check_init(init) -> None:
                          hint="give a proper rotation and a translation")
 
 
+MIN_ICP_POINTS = 10
+"""Fewest points of either cloud an ICP registration is run on (three points fit any surface: no verdict)."""
+
+
+def check_icp_points(n_points: int, what: str) -> None:
+    """Refuse a cloud too small for an ICP registration to say anything (``what``: the file, for the message).
+
+    Raises
+    ------
+    GeometryError
+        Fewer than :data:`MIN_ICP_POINTS` points.
+    """
+    from mppf.core.errors import GeometryError
+
+    if n_points < MIN_ICP_POINTS:
+        raise GeometryError(f"{what} has {n_points} point(s); a registration by ICP needs at least {MIN_ICP_POINTS} "
+                            "(a few points fit any surface, so no verdict could be given)",
+                            hint="give the whole scan or design; for a handful of matched points use --method paired")
+
+
 def _as_target(target, method: str) -> RegistrationTarget:
     """The target as a RegistrationTarget (built here from an array), with enough points for the metric."""
     needed = 3 if method == "point" else NORMAL_NEIGHBOURS

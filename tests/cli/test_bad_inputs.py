@@ -30,6 +30,10 @@ from mppf.loop.history import History
 from mppf.planning.press import example_press_path
 
 from test_bad_inputs_corpus import CASES, FILES  # the corpus (data), beside this file
+from test_bad_inputs_issue38 import CASES38, FILES38  # issue 38's cases: sealed jobs, the machine's press, ...
+
+CASES = CASES + CASES38
+FILES = {**FILES, **FILES38}
 
 
 @pytest.fixture(scope="session")
@@ -52,13 +56,25 @@ def good_inputs(tmp_path_factory) -> dict[str, str]:
     press = load_press(example_press_path())
     job = save_job(plan_job(points, np.loadtxt(flat, delimiter=",", comments="#"), press, 20.0),
                    folder / "good.job.json")
+    sectional = save_job(_sectional_plan(press), folder / "sectional.job.json")
     history = folder / "history.sqlite"
     with History(history) as hist:
         hist.create_plate("KEEP-1", design_path=design, design_sha256="0" * 64, flat_path=flat,
                           flat_sha256="0" * 64, thickness_mm=20.0, press=press.to_dict(), settings={"loop": {}})
         hist.add_cycle("KEEP-1", 1, job_path=job, job_sha256="0" * 64, steps=[])
     return {"design": str(design), "flat": str(flat), "press": str(example_press_path()), "job": str(job),
-            "history_template": str(history)}
+            "sectional_job": str(sectional), "history_template": str(history)}
+
+
+def _sectional_plan(press):
+    """A plate larger than the bed (7.5 x 2.4 m cylinder): 6 sections on the example press."""
+    from mppf.examples.analytic import cylinder_plate
+    from mppf.planning.sectional import plan_plate
+
+    design, flat = cylinder_plate(7500.0, 2400.0, 20000.0)
+    job = plan_plate(design, flat, press, 20.0)
+    assert len(job.sections) == 6
+    return job
 
 
 def _snapshot(db: Path) -> list:
@@ -102,7 +118,9 @@ def _audited(audit: Path) -> list[str]:
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c["id"] for c in CASES])
-def test_bad_input_is_answered_with_exit_2_and_one_clear_message(case, tmp_path, good_inputs, request, capsys):
+def test_bad_input_is_answered_with_exit_2_and_one_clear_message(case, tmp_path, good_inputs, request, capsys,
+                                                                monkeypatch):
+    monkeypatch.setenv("MPPF_HOME", str(tmp_path / "home"))  # no press installed: dry runs use the example press
     args = _materialise(case, tmp_path, good_inputs)
     if case.get("dry_run"):  # the job validator runs against the (simulated) PLC: nothing may be written
         args += ["--audit", str(tmp_path / "audit.sqlite")]

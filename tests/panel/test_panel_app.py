@@ -195,3 +195,25 @@ def test_the_monitor_lives_with_the_app(plate_history):
 def test_the_token_is_not_in_the_settings_repr(tmp_path):
     config = PanelConfig(history_path=tmp_path / "h", audit_path=tmp_path / "a", token=TOKEN)
     assert TOKEN not in repr(config)
+
+
+def test_a_plate_id_that_is_a_path_is_answered_404_without_a_traceback(plate_history, caplog):
+    with _client(plate_history) as client:
+        for view in ("/place", "/loop"):
+            response = client.get(view, params={"plate": "../../x"})
+            assert response.status_code == 404 and "plate &#x27;../../x&#x27; is not in the history" in response.text
+    assert "Traceback" not in caplog.text
+
+
+def test_a_job_whose_seal_is_broken_is_not_shown_as_the_instruction(tmp_path):
+    import json
+
+    from mppf.planning.job import save_job
+
+    job_path = save_job(layout_job(), tmp_path / "job.json")
+    doc = json.loads(job_path.read_text())
+    doc["plate"]["outline_mm"][0][0] += 300.0  # the placement moved by hand
+    job_path.write_text(json.dumps(doc))
+    with _client(tmp_path / "history.sqlite", job_path=job_path) as client:
+        text = client.get("/place").text
+    assert "changed after it was sealed" in text and "plate layout" in text and 'data-corner="A"' not in text
