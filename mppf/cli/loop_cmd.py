@@ -203,7 +203,7 @@ def run_plate(history, plate_id, draft, *, plc_url, scanner_spec, time_scale, au
     plate = history.plate(plate_id) if draft is None else None
     press = draft.press if plate is None else press_from_dict(plate.press, source=f"history of plate {plate_id}")
     with sigterm_as_ctrl_c(), press_link(press, plc_url, audit=audit, time_scale=time_scale,
-                                         reporter=reporter) as link:
+                                         reporter=reporter, yes=yes) as link:
         # the one job validator against this PLC (its matrix, its limits) before anything is recorded
         if draft is not None:
             link.check_job(draft.job, draft.press, str(draft.press_path))
@@ -327,6 +327,10 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
     side), not whichever side faces up. Areas of the net plate not measured (and nothing else
     in the way of "in tolerance") are rescanned, up to --rescans times, and the union of the
     scans compared. See docs/scanner-station.md.
+
+    Exit code: 0 in tolerance, 5 not brought into tolerance (cannot converge, diverged, max
+    cycles, badly formed), 6 needs review; the verdict (why, where, what to do) is printed,
+    and with --json is "verdict" and "ending".
     """
     from mppf.drivers.audit import AuditLog
 
@@ -379,13 +383,17 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
             finally:
                 reporter.finish()
                 audit.close()
+    end = result.ending
     if as_json:
         print_json({"plate_id": result.plate_id, "status": result.status, "resumed_state": result.resumed_state,
-                    "verdict": result.verdict, "cycles": [c.to_dict(grids=False) for c in result.cycles]})
-        return
-    console.print(cycle_table(result.cycles, f"plate {esc(result.plate_id)}: {result.status}"))
-    if result.verdict:
-        console.print(f"verdict: {result.verdict}", markup=False, highlight=False)
+                    "verdict": result.verdict, "ending": None if end is None else end.to_dict(),
+                    "cycles": [c.to_dict(grids=False) for c in result.cycles]})
+    else:
+        console.print(cycle_table(result.cycles, f"plate {esc(result.plate_id)}: {result.status}"))
+        if result.verdict:
+            console.print(f"verdict: {result.verdict}", markup=False, highlight=False)
+    if end is not None and end.exit_code:  # 5 not in tolerance, 6 needs review (README, "Exit codes")
+        raise click.exceptions.Exit(end.exit_code)
 
 
 COMMANDS = [loop]

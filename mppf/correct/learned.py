@@ -117,7 +117,8 @@ class LearnedCorrection:
 
 
 def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, nominal: Material, cycles,
-                       base_upper_mm, base_lower_mm, active, trust: float = 1.0, edge_mm=None) -> LearnedCorrection:
+                       base_upper_mm, base_lower_mm, active, trust: float = 1.0, edge_mm=None,
+                       scale=None) -> LearnedCorrection:
     """The next strokes from every pressed and measured cycle of the plate.
 
     Parameters
@@ -139,6 +140,9 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
         The deviation of the net plate's edge beyond the outer-row punches after the last
         cycle (:func:`mppf.measure.punches.edge_deviations`): near the design those punches
         are aimed between their own deviation and the edge's (:func:`mppf.correct.edge.balanced_error`).
+    scale : (rows, cols) float, optional
+        Scale of the change asked for at each punch (:meth:`mppf.correct.policy.StepPlan.scale_mm`:
+        the measured response of the earlier corrections); default 1.
 
     Returns
     -------
@@ -162,7 +166,8 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
     error = grid.flat(np.where(grid.active, balanced_error(cycles[-1].error_mm, edge_mm), np.nan))
     error = np.where(grid.active & np.isfinite(error), error, 0.0)
     aim = (AIM[1] if gain.updates else AIM[0]) * (0.5 + 0.5 * trust)
-    request = gain.model_request(-aim * error)
+    wanted = error if scale is None else error * np.where(grid.active, np.asarray(scale, dtype=float), 1.0)
+    request = gain.model_request(-aim * wanted)
     # 5. the loaded curvature for it, through the model with its memory, in virtual cycles
     base_mid = 0.5 * (np.asarray(base_upper_mm, dtype=float) + np.asarray(base_lower_mm, dtype=float))
     reach = (MIN_REACH_ELASTIC_LIMITS + (REACH_ELASTIC_LIMITS - MIN_REACH_ELASTIC_LIMITS) * trust) \

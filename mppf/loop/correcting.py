@@ -22,17 +22,19 @@ import numpy as np
 
 from mppf.correct.calibrated import calibrated_step
 from mppf.correct.compensate import compensate
-from mppf.correct.learned import LearnedCorrection, learned_correction, steps_towards, trust_region
+from mppf.correct.learned import LearnedCorrection, steps_towards
+from mppf.correct.policy import DEFAULT_NOISE_MM
+from mppf.correct.step import Tolerances, correct_step, outcome
 from mppf.correct.memory import PressedCycle
 from mppf.correct.result import Correction, PreviousCycle
-from mppf.correct.verdict import Verdict, convergence_verdict
+from mppf.correct.verdict import Verdict
 from mppf.forming.material import Material
 from mppf.loop.history import History
 from mppf.loop.pressing import last_step, pressed_steps
 from mppf.loop.records import CycleRecord, PlateRecord, load_cycle_job
 from mppf.loop.settings import LoopSettings
 from mppf.loop.states import Decision
-from mppf.planning.job import Job, StepStrokes, grid_from_json, grid_to_json, save_job
+from mppf.planning.job import Job, grid_from_json, grid_to_json, save_job
 from mppf.planning.press import PressConfig
 from mppf.planning.steps import flat_heights
 
@@ -56,16 +58,16 @@ def plan_next(history: History, plate: PlateRecord, record: CycleRecord, press: 
     correction = next_correction(history, plate, record, press, settings, job)
     # the next cycle presses them on the same punches: its job file...
     active = last_step(record).active
-    strokes = StepStrokes(np.where(active, correction.upper_mm, np.nan), np.where(active, correction.lower_mm, np.nan),
-                          active)
+    # from the tips the plate last held, in steps within the dimpling limit (the PLC refuses larger ones)
+    steps = steps_towards(press, _held(record, press, plate.thickness_mm), correction, active)
     loop = {"plate_id": plate.plate_id, "cycle": record.cycle + 1, "corrects_job_sha256": record.job_sha256}
-    job = Job(press=job.press, thickness_mm=job.thickness_mm, steps=[strokes], tf_press_design=job.tf_press_design,
+    job = Job(press=job.press, thickness_mm=job.thickness_mm, steps=steps, tf_press_design=job.tf_press_design,
               tf_press_flat=job.tf_press_flat, punch_x_mm=job.punch_x_mm, punch_y_mm=job.punch_y_mm, layout=job.layout,
               extra={**job.extra, "loop": loop})
     path = save_job(job, Path(plate.settings["work_dir"]) / f"cycle-{record.cycle + 1:02d}.job.json")
     # ... and its record
     history.add_cycle(
-        plate.plate_id, record.cycle + 1, job_path=path.resolve(), job_sha256=job.sha256(), steps=[strokes],
+        plate.plate_id, record.cycle + 1, job_path=path.resolve(), job_sha256=job.sha256(), steps=steps,
         gain=float(np.nanmean(correction.gain)), correction=correction_to_dict(correction),
         previous_decision=Decision.CONTINUE,
     )
@@ -146,20 +148,19 @@ def _plan_learned(history: History, plate: PlateRecord, record: CycleRecord, pre
     final = record.steps[-1]  # the strokes this cycle aimed at (all of them, even if interrupted)
     # 1. every step the press did, cycle by cycle, and what the scanner measured after each cycle
     cycles = [c for c in (pressed_cycle(r, press) for r in records) if c.steps_mid_mm]
-    # 2. the next strokes, learned from all of it
-    rms = [r.rms_mm for r in records]
-    predicted = [None if not r.correction else r.correction.get("predicted_rms_mm") for r in records]
-    trust = trust_region(rms, predicted, settings.rms_tolerance_mm, max_mm=[r.max_abs_mm for r in records],
-                         tolerance_mm=settings.tolerance_mm)
+    # 2. the next strokes, learned from all of it, sized by what the plate showed (mppf.correct.step)
+    measured = [r for r in records if r.punch_deviation_mm is not None and r.rms_mm is not None]
+    outcomes = [outcome(r.max_abs_mm, r.rms_mm, r.punch_deviation_mm, _promised(r)) for r in measured]
+    strokes = [(r.steps[-1].upper_mm, r.steps[-1].lower_mm) for r in measured]
     edge = grid_from_json((record.comparison or {}).get("punch_edge_mm"))  # the net edge beyond the outer rows
-    learned = learned_correction(press, job.layout.design_mid_mm, plate.thickness_mm, job.layout.material, cycles,
-                                 final.upper_mm, final.lower_mm, final.active, trust=trust, edge_mm=edge)
+    noise = ((record.comparison or {}).get("form") or {}).get("noise_mm") or DEFAULT_NOISE_MM
+    tolerances = Tolerances(settings.tolerance_mm, settings.rms_tolerance_mm, float(noise))
+    step = correct_step(press, job.layout.design_mid_mm, plate.thickness_mm, job.layout.material, cycles, outcomes,
+                        strokes, final.active, edge, tolerances)
     # 3. stop with a verdict when it finds no way on
-    verdict = convergence_verdict(rms, learned.predicted_rms_mm, settings.rms_tolerance_mm,
-                                  clipped=int(learned.clipped.sum()), unreached=int(learned.unreached.sum()),
-                                  max_mm=[r.max_abs_mm for r in records], tolerance_mm=settings.tolerance_mm)
-    if verdict is not None:
-        return verdict
+    if step.verdict is not None:
+        return step.verdict
+    learned = step.learned
     # 4. the next cycle's steps, from the tips the plate last held to the new strokes
     steps = steps_towards(press, _held(record, press, plate.thickness_mm), learned, final.active)
     loop = {"plate_id": plate.plate_id, "cycle": record.cycle + 1, "corrects_job_sha256": record.job_sha256}
@@ -169,10 +170,16 @@ def _plan_learned(history: History, plate: PlateRecord, record: CycleRecord, pre
     path = save_job(job, Path(plate.settings["work_dir"]) / f"cycle-{record.cycle + 1:02d}.job.json")
     history.add_cycle(
         plate.plate_id, record.cycle + 1, job_path=path.resolve(), job_sha256=job.sha256(), steps=steps,
-        gain=float(np.mean(learned.gains)) if learned.gains.size else 1.0, correction=learned_to_dict(learned),
+        gain=float(np.mean(learned.gains)) if learned.gains.size else 1.0, correction=step_to_dict(step),
         previous_decision=Decision.CONTINUE,
     )
     return None
+
+
+def _promised(record: CycleRecord):
+    """The deviation at the punches the correction that made this cycle predicted (None: the first cycle)."""
+    predicted = (record.correction or {}).get("predicted_mm")
+    return None if predicted is None else grid_from_json(predicted)
 
 
 def pressed_cycle(record: CycleRecord, press: PressConfig) -> PressedCycle:
@@ -206,3 +213,10 @@ def learned_to_dict(learned: LearnedCorrection) -> dict:
         "unreached_punches": int(np.sum(learned.unreached)),
         "notes": list(learned.notes),
     }
+
+
+def step_to_dict(step) -> dict:
+    """The correction step (:class:`mppf.correct.step.CorrectionStep`) as stored with the next cycle."""
+    return {**learned_to_dict(step.learned), "scale": round(step.plan.scale, 4),
+            "edge_scale": round(step.plan.edge_scale, 4), "base_cycle": step.plan.base + 1,
+            "measured_response": [round(float(r), 4) for r in step.plan.ratios]}

@@ -43,6 +43,7 @@ from mppf.core.scanner import Scanner
 from mppf.geometry.read import PointCloud
 from mppf.loop.correcting import plan_next
 from mppf.loop.decide import decide
+from mppf.loop.endings import Ending, ending
 from mppf.loop.history import History
 from mppf.loop.marks import MarkedScanner, MarkNeed, needs_mark, plausible_scan
 from mppf.loop.measuring import acquire_scan, compare_cycle, comparison_summary, read_checked
@@ -76,6 +77,10 @@ class LoopResult:
     resumed_state : CycleState or None
         State of the cycle the run started from when it continued an earlier run
         (None for a plate that no run had touched since planning).
+    verdict : str or None
+        The ending in one line (:attr:`mppf.loop.endings.Ending.text`: why, where, what to do).
+    ending : Ending or None
+        The same as data, with the exit code of ``mppf loop``.
     """
 
     plate_id: str
@@ -83,6 +88,7 @@ class LoopResult:
     cycles: list
     resumed_state: CycleState | None = None
     verdict: str | None = None
+    ending: Ending | None = None
 
     @property
     def last(self) -> CycleRecord:
@@ -195,8 +201,10 @@ def run_loop(
     while True:
         record = history.cycle(plate_id, number)
         if record.state == CycleState.DONE:
-            verdict = run.verdicts[-1] if run.verdicts else None
-            return LoopResult(plate_id, record.decision, history.cycles(plate_id), resumed, verdict)
+            detail = run.verdicts[-1] if run.verdicts else None
+            cycles = history.cycles(plate_id)
+            end = ending(record.decision, cycles, run.settings, detail)
+            return LoopResult(plate_id, record.decision, cycles, resumed, end.text, end)
         number = _HANDLERS[record.state](run, record)
 
 
@@ -306,7 +314,7 @@ def _on_compared(run: _Run, record: CycleRecord) -> int:
             verdict = plan_next(run.history, run.plate, record, run.press, run.settings)
         if verdict is not None:
             run.reporter.info(f"plate {record.plate_id}, cycle {record.cycle}: {verdict.text}")
-            run.verdicts.append(verdict.text)
+            run.verdicts.append(verdict)
             run.history.mark_done(record.plate_id, record.cycle, Decision.CANNOT_CONVERGE)
     run.notify(run.history.cycle(record.plate_id, record.cycle), None)
     return record.cycle

@@ -38,6 +38,13 @@ REVIEW_ARTEFACTS = "artefacts"
 REVIEW_UNCOVERED = "uncovered"
 """The causes of a "needs review" (:attr:`Verdict.review_causes`): set-aside points beyond the tolerance, areas not measured."""
 
+EXIT_IN_TOLERANCE = 0
+EXIT_OUT_OF_TOLERANCE = 5
+EXIT_NEEDS_REVIEW = 6
+EXIT_CODES = {IN_TOLERANCE: EXIT_IN_TOLERANCE, OUT_OF_TOLERANCE: EXIT_OUT_OF_TOLERANCE, NEEDS_REVIEW: EXIT_NEEDS_REVIEW}
+"""Exit code of ``mppf compare`` and ``mppf loop`` per verdict: 0 in tolerance, 5 out of tolerance (the loop: not
+brought into tolerance, whatever the ending), 6 needs review (README, "Exit codes")."""
+
 LABELS = {IN_TOLERANCE: "IN tolerance", OUT_OF_TOLERANCE: "OUT of tolerance", NEEDS_REVIEW: "NEEDS REVIEW"}
 """How each kind is written in headlines."""
 
@@ -150,6 +157,11 @@ class Verdict:
         """Needs review only because of areas not measured and / or set-aside points beyond the tolerance (the
         limits met, not badly formed): a rescan of those areas and spots can decide it."""
         return bool(self.review_causes) and set(self.review_causes) <= {REVIEW_ARTEFACTS, REVIEW_UNCOVERED}
+
+    @property
+    def exit_code(self) -> int:
+        """The command's exit code for this verdict (:data:`EXIT_CODES`)."""
+        return EXIT_CODES[self.kind]
 
     @property
     def label(self) -> str:

@@ -13,8 +13,10 @@ planner and the correction assume, one effect at a time or together, each by a f
 - ``edge_factor``: the yield stress in a band of ``edge_band_mm`` along the plate's edges (an
   edge that resists bending more or less than the interior: flame-cut hardening, a rolled
   edge);
-- ``response_factor``: the whole permanent shape change of every press step, scaled about the
-  flat plate (a plate that moves ``f`` times what the model predicts, mode by mode alike).
+- ``response_factor``: the permanent shape change of every press step after the first
+  ``response_after_steps`` (the first cycle's: then the first press is as modelled and every
+  correction moves the plate ``f`` times what the model predicts, mode by mode alike; 0: the
+  whole shape about the flat plate).
 
 :func:`mismatched_parts` turns a :class:`Mismatch` into the steel, the compliance and the
 plate options of :class:`mppf.sim.plate.plate.SteelPlate`.
@@ -47,6 +49,8 @@ class Mismatch:
         See the module docstring.
     edge_band_mm : float
         Width of the edge band of ``edge_factor`` (mm).
+    response_after_steps : int
+        Steps pressed as modelled before ``response_factor`` applies.
     """
 
     yield_factor: float = 1.0
@@ -56,19 +60,22 @@ class Mismatch:
     edge_factor: float = 1.0
     response_factor: float = 1.0
     edge_band_mm: float = EDGE_BAND_MM
+    response_after_steps: int = 0
 
     def __post_init__(self):
         low, high = FACTOR_RANGE
         for name, value in asdict(self).items():
-            if name == "edge_band_mm":
+            if name == "response_after_steps":
+                check_number("steps before the response factor", value, low=0, integer=True)
+            elif name == "edge_band_mm":
                 check_number("edge band", value, low=0.0, unit="mm")
             else:  # anisotropy 0: an isotropic plate
                 check_number(f"mismatch {name}", value, low=0.0 if name == "anisotropy_factor" else low, high=high)
 
     @classmethod
-    def named(cls, name: str, factor: float) -> Mismatch:
+    def named(cls, name: str, factor: float, **options) -> Mismatch:
         """One effect off by ``factor``: name is yield, hardening, compliance, anisotropy, edge or response."""
-        return cls(**{f"{name}_factor": factor})
+        return cls(**{f"{name}_factor": factor}, **options)
 
     @property
     def label(self) -> str:
@@ -93,7 +100,7 @@ def mismatched_parts(steel: PlateSteel, compliance: Compliance, mismatch: Mismat
     steel : PlateSteel
     compliance : Compliance
     options : dict
-        ``edge_yield_factor``, ``edge_band_mm`` and ``response_factor`` for
+        ``edge_yield_factor``, ``edge_band_mm``, ``response_factor`` and ``response_after_steps`` for
         :class:`mppf.sim.plate.plate.SteelPlate`.
     """
     m = mismatch
@@ -104,7 +111,7 @@ def mismatched_parts(steel: PlateSteel, compliance: Compliance, mismatch: Mismat
     compliance = Compliance(min(100.0, compliance.frame_mm_per_mn * m.compliance_factor),
                             min(1.0, compliance.punch_mm_per_kn * m.compliance_factor))
     options = {"edge_yield_factor": m.edge_factor, "edge_band_mm": m.edge_band_mm,
-               "response_factor": m.response_factor}
+               "response_factor": m.response_factor, "response_after_steps": m.response_after_steps}
     return steel, compliance, options
 
 

@@ -83,8 +83,11 @@ class SteelPlate:
         Factor on the yield stress at the plate's edges, fading to 1 over the band (model
         mismatch, :mod:`mppf.sim.plate.mismatch`).
     response_factor : float
-        The permanent shape (about the flat plate) the scanner sees is this times the one the
-        plate equations give (model mismatch: a plate answering more or less than modelled).
+        Every permanent shape change after the first ``response_after_steps`` steps is, as the
+        scanner sees it, this times the one the plate equations give (model mismatch: a plate
+        answering more or less than modelled; 0 steps: the whole shape about the flat plate).
+    response_after_steps : int
+        Steps pressed as modelled before the response factor applies (e.g. the first cycle's).
     """
 
     def __init__(self, press: PressConfig, outline_xy_mm, thickness_mm: float, steel: PlateSteel = PlateSteel(), *,
@@ -92,11 +95,11 @@ class SteelPlate:
                  grid_spacing_mm: float = GRID_SPACING_MM, layers: int = LAYERS,
                  load_increments: int = LOAD_INCREMENTS, unload_increments: int = 1,
                  springback: bool = True, cylindrical: bool = False, edge_yield_factor: float = 1.0,
-                 edge_band_mm: float = 150.0, response_factor: float = 1.0):
+                 edge_band_mm: float = 150.0, response_factor: float = 1.0, response_after_steps: int = 0):
         options = {"grid_spacing_mm": grid_spacing_mm, "layers": layers, "load_increments": load_increments,
                    "unload_increments": unload_increments, "springback": springback, "cylindrical": cylindrical,
                    "edge_yield_factor": edge_yield_factor, "edge_band_mm": edge_band_mm,
-                   "response_factor": response_factor}
+                   "response_factor": response_factor, "response_after_steps": response_after_steps}
         self._build(press, outline_xy_mm, sample_plate(steel, thickness_mm, scatter, seed), compliance, options)
 
     @classmethod
@@ -112,12 +115,12 @@ class SteelPlate:
         **options
             ``grid_spacing_mm``, ``layers``, ``load_increments``, ``unload_increments``,
             ``springback``, ``cylindrical``, ``edge_yield_factor``, ``edge_band_mm``,
-            ``response_factor`` (defaults as for the constructor).
+            ``response_factor``, ``response_after_steps`` (defaults as for the constructor).
         """
         self = cls.__new__(cls)
         defaults = {"grid_spacing_mm": GRID_SPACING_MM, "layers": LAYERS, "load_increments": LOAD_INCREMENTS,
                     "unload_increments": 1, "springback": True, "cylindrical": False, "edge_yield_factor": 1.0,
-                    "edge_band_mm": 150.0, "response_factor": 1.0}
+                    "edge_band_mm": 150.0, "response_factor": 1.0, "response_after_steps": 0}
         unknown = set(options) - set(defaults)
         if unknown:
             raise InputError(f"unknown plate option(s) {', '.join(sorted(unknown))}",
@@ -141,6 +144,8 @@ class SteelPlate:
             "edge_band_mm": check_number("edge band", options.get("edge_band_mm", 150.0), low=0.0, unit="mm"),
             "response_factor": check_number("response factor", options.get("response_factor", 1.0), low=0.05,
                                             high=20.0),
+            "response_after_steps": check_number("steps before the response factor",
+                                                 options.get("response_after_steps", 0), low=0, integer=True),
         }
         self.grid = PlateGrid(outline_xy_mm, self.options["grid_spacing_mm"], cylindrical=self.options["cylindrical"])
         self.law, self._placed = LayerLaw(plate.steel, self.options["layers"]), {}
@@ -157,6 +162,7 @@ class SteelPlate:
         self.tips_enabled = np.ones(m, dtype=bool)
         self.steps = 0
         self.last_iterations: list[int] = []
+        self.response_ref_q = self.q.copy() if self.options["response_after_steps"] == 0 else None
 
     def _set_placement(self, placement_mm) -> None:
         """Punches, model and predictor of the plate shifted by ``placement_mm`` (built once per placement)."""
@@ -246,6 +252,8 @@ class SteelPlate:
         self.frame_mm = loaded.frame_mm
         self.tips_lower_mm, self.tips_upper_mm, self.tips_enabled = lower, upper, enabled
         self.steps += 1
+        if self.steps == self.options["response_after_steps"]:  # the response factor applies from here
+            self.response_ref_q = q.copy()
         self.last_iterations = iterations
         return self.formed
 
@@ -287,8 +295,8 @@ class SteelPlate:
         """The plate as it is now (unloaded after its last step), scanner compatible."""
         key = (self.steps, id(self.q))
         if getattr(self, "_formed_key", None) != key:
-            flat = np.full(self.grid.n_dof, 0.5 * self.plate.thickness_mm)  # the flat plate's unknowns
-            shown = flat + self.options["response_factor"] * (self.q - flat)
+            ref = self.response_ref_q
+            shown = self.q if ref is None else ref + self.options["response_factor"] * (self.q - ref)
             self._formed = FormedSteelPlate.build(self.grid, self.plate, self.loaded_q, shown, self.punches,
                                                   self.force_n)
             self._formed_key = key
@@ -336,6 +344,8 @@ class SteelPlate:
         state = {name: np.array(getattr(self, name)) for name in STATE_ARRAYS}
         state.update(config=json.dumps(config), steps=np.array(self.steps), placement_mm=self.placement_mm.copy(),
                      plastic_strain=self.state.plastic_strain.copy(), alpha=self.state.alpha.copy())
+        if self.response_ref_q is not None:
+            state["response_ref_q"] = self.response_ref_q.copy()
         return state
 
     @classmethod
@@ -370,4 +380,6 @@ class SteelPlate:
             setattr(self, name, restored[name])
         self.state = SectionState(restored["plastic_strain"], restored["alpha"])
         self.steps = int(np.asarray(state["steps"]))
+        if "response_ref_q" in state:
+            self.response_ref_q = np.array(state["response_ref_q"], dtype=float)
         return self

@@ -23,7 +23,7 @@ def _files(tmp_path):
 
 def test_compare_names_the_areas_not_measured_and_takes_the_gap_options(tmp_path, capsys):
     design, scan = _files(tmp_path)
-    assert main(["compare", str(design), str(scan), "--json"]) == 0
+    assert main(["compare", str(design), str(scan), "--json"]) == 6  # needs review (README, "Exit codes")
     doc = json.loads(capsys.readouterr().out)
     assert doc["verdict"]["kind"] == "needs_review" and doc["verdict"]["uncovered_regions"] >= 1
     cov = doc["coverage"]
@@ -31,7 +31,7 @@ def test_compare_names_the_areas_not_measured_and_takes_the_gap_options(tmp_path
     assert cov["regions"][0]["on_rim"] and cov["regions"][0]["gap_mm"] > cov["allowed_gap_mm"]
     assert doc["badly_formed"] is None
     # the table says it too
-    assert main(["compare", str(design), str(scan)]) == 0
+    assert main(["compare", str(design), str(scan)]) == 6
     out = capsys.readouterr().out
     assert "not measured" in out and "NEEDS REVIEW" in out
     # a larger allowed gap (the shop's call) passes the band

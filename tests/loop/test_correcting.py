@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import mppf.loop.correcting as correcting
+import mppf.correct.step
 from mppf.correct.verdict import Verdict
 from mppf.loop.correcting import pressed_cycle
 from mppf.loop.cycle import run_loop
@@ -81,15 +81,19 @@ def test_the_loop_corrects_with_what_it_learned_and_records_it(planned_plate, tm
 
 def test_a_correction_that_finds_no_way_on_stops_the_plate_with_its_verdict(planned_plate, tmp_path, monkeypatch):
     verdict = Verdict("the strokes it needs lie beyond the press's stroke limits at 3 punches", "re-plan it")
-    monkeypatch.setattr(correcting, "convergence_verdict", lambda *a, **k: verdict)
+    monkeypatch.setattr(mppf.correct.step, "convergence_verdict", lambda *a, **k: verdict)
     with History(tmp_path / "h.sqlite") as history:
         press, scanner = _plate(tmp_path, planned_plate, history, "V1", max_cycles=5)
         with InProcessPress(press) as link:
             result = run_loop(history, "V1", link, scanner)
         assert history.plate("V1").status == "cannot_converge"
     assert result.status == Decision.CANNOT_CONVERGE and len(result.cycles) == 1
-    assert result.cycles[0].state == "done" and result.verdict == verdict.text
+    assert result.cycles[0].state == "done"
     assert "stroke limits" in result.verdict and "re-plan" in result.verdict
+    # the ending: the correction's reason and advice, the figures, exit 5
+    end = result.ending
+    assert end.decision == "cannot_converge" and end.exit_code == 5 and end.advice == "re-plan it"
+    assert verdict.reason in end.why and "cycle 1: form max" in end.why and end.region.startswith("largest form")
 
 
 @pytest.mark.parametrize("learn", [False])

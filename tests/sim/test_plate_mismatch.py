@@ -42,6 +42,27 @@ def test_response_factor_scales_the_permanent_shape(press):
     np.testing.assert_allclose(double, 2.0 * nominal, atol=1e-6 * np.abs(nominal).max())
 
 
+def test_response_factor_after_the_first_step_scales_only_the_later_changes(press):
+    steel, compliance, options = mismatched_parts(PlateSteel(), Compliance(), Mismatch(response_factor=3.0,
+                                                                                       response_after_steps=1))
+    plates = [SteelPlate(press, OUTLINE, T_MM, steel, seed=None, scatter=NO_SCATTER, compliance=compliance,
+                         grid_spacing_mm=75.0, **opts) for opts in (options, {})]
+    px, py = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    act = np.ones(press.shape, dtype=bool)
+    shapes = []
+    for plate in plates:
+        for k in (2.0e-4, 3.0e-4):
+            mid = 0.5 * T_MM + 0.5 * k * (px**2 + py**2)
+            formed = plate.press_step(mid + 0.5 * T_MM, mid - 0.5 * T_MM, act)
+            shapes.append(formed.height_mm(px, py))
+    first, second, first_nominal, second_nominal = shapes
+    np.testing.assert_allclose(first, first_nominal, atol=1e-9)  # the first step as modelled
+    np.testing.assert_allclose(second - first, 3.0 * (second_nominal - first_nominal), atol=1e-6)
+    # a saved and restored plate keeps its reference
+    again = SteelPlate.from_state(plates[0].state_dict())
+    np.testing.assert_allclose(again.formed.height_mm(px, py), second, atol=1e-9)
+
+
 def test_a_higher_yield_stress_springs_back_more(press):
     _, nominal = _bent(press, Mismatch())
     _, harder = _bent(press, Mismatch(yield_factor=1.2))

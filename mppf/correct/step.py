@@ -1,0 +1,109 @@
+"""The loop's one correction: the step policy, the learned correction and its verdict, in one call.
+
+:func:`correct_step` is what :mod:`mppf.loop.correcting` does after a compared cycle and what
+``benchmarks/bench_loop.py`` measures: the size and base of the next step from what the plate
+showed (:func:`mppf.correct.policy.step_plan`), the strokes from the learned correction
+(:func:`mppf.correct.learned.learned_correction`) scaled by it, and the verdict when no
+step helps (:func:`mppf.correct.verdict.convergence_verdict`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from mppf.correct.learned import LearnedCorrection, learned_correction
+from mppf.correct.policy import DEFAULT_NOISE_MM, Outcome, StepPlan, step_plan
+from mppf.correct.verdict import Verdict, convergence_verdict
+from mppf.forming.material import Material
+from mppf.planning.press import PressConfig
+
+
+@dataclass(frozen=True, eq=False)
+class CorrectionStep:
+    """The next strokes, the plan that sized them, and the verdict (None: press them).
+
+    Attributes
+    ----------
+    learned : LearnedCorrection
+    plan : StepPlan
+    verdict : Verdict or None
+    """
+
+    learned: LearnedCorrection
+    plan: StepPlan
+    verdict: Verdict | None
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """The tolerances and the scan's noise the step is judged by (mm)."""
+
+    tolerance_mm: float
+    rms_tolerance_mm: float
+    noise_mm: float = DEFAULT_NOISE_MM
+
+
+def outer_ring(active) -> np.ndarray:
+    """The first and last active punch of every row and column (rows, cols bool)."""
+    act = np.asarray(active, dtype=bool)
+    ring = np.zeros_like(act)
+    for axis in (0, 1):
+        idx = np.arange(act.shape[axis])
+        shape = [1, 1]
+        shape[axis] = -1
+        pos = np.where(act, idx.reshape(shape), -1)
+        last = pos.max(axis=axis, keepdims=True)
+        first = np.where(act, idx.reshape(shape), act.shape[axis]).min(axis=axis, keepdims=True)
+        ring |= act & ((pos == last) | (pos == first))
+    return ring
+
+
+def correct_step(press: PressConfig, design_mid_mm, thickness_mm: float, nominal: Material, cycles, outcomes,
+                 strokes, active, edge_mm, tolerances: Tolerances, policy: bool = True) -> CorrectionStep:
+    """The next strokes from every pressed and measured cycle, sized by what the plate showed.
+
+    Parameters
+    ----------
+    press : PressConfig
+    design_mid_mm : (rows, cols) float
+        The design's mid-surface height at the punches (mm).
+    thickness_mm : float
+    nominal : Material
+        The material the planner assumed.
+    cycles : list of PressedCycle
+        Every cycle as the press did it and as it was measured.
+    outcomes : list of Outcome
+        The same cycles as the policy sees them (form max, RMS, punch deviation, promise).
+    strokes : list of tuple of (rows, cols) float
+        Each cycle's final (upper, lower) strokes as planned.
+    active : (rows, cols) bool
+    edge_mm : (rows, cols) float or None
+        The net plate's edge beyond the outer punches after the last cycle.
+    tolerances : Tolerances
+    policy : bool
+        False: every step at full size from the last strokes (to measure what the policy does).
+
+    Returns
+    -------
+    CorrectionStep
+    """
+    ring = outer_ring(active)
+    plan = (step_plan(outcomes, ring, tolerances.tolerance_mm, tolerances.rms_tolerance_mm, tolerances.noise_mm)
+            if policy else StepPlan())
+    upper, lower = strokes[plan.base]
+    learned = learned_correction(press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower, active,
+                                 edge_mm=edge_mm, scale=plan.scale_mm(ring))
+    learned.notes.extend(plan.notes)
+    verdict = convergence_verdict([o.rms_mm for o in outcomes], learned.predicted_rms_mm,
+                                  tolerances.rms_tolerance_mm, clipped=int(learned.clipped.sum()),
+                                  unreached=int(learned.unreached.sum()), max_mm=[o.form_max_mm for o in outcomes],
+                                  tolerance_mm=tolerances.tolerance_mm)
+    return CorrectionStep(learned, plan, verdict)
+
+
+def outcome(form_max_mm: float, rms_mm: float, error_mm, promised_mm=None) -> Outcome:
+    """An :class:`Outcome` of plain values (``promised_mm`` None for the first cycle)."""
+    promised = None if promised_mm is None else np.asarray(promised_mm, dtype=float)
+    return Outcome(float(form_max_mm), float(rms_mm), np.asarray(error_mm, dtype=float), promised)
