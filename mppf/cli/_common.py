@@ -183,10 +183,30 @@ def _print_line(line: str) -> None:
 
 
 def read_input(path, units: str = "mm", scale: float = 1.0):
-    """:func:`mppf.geometry.read.read_points`, its warnings (a plate in metres read as mm...) printed on stderr."""
-    from mppf.geometry.read import read_points
+    """:func:`mppf.geometry.read.read_points` of a plate's file, its warnings printed on stderr.
+
+    A plate smaller than :data:`mppf.geometry.read.PLATE_MIN_MM` across is refused (a file in
+    metres read as mm, a CAD plate drawn at the wrong scale): no ship plate is that small, and
+    the planner would only fail later with a message about the surface.
+
+    Raises
+    ------
+    GeometryError
+        The plate is smaller than ``PLATE_MIN_MM`` across (file, size and what to do named).
+    """
+    import numpy as np
+
+    from mppf.core.errors import GeometryError
+    from mppf.geometry.read import PLATE_MIN_MM, read_points
 
     cloud = read_points(path, units=units, scale=scale)
+    extent = float(np.ptp(cloud.points, axis=0).max()) if cloud.n_points >= 3 else 0.0
+    if 0.0 < extent < PLATE_MIN_MM:  # too few points, or all at one spot: the readers' own messages
+        hint = ("is the file in metres? then give --units m" if units == "mm" else
+                "check the file's unit and --scale")
+        raise GeometryError(f"{path}: the plate is only {extent:.3g} mm across (--units {units}"
+                            f"{f', --scale {scale:g}' if scale != 1.0 else ''}); a plate is at least "
+                            f"{PLATE_MIN_MM:g} mm", hint=hint)
     for warning in cloud.warnings:
         err_console.print(f"[bold yellow]warning:[/] {esc(warning)}", highlight=False, soft_wrap=True)
     return cloud

@@ -101,3 +101,18 @@ def _check_step(path: Path) -> None:
     if b"END-ISO-10303-21;" not in tail.upper():
         raise FileFormatError(path, "is truncated: the closing 'END-ISO-10303-21;' is missing",
                               hint=f"the file was cut off (an interrupted copy or export); {_EXPORT_HINT}")
+    _check_no_nul(path)
+
+
+def _check_no_nul(path: Path, block_bytes: int = 1 << 20) -> None:
+    """A STEP file is text: a NUL byte (a disk or copy fault, a binary file renamed) is refused with its line."""
+    line, offset = 1, 0
+    with open(path, "rb") as stream:
+        for block in iter(lambda: stream.read(block_bytes), b""):
+            at = block.find(b"\x00")
+            if at >= 0:
+                line += block.count(b"\n", 0, at)
+                raise FileFormatError(path, f"holds a NUL byte at byte {offset + at:,}: a STEP file is text",
+                                      line=line, hint=f"the file is damaged (a disk or copy fault); {_EXPORT_HINT}")
+            line += block.count(b"\n")
+            offset += len(block)

@@ -108,6 +108,7 @@ def read_las(path, units_scale: float = 1.0) -> np.ndarray:
         with laspy.open(str(path)) as reader:
             header = reader.header
             count = int(header.point_count)
+            _check_las_scales(path, header)
             _check_las_size(path, header, count)
             check_fits(path, count * (header.point_format.size + LAS_XYZ_BYTES), f"its {count:,} points")
             points = np.asarray(reader.read().xyz, dtype=float)
@@ -122,6 +123,20 @@ def read_las(path, units_scale: float = 1.0) -> np.ndarray:
     if count == 0:
         raise FileFormatError(path, "holds no points", hint=_RESCAN_HINT)
     return points * units_scale
+
+
+def _check_las_scales(path: Path, header) -> None:
+    """The header's scale factors turn the integer coordinates into lengths: each must be finite and not 0."""
+    scales = np.asarray(header.scales, dtype=float)
+    bad = [f"{axis} {value:g}" for axis, value in zip("xyz", scales) if not (np.isfinite(value) and value != 0.0)]
+    if bad:
+        raise FileFormatError(path, f"its header's scale factor(s) {', '.join(bad)} are 0 or not finite: every "
+                                    "point would lie at its offset", hint=f"the exporter wrote a broken header; "
+                                                                          f"{_RESCAN_HINT}")
+    offsets = np.asarray(header.offsets, dtype=float)
+    if not np.all(np.isfinite(offsets)):
+        raise FileFormatError(path, f"its header's offsets {offsets.tolist()} are not finite numbers",
+                              hint=f"the exporter wrote a broken header; {_RESCAN_HINT}")
 
 
 def _check_las_size(path: Path, header, count: int) -> None:

@@ -1,6 +1,7 @@
 """Text point files (``.csv`` ``.txt`` ``.xyz``): parsing, and the real-world mistakes named.
 
-A data line is ``x,y,z`` or ``x y z`` (more columns are ignored). The common mistakes are
+A data line is ``x,y,z`` or ``x y z`` (more columns are ignored; more than three comma-separated
+columns without any decimal point are decimal commas, refused). The common mistakes are
 recognised and named instead of reported as "no numeric data": a spreadsheet export with
 semicolons and decimal commas, decimal commas between tabs or spaces, UTF-16 text (Windows
 "Unicode" export), binary content. Every problem is a
@@ -65,6 +66,8 @@ def parse_text(path: Path, data: bytes) -> np.ndarray:
             path, f"has {values.shape[1]} column(s), expected 3 (x, y, z)", line=first + 1,
             hint="each data line needs x, y and z",
         )
+    if values.shape[1] > 3:
+        _refuse_comma_decimals(path, lines, first)
     points = np.ascontiguousarray(values[:, :3], dtype=float)
     if not np.all(np.isfinite(points)):
         _slow_parse(path, lines, first)  # names the line of the first bad point
@@ -125,6 +128,27 @@ def _refuse_foreign_numbers(path: Path, content: str, lineno: int) -> None:
                 path, f"writes decimal commas between spaces or tabs: {content[:60]!r} (is '1,5' one and a half "
                 "or two fields?)", line=lineno, hint=_EXPORT_HINT,
             )
+
+
+def _refuse_comma_decimals(path: Path, lines: list[str], first: int, sample: int = 200) -> None:
+    """Refuse comma-separated lines of more than 3 columns without any decimal point: decimal commas.
+
+    ``-600,5,-450,0,27,6`` is x, y, z written with decimal commas between commas, which would
+    read as 6 columns (x = -600, y = 5, z = -450: a plate that folds over). A file of more
+    than 3 columns whose numbers (the first ``sample`` data lines) hold no '.' and no exponent
+    is taken to be that, and refused; real extra columns come with decimal points.
+    """
+    data = [line.split("#", 1)[0].strip() for line in lines[first:first + sample]]
+    data = [line for line in data if line]
+    if not data or not all("," in line for line in data):
+        return
+    if any(("." in field or "e" in field.lower()) for line in data for field in line.split(",")):
+        return
+    raise FileFormatError(
+        path, f"has {len(data[0].split(','))} comma-separated columns and not one decimal point: "
+        f"{data[0][:60]!r} looks like x, y, z written with decimal commas", line=first + 1,
+        hint=_EXPORT_HINT + " (if the columns really are whole numbers, write x, y and z with a decimal point, "
+        "e.g. 100.0)")
 
 
 def split_fields(line: str) -> list[str]:

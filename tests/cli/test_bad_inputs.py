@@ -177,13 +177,16 @@ def test_markup_in_a_file_name_is_printed_as_it_is(tmp_path, capsys):
     assert "P3[rev2].csv: file not found" in capsys.readouterr().err
 
 
-def test_a_plate_in_metres_is_read_with_a_warning_naming_the_file(tmp_path, hull_dir, capsys):
+def test_a_plate_in_metres_read_as_mm_is_refused_naming_the_file_and_units(tmp_path, hull_dir, capsys):
     points = np.loadtxt(hull_dir / "K2_fwd_bilge_convex.csv", delimiter=",", comments="#") / 1000.0
     path = tmp_path / "in-metres.csv"
     np.savetxt(path, points, delimiter=",")
-    assert main(["fit", str(path), "--json"]) == 0
-    err = " ".join(capsys.readouterr().err.split())
-    assert "warning:" in err and "in-metres.csv" in err and "--units m" in err
+    for args in (["fit", str(path), "--json"], ["unfold", str(path), "-o", str(tmp_path / "flat.csv")],
+                 ["plan", str(path), str(path), "--thickness", "20"]):
+        assert main(args) == 2
+        err = " ".join(capsys.readouterr().err.split())
+        assert "in-metres.csv: the plate is only 2.98 mm across (--units mm)" in err and "--units m" in err, err
+    assert main(["fit", str(path), "--units", "m"]) == 0  # read in metres: a plate of 2.98 m
 
 
 def test_a_whole_binary_stl_whose_header_says_solid_is_read(tmp_path):

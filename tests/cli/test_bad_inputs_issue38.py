@@ -150,7 +150,35 @@ for _key, (_source, _edit, _, _again) in EDITS.items():
     if _again:
         FILES38[f"job38_{_key}_resealed"] = (f"{_key}.resealed.job.json", _edited(_source, _edit, reseal=True))
 
+def _las_scale_zero(path: Path, good) -> None:
+    import laspy
+    import numpy as np
+
+    header = laspy.LasHeader(point_format=3, version="1.2")
+    header.scales, header.offsets = np.array([0.0, 0.001, 0.001]), np.zeros(3)
+    las = laspy.LasData(header)
+    grid = np.arange(2501)
+    las.X, las.Y, las.Z = grid, grid % 50, grid // 50
+    las.write(str(path))
+
+
+def _metres(path: Path, good) -> None:
+    text = Path(good["design"]).read_text().splitlines()
+    rows = [",".join(f"{float(v) / 1000.0:.6f}" for v in line.split(",")) for line in text if line[:1] not in "#x"]
+    path.write_text("\n".join(rows) + "\n")
+
+
+_STEP_NUL = (b"ISO-10303-21;\nHEADER;\nFILE_DESCRIPTION((''),'2;1');\nENDSEC;\nDATA;\n"
+             b"#1=CARTESIAN_POINT('',(0.,0.\x00,0.));\nENDSEC;\nEND-ISO-10303-21;\n")
+
 FILES38.update({
+    "las_scale_zero": ("scale0.las", _las_scale_zero),
+    "metres_csv": ("metres.csv", _metres),
+    "step_nul": ("nul.step", _STEP_NUL),
+    "comma_decimals_6": ("comma6.csv", "".join(f"{x},0,{y},5,{(x * x) % 7},25\n" for x in range(-600, 601, 100)
+                                               for y in range(-400, 401, 100))),
+    "comma_decimals_4": ("comma4.csv", "".join(f"{x},{y},{(x * x) % 7},5\n" for x in range(-600, 601, 100)
+                                               for y in range(-400, 401, 100))),
     "manifest_abs": ("abs.csv", "name,design,thickness_mm\n/tmp/elsewhere/P1,design.csv,20\n"),
     "manifest_dotdot": ("dotdot.csv", "name,design,thickness_mm\n../../P1,design.csv,20\n"),
     "manifest_7th": ("seven.csv", "name,design,flat,thickness_mm,material,springback\nP1,design.csv,,20,steel,no,x\n"),
@@ -223,6 +251,25 @@ def _cases() -> list[dict]:
          "expect": ["the output path is empty"]},
         {"id": "issue 38: panel --job truncated", "kind": "job38", "files": ["job_truncated"],
          "args": ["panel", "--job", "{job_truncated}", "--port", "1"], "expect": ["cut.job.json", "not valid JSON"]},
+        {"id": "issue 38: LAS scale 0 -> compare", "kind": "points", "files": ["las_scale_zero"],
+         "args": ["compare", "{design}", "{las_scale_zero}"], "expect": ["scale0.las", "scale factor(s) x 0"]},
+        {"id": "issue 38: a metre file without --units -> plan", "kind": "points", "files": ["metres_csv"],
+         "args": ["plan", "{metres_csv}", "{flat}", "--thickness", "20"],
+         "expect": ["metres.csv: the plate is only 1.2 mm across", "--units m"]},
+        {"id": "issue 38: a metre file without --units -> unfold", "kind": "points", "files": ["metres_csv"],
+         "args": ["unfold", "{metres_csv}", "-o", "{tmp}/flat.csv"],
+         "expect": ["metres.csv: the plate is only 1.2 mm across", "--units m"]},
+        {"id": "issue 38: a 0.3 mm plate (--scale) -> unfold", "kind": "points",
+         "args": ["unfold", "{design}", "--scale", "0.00025", "-o", "{tmp}/flat.csv"],
+         "expect": ["the plate is only 0.3 mm across", "--scale 0.00025"]},
+        {"id": "issue 38: a STEP file with a NUL byte -> fit", "kind": "cad", "files": ["step_nul"],
+         "args": ["fit", "{step_nul}"], "expect": ["nul.step, line 6", "NUL byte"]},
+        {"id": "issue 38: decimal commas between commas (6 columns) -> plan", "kind": "points",
+         "files": ["comma_decimals_6"], "args": ["plan", "{comma_decimals_6}", "{flat}", "--thickness", "20"],
+         "expect": ["comma6.csv, line 1", "6 comma-separated columns and not one decimal point", "decimal commas"]},
+        {"id": "issue 38: decimal commas in z only (4 columns) -> unfold", "kind": "points",
+         "files": ["comma_decimals_4"], "args": ["unfold", "{comma_decimals_4}", "-o", "{tmp}/flat.csv"],
+         "expect": ["comma4.csv, line 1", "4 comma-separated columns", "decimal commas"]},
         {"id": "issue 38: reseal without a reason", "kind": "option",
          "args": ["reseal", "{job}", "--reason", " "], "expect": ["--reason is empty"]},
     ]
