@@ -21,7 +21,17 @@ from mppf.core.presslink import StepResult
 from mppf.drivers import codec
 from mppf.drivers.handshake import SIDES, listed
 
+
+def abandon(reporter, why: str) -> None:
+    """End the reporter's task without calling it done (a reporter without ``abandon`` just finishes)."""
+    end = getattr(reporter, "abandon", None)
+    if end is not None:
+        end(why)
+    else:
+        reporter.finish()
+
 PLC_STALE_S = 1.0  # plc_heartbeat unchanged this long during motion: the PLC program has stopped
+TOO_SOON_FRACTION = 0.5  # COMPLETE sooner than this share of the fastest possible move: not believed
 PROGRESS_S = 0.25  # actual positions read for the progress display this often during motion
 
 
@@ -70,6 +80,7 @@ class Follow:
         reporter.start(f"motion job {seq} (mm of travel)", total=max(total_mm, 1e-9))
         last_progress = last_hb_change = self._clock.now()
         last_hb = raw["plc_heartbeat"]
+        self._undone_at_go = raw["refused_setpoint_writes"]
         while True:
             now = self._clock.now()
             ours = (raw["motion_sequence"], raw["motion_crc"]) == (seq, crc)
@@ -79,7 +90,7 @@ class Follow:
             if raw["plc_heartbeat"] != last_hb:
                 last_hb, last_hb_change = raw["plc_heartbeat"], now
             elif now - last_hb_change > PLC_STALE_S:
-                reporter.finish()
+                abandon(reporter, "PLC halted")
                 self._plc_halted = True  # nothing to release on closing: no program takes commands
                 self._stop_after_trouble("PLC heartbeat stale", wait=False)
                 raise PressFault(
@@ -89,7 +100,7 @@ class Follow:
                     hint="stop the press at the machine and check the PLC before anything else",
                 )
             if now - t0 > timeout_s:
-                reporter.finish()
+                abandon(reporter, "timed out")
                 self._stop_after_trouble(f"timeout after {timeout_s:.1f} s")
                 raise PressFault(f"job {seq}: motion did not end within {timeout_s:.1f} s; STOP was sent",
                                  hint="check the hydraulics and punches; give --timeout for slow moves")
@@ -103,14 +114,48 @@ class Follow:
         actual = self.read_actuals_mm()
         reporter.update(total_mm - sum(float(np.abs(targets_mm[s] - actual[s]).sum()) for s in SIDES))
         reporter.finish()
+        self._report_undone_writes(seq, reporter)
+        self._check_duration(seq, travel, duration)
         return self._check_arrival(seq, raw, targets_mm, actual, duration)
+
+    def _report_undone_writes(self, seq: int, reporter) -> None:
+        """Say how many foreign setpoint writes the PLC undid during the job (refused_setpoint_writes grew)."""
+        try:
+            now = self._status_raw()["refused_setpoint_writes"]
+        except (LinkError, PlcError):
+            return
+        undone = (now - getattr(self, "_undone_at_go", now)) % 65536
+        if undone:
+            text = (f"job {seq}: the PLC undid setpoint writes in {undone} scan(s) during the motion: another "
+                    "master wrote setpoint registers while the press moved (the job's setpoints were kept)")
+            self.audit.record(str(self.url), "foreign writes", "undone", job_sha256=self.job_sha256, sequence=seq,
+                              detail=text)
+            reporter.info(f"WARNING: {text}; find out which master did it")
+
+    def _check_duration(self, seq: int, travel: dict, duration: float) -> None:
+        """A motion that ended far sooner than the press can move is an error: read the press, STOP if it moves."""
+        scale = getattr(self, "motion_time_scale", None)
+        if scale is None or self.press is None:
+            return
+        longest = max(float(t.max()) for t in travel.values())
+        fastest_s = motion_time_s(longest, self.press.speed_mm_s, self.press.accel_mm_s2) / scale
+        if duration >= TOO_SOON_FRACTION * fastest_s:
+            return
+        stopped = self._stop_if_moving(f"COMPLETE after {duration:.2f} s for a move of at least {fastest_s:.2f} s")
+        self.audit.record(str(self.url), "complete", "too soon", job_sha256=self.job_sha256, sequence=seq,
+                          detail=f"{duration:.2f} s for {longest:.1f} mm (at least {fastest_s:.2f} s)")
+        raise PressFault(
+            f"job {seq}: the PLC reported COMPLETE after {duration:.2f} s, but a move of {longest:.1f} mm takes "
+            f"at least {fastest_s:.2f} s on this press: the PLC's COMPLETE cannot be believed; "
+            + ("STOP was sent and the press came to rest" if stopped else "the press was read at rest"),
+            hint="check the PLC program against docs/register-map.md (section 3, 'at rest') before the next step")
 
     def _check_motion(self, seq: int, raw: dict, ours: bool, last_hb: int, targets_mm, reporter) -> None:
         """During motion: anything but EXECUTING our job ends the step (STOP, rest, PressFault)."""
         state = raw["state_name"]
         if state == "EXECUTING" and ours and not 0 < (last_hb - raw["plc_heartbeat"]) % 65536 < 0x8000:
             return
-        reporter.finish()
+        abandon(reporter, f"ended in state {state}")
         if state == "FAULT":
             self._stop_after_trouble(f"fault: {self.map.fault_text(raw['fault_code'])}")
             raise self._fault_error(seq, raw, targets_mm)
@@ -135,13 +180,17 @@ class Follow:
         max_error = max(float(np.abs(e).max()) for e in errors.values())
         off = self._out_of_tolerance(targets_mm, actual)
         if off or not raw["flags"]["in_position"]:
+            stopped = self._stop_if_moving(f"COMPLETE with {len(off)} punch(es) out of position")
             self.audit.record(str(self.url), "complete", "out of tolerance", job_sha256=self.job_sha256, sequence=seq,
                               detail=f"{len(off)} punches; PLC in_position {raw['flags']['in_position']}")
             named = listed(off) if off else "the PLC does not report the punches in position (in_position clear)"
+            rest = ("the punches were still moving: STOP was sent and the press came to rest" if stopped
+                    else "the press was read at rest")
             raise PressFault(
-                f"job {seq}: {len(off)} punch(es) not in position within {self.press.position_tolerance_mm} mm "
-                f"after the motion ended: {named}",
-                hint="a punch may be stuck or blocked: inspect it before the next step",
+                f"job {seq}: the PLC reported COMPLETE with {len(off)} punch(es) not in position within "
+                f"{self.press.position_tolerance_mm} mm: {named}; {rest}",
+                hint="a punch may be stuck or blocked, or the PLC ends motion before the punches are at rest in "
+                     "their band (docs/register-map.md, section 3): inspect before the next step",
             )
         self.audit.record(str(self.url), "complete", "ok", job_sha256=self.job_sha256, sequence=seq,
                           detail=f"max error {max_error:.3f} mm, {duration:.2f} s")

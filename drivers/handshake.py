@@ -108,13 +108,35 @@ class Handshake:
                                hint="wait for the motion to end or STOP it")
 
     def _take_plc(self) -> None:
-        """Own the PLC and bring it to a state that takes setpoints (a finished job is RESET)."""
+        """Own the PLC and bring it to a state that takes setpoints (a finished job is RESET).
+
+        A press STOPPED by a STOP this driver did not send is RESET only when
+        :attr:`confirm_reset` (a callable taking the question, returning True to reset) says so.
+        """
         self._require_ready(self._status_raw(), "upload")
         self.claim()
         raw = self._status_raw()
         self._require_ready(raw, "upload")
+        if raw["state_name"] == "STOPPED" and raw["stop_count"] != getattr(self, "_own_stop_count", None):
+            self._confirm_foreign_stop(raw)
         if raw["state_name"] in ("COMPLETE", "STOPPED"):
             self.reset()
+
+    def _confirm_foreign_stop(self, raw: dict) -> None:
+        """The press was stopped by someone (a STOP request or the key switch): ask before RESET undoes it."""
+        cause = self.map.stop_causes.name(raw["stop_cause"])
+        who = (f"a STOP request of master 0x{raw['last_stop_master']:08X}" if cause == "STOP_REQUEST"
+               else "the key switch turned to local" if cause == "REMOTE_DISABLED" else f"stop cause {cause}")
+        question = (f"the press at {self.url} is STOPPED by {who} ({raw['stop_count']} STOP request(s) since the PLC "
+                    "started); RESET it and go on")
+        confirm = getattr(self, "confirm_reset", None)
+        answer = bool(confirm(question)) if confirm is not None else False
+        self.audit.record(str(self.url), "foreign stop", "reset confirmed" if answer else "not reset",
+                          job_sha256=self.job_sha256, detail=question)
+        if not answer:
+            raise PressRefused(f"{question}? Not confirmed: nothing was written; the press stays STOPPED",
+                               hint="find out who stopped the press and why; then run again at a terminal to "
+                                    "confirm, or with --yes")
 
     def _prepare(self, upper_mm, lower_mm, reporter) -> tuple[int, int, dict[str, np.ndarray]]:
         """Validation, ownership, upload, read-back, VALIDATE; return (sequence, crc, targets mm)."""
@@ -212,6 +234,8 @@ class Handshake:
         self._check_heartbeat(seq)
         with Audited(self, "go", sequence=seq, detail=f"crc 0x{crc:08X}") as row:
             raw = self._await_ack(self._send("GO", sequence=seq, crc=crc))
+            if raw is None:  # the acknowledgement may be lost; the motion token tells whether our GO started
+                raw = self._started_by_token(seq, crc)
             if raw is None:
                 row.outcome = "no acknowledgement"
                 self._stop_after_trouble(f"GO of job {seq} not acknowledged")
@@ -219,9 +243,27 @@ class Handshake:
                                  "STOP was sent", hint="check the PLC ('mppf status'), then run the step again")
             if raw["result_code"]:
                 row.outcome, row.detail = "refused", self._go_refusal(raw)
-                raise PressRefused(f"the PLC refused GO for job {seq}: {row.detail}; nothing moved",
-                                   hint="run the step again (it uploads and verifies afresh)")
+                self._refused_go(seq, row.detail)
         return self._await_start(seq, crc, raw)
+
+    def _refused_go(self, seq: int, why: str) -> None:
+        """GO refused: read whether anything moves before saying so; STOP when it does. Always raises."""
+        raw = self._status_raw()
+        moving = raw["state_name"] in ("EXECUTING", "STOPPING") or raw["flags"]["busy"]
+        if not moving and self._await_rest(within_s=self._rest_time_s() + 2 * self.poll_s):
+            raise PressRefused(f"the PLC refused GO for job {seq}: {why}; nothing moved (state {raw['state_name']}, "
+                               "the punches read still)", hint="run the step again (it uploads and verifies afresh)")
+        self._stop_after_trouble(f"GO of job {seq} refused while the press moves")
+        raise PressFault(
+            f"the PLC refused GO for job {seq} ({why}), but the press was moving (state {raw['state_name']}, motion "
+            f"job {raw['motion_sequence']} of CRC 0x{raw['motion_crc']:08X}, not ours): STOP was sent",
+            hint="another master is driving the press: find it ('mppf status') before anything else")
+
+    def _started_by_token(self, seq: int, crc: int) -> dict | None:
+        """The status when the PLC executes our job (its motion token ours) without a readable acknowledgement."""
+        raw = self._status_raw()
+        ours = (raw["motion_sequence"], raw["motion_crc"]) == (seq, crc)
+        return dict(raw, result_code=0) if ours and raw["state_name"] in ("EXECUTING", "COMPLETE") else None
 
     def _go_refusal(self, raw: dict) -> str:
         text = self.map.result_text(raw["result_code"])

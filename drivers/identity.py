@@ -33,6 +33,12 @@ class PlcIdentity:
     watchdog_s : float or None
         Its watchdog and lease time (None: no watchdog).
     position_tolerance_mm : float
+    positioning_timeout_s, rest_time_s : float
+        The PLC's positioning timeout and the time a punch must stay slow to be at rest.
+    rest_speed_mm_s : float
+        Below this speed a punch is slow enough to be at rest.
+    dimpling_limit_mm, tip_gap_min_mm : float
+        The PLC's own neighbour-step and tip-gap limits (its VALIDATE checks them).
     """
 
     word_order: str
@@ -43,6 +49,11 @@ class PlcIdentity:
     scan_time_s: float = 0.01
     watchdog_s: float | None = 1.0
     position_tolerance_mm: float = 0.2
+    positioning_timeout_s: float = 2.0
+    rest_time_s: float = 0.05
+    rest_speed_mm_s: float = 0.5
+    dimpling_limit_mm: float = 0.0
+    tip_gap_min_mm: float = 0.0
 
 
 def identify(io, rmap: RegisterMap, url, unit: int, word_order: str, press=None) -> PlcIdentity:
@@ -103,15 +114,21 @@ def identify(io, rmap: RegisterMap, url, unit: int, word_order: str, press=None)
     if version != rmap.version:
         raise LinkError(
             f"the PLC at {url} implements register map version {version}, "
-            f"this mppf speaks version {rmap.version}",
-            hint="update the PLC program or mppf so that both use the same register map",
+            f"this mppf speaks version {rmap.version} only; nothing was written",
+            hint=f"update the PLC program to register map version {rmap.version} (docs/register-map.md), "
+                 "or use the mppf release made for its version",
         )
     (rows,), (cols,) = get("rows"), get("cols")
     limits = {side: tuple(round(codec.words_to_i32(get(f"{side}_{end}"), detected) * rmap.count_mm, 6)
                           for end in ("min", "max")) for side in SIDES}
     (scan_ms,), (watchdog_ms,), (tolerance,) = get("scan_time_max_ms"), get("watchdog_ms"), get("position_tolerance")
+    (timeout_ms,), (rest_speed,), (rest_ms,) = get("positioning_timeout_ms"), get("rest_speed"), get("rest_time_ms")
     ident = PlcIdentity(detected, version, rows, cols, limits, scan_time_s=max(scan_ms, 1) / 1000.0,
-                        watchdog_s=watchdog_ms / 1000.0 or None, position_tolerance_mm=tolerance * rmap.count_mm)
+                        watchdog_s=watchdog_ms / 1000.0 or None, position_tolerance_mm=tolerance * rmap.count_mm,
+                        positioning_timeout_s=timeout_ms / 1000.0, rest_time_s=rest_ms / 1000.0,
+                        rest_speed_mm_s=rest_speed * rmap.count_mm,
+                        dimpling_limit_mm=codec.words_to_i32(get("dimpling_limit"), detected) * rmap.count_mm,
+                        tip_gap_min_mm=codec.words_to_i32(get("tip_gap_min"), detected) * rmap.count_mm)
     if press is not None and (rows, cols) != press.shape:
         raise ConfigError(
             f"the PLC at {url} drives {rows} x {cols} punches, the press description "

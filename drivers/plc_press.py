@@ -32,7 +32,7 @@ from mppf.core.errors import Cancelled, InputError, LinkError, MppfError, PlcErr
 from mppf.core.presslink import StepResult
 from mppf.core.progress import NULL_REPORTER, Reporter
 from mppf.drivers import regmap as rm
-from mppf.drivers.follow import Follow
+from mppf.drivers.follow import Follow, abandon
 from mppf.drivers.handshake import Handshake
 from mppf.drivers.safety import Safety
 from mppf.drivers.session import PlcSession, WallClock
@@ -58,6 +58,10 @@ class PlcPress(Handshake, Follow, Safety, PlcSession):
         :meth:`status`, :meth:`stop` and :meth:`reset` but not for :meth:`run_step`.
     poll_s : float
         Status polling period during motion (s of the clock).
+    motion_time_scale : float or None
+        How many times faster than the press description the punches move (1 for a real
+        press, the dry run's time scale for the simulated one); given, a COMPLETE sooner than
+        half the fastest possible move is an error (STOP if anything moves). None: not checked.
     **options
         ``word_order``, ``unit``, ``audit``, ``job_sha256``, ``register_map``, ``clock``,
         ``reply_timeout_s``, ``master_id`` of :class:`~mppf.drivers.session.PlcSession`.
@@ -73,8 +77,9 @@ class PlcPress(Handshake, Follow, Safety, PlcSession):
     """
 
     def __init__(self, io, url, press: PressConfig | None = None, *, poll_s: float = 0.05,
-                 register_map: rm.RegisterMap | None = None, **options):
+                 register_map: rm.RegisterMap | None = None, motion_time_scale: float | None = None, **options):
         self.poll_s = float(poll_s)
+        self.motion_time_scale = motion_time_scale
         super().__init__(io, url, press, register_map=register_map, **options)
 
     def run_step(
@@ -133,17 +138,22 @@ class PlcPress(Handshake, Follow, Safety, PlcSession):
             raw = self._go(seq, crc)
             # 6: follow the motion to COMPLETE, check the positions
             return self._follow(seq, crc, raw, targets_mm, start_mm, reporter, timeout_s, t0)
-        except KeyboardInterrupt:
-            reporter.finish()
-            self._stop_after_trouble("cancelled by the operator", fresh=True)
-            raise Cancelled("cancelled by the operator; STOP was sent to the press") from None
+        except KeyboardInterrupt as exc:
+            signal_name = str(exc)  # SIGTERM / SIGHUP (mppf.cli.press_policy); Ctrl-C: empty
+            why = "cancelled by the operator" + (f" ({signal_name})" if signal_name else "")
+            abandon(reporter, "cancelled")
+            self._stop_after_trouble(why, fresh=True)
+            rest = ("; it did not report rest in time: check the press" if self._not_at_rest
+                    else "; it came to rest" if go_sent else "")
+            raise Cancelled(f"cancelled by the operator; STOP was sent to the press{rest}"
+                            + (f" ({signal_name})" if signal_name else "")) from None
         except PlcError as exc:
             if not go_sent:
                 raise  # refused before GO: nothing moved
-            reporter.finish()
+            abandon(reporter, "stopped")
             raise self._refused_after_go(exc, seq) from None
         except LinkError as exc:
-            reporter.finish()
+            abandon(reporter, "link lost")
             raise self._lost_link(exc, seq, go_sent) from None
         except Exception as exc:
             # the driver's own failures (PressFault, PressRefused, ...) have already done what is

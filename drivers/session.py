@@ -116,6 +116,9 @@ class PlcSession:
         self._nonce = 0  # the PLC's nonce for this master's lease (never written anywhere as it is)
         self._owner = False
         self._plc_halted = False
+        self._not_at_rest = False  # a wait for rest after STOP ran out: the lease is kept, not released
+        self._own_stop_count: int | None = None  # stop_count after this driver's last STOP
+        self.confirm_reset = None  # asked before a RESET undoes a STOP of someone else (None: never reset it)
         self._last_sequence = 0
         self._io = io
         try:
@@ -138,13 +141,25 @@ class PlcSession:
         the heartbeat stops.
         """
         try:
-            if self._owner and not self._plc_halted:
+            if self._owner and not self._plc_halted and self._rest_before_release():
                 self.release()
         except (LinkError, PlcError, PressFault):
             pass  # recorded in the audit log; the lease lapses after the watchdog time
         finally:
             self._stop_heartbeat()
             self._io.close()
+
+    def _rest_before_release(self) -> bool:
+        """Before RELEASE: the press must be at rest (STOP and wait if it is not); False keeps the lease."""
+        if self._not_at_rest:
+            return False
+        try:
+            await_rest = getattr(self, "_stop_if_moving", None)
+            if await_rest is not None:
+                await_rest("closing while the press moves")
+            return not self._not_at_rest
+        except (LinkError, PlcError, PressFault):
+            return False
 
     def __enter__(self):
         return self
@@ -398,11 +413,12 @@ class PlcSession:
         """Wait until the PLC has taken the STOP (``stop_request`` back to 0)."""
         deadline = self._clock.now() + self.ack_timeout_s
         try:
-            while self._status_raw()["stop_request"] != 0:
+            while (raw := self._status_raw())["stop_request"] != 0:
                 if self._clock.now() >= deadline:
                     row.outcome = "not taken"
                     raise PressFault(f"the PLC at {self.url} did not take the STOP within {self.ack_timeout_s:.1f} s",
                                      hint="stop the press at the machine, then check the PLC")
                 self._clock.sleep(self._poll_s)
+            self._own_stop_count = raw["stop_count"]  # this STOP is ours: no need to ask before its RESET
         except (LinkError, PlcError) as exc:  # the STOP itself was delivered; only the confirmation is missing
             row.detail = f"not confirmed: {exc.message}"

@@ -122,6 +122,16 @@ class LineReporter:
         if task is not None:
             self._line(f"{task}: done in {elapsed:.1f} s")
 
+    def abandon(self, why: str) -> None:
+        """End the task without calling it done (a cancelled or failed motion): ``TASK: WHY after N s``."""
+        with self._lock:
+            task, self._task = self._task, None
+            elapsed = self._now() - self._since
+            if task is not None:
+                self._since, self._status = self._now(), f"{task} {why}"
+        if task is not None:
+            self._line(f"{task}: {why} after {elapsed:.1f} s")
+
     def info(self, message: str) -> None:
         with self._lock:
             if self._task is None:  # a step without a task of its own: its heartbeat names this line

@@ -145,5 +145,11 @@ def test_the_in_process_press_follows_the_programs_scans_and_ownership(press, au
             assert other._io.writes == 0  # refused before any write
             other.stop("second master")
         assert link.status().state == "STOPPED"
-        result = link.run_step(upper - 1, lower)  # the owner resets the stopped job and goes on
+        with pytest.raises(Refused, match="STOPPED by a STOP request of master 0x.*Not confirmed"):
+            link.run_step(upper - 1, lower)  # a foreign STOP is never undone without asking
+        questions = []
+        link.confirm_reset = lambda question: questions.append(question) or True
+        result = link.run_step(upper - 1, lower)  # confirmed: the owner resets the stopped job and goes on
+    assert f"master 0x{other.master_id:08X}" in questions[0] and "1 STOP request(s)" in questions[0]
+    assert ("foreign stop", "not reset") in actions(audit) and ("foreign stop", "reset confirmed") in actions(audit)
     assert result.max_error_mm <= press.position_tolerance_mm
