@@ -135,7 +135,7 @@ def press_command(job_path, plc_url, step, section, yes, press_path, audit_path,
     job.press = press  # equal to the job's block (checked): park heights and tolerances are the machine's
     dry_run = plc_url is None
     with sigterm_as_ctrl_c(), press_link(press, plc_url, audit=open_audit(audit_path), time_scale=time_scale,
-                                         reporter=RichReporter(), word_order=word_order,
+                                         reporter=RichReporter(), word_order=word_order, yes=yes,
                                          job_sha256=job.sha256()) as plc:
         # the one job validator, against this PLC's identity and limits and the machine's press, before any write
         try:
