@@ -18,7 +18,7 @@ from mppf.core.scanner import PressedStep, ScanContext
 from mppf.loop.history import History
 from mppf.loop.records import CycleRecord, PlateRecord, load_cycle_job
 from mppf.loop.section_steps import placed_steps
-from mppf.planning.job import StepStrokes, grid_from_json, grid_to_json
+from mppf.planning.job import StepStrokes, grid_from_json, grid_to_json, steps_to_json
 from mppf.planning.press import PressConfig
 
 
@@ -55,6 +55,7 @@ def press_step(history: History, record: CycleRecord, press: PressConfig, link: 
         From the press during the step: it stays started, not done.
     """
     step = record.steps[index - 1]
+    check_step_is_sealed(record, index)  # the history's copy of the strokes is not trusted alone
     reporter.info(f"cycle {record.cycle}: press step {index} of {len(record.steps)}" + (f" {what}" if what else ""))
     # committed before anything is sent: a crash from here on never presses this step again
     history.mark_step_started(record.plate_id, record.cycle, index)
@@ -66,6 +67,30 @@ def press_step(history: History, record: CycleRecord, press: PressConfig, link: 
         history.mark_step_not_started(record.plate_id, record.cycle, index, exc.message)
         raise
     history.mark_step_done(record.plate_id, record.cycle, index, result_to_dict(result))
+
+
+def check_step_is_sealed(record: CycleRecord, index: int) -> None:
+    """Refuse to press a step whose strokes in the history differ from the cycle's sealed job file.
+
+    The job file's seal and recorded hash are checked (:func:`load_cycle_job`), then the step
+    ``index`` (1-based, over every section's steps) and the number of steps against it.
+
+    Raises
+    ------
+    ConfigError
+        The job's seal or hash does not match, or the history's steps are not the job's.
+    """
+    from mppf.core.errors import ConfigError
+    from mppf.loop.section_steps import cycle_steps
+
+    planned = cycle_steps(load_cycle_job(record))
+    if len(planned) != len(record.steps) or \
+            steps_to_json([planned[index - 1]]) != steps_to_json([record.steps[index - 1]]):
+        raise ConfigError(f"cycle {record.cycle} of plate {record.plate_id}: step {index} in the history is not step "
+                          f"{index} of its sealed job {record.job_path} ({len(record.steps)} step(s) recorded, "
+                          f"{len(planned)} in the job); nothing was sent to the press",
+                          hint="the history was edited or damaged: restore it from its backup, or start the plate "
+                               "again")
 
 
 def close_cut_step(history: History, record: CycleRecord, press: PressConfig) -> CycleRecord:
