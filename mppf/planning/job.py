@@ -278,8 +278,17 @@ def read_job_document(path) -> dict:
     InputError
         Missing or unreadable file, invalid JSON.
     """
+    import stat
+
     path = Path(path)
     try:
+        info = path.stat()
+        if stat.S_ISREG(info.st_mode) and info.st_size > MAX_JOB_BYTES:
+            raise InputError(f"job file {path} is {info.st_size / 1e6:.0f} MB: larger than any job "
+                             f"({MAX_JOB_BYTES / 1e6:.0f} MB at most)", hint="give the job file 'mppf plan' wrote")
+        if not stat.S_ISREG(info.st_mode) and not stat.S_ISDIR(info.st_mode):
+            raise InputError(f"job file {path} is not a regular file (a device, a pipe or a socket)",
+                             hint="give the job file 'mppf plan' wrote")
         text = path.read_text()
     except FileNotFoundError:
         raise InputError(f"job file {path} does not exist", hint="make one with 'mppf plan'") from None
@@ -289,7 +298,15 @@ def read_job_document(path) -> dict:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
         raise ConfigError(f"{path}, line {exc.lineno}: not valid JSON: {exc.msg}") from None
+    except RecursionError:
+        raise ConfigError(f"{path}: not a job: its JSON is nested too deeply to be one",
+                          hint="give the job file 'mppf plan' wrote") from None
     return doc
+
+
+MAX_JOB_BYTES = 256_000_000
+"""The largest job file read (a job of a 16 x 24 press is about 0.1 MB a step; the largest plates in many
+sections and steps stay far below)."""
 
 
 def save_job(job: Job, path, *, sealed_by: str = "mppf plan", reason: str | None = None) -> Path:

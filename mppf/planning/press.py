@@ -272,8 +272,16 @@ def load_press(path) -> PressConfig:
     ConfigError
         The file is missing, is not valid TOML, or has missing/mistyped keys.
     """
+    import stat
+
     path = Path(path)
     try:
+        info = path.stat()
+        if not stat.S_ISDIR(info.st_mode) and (not stat.S_ISREG(info.st_mode) or info.st_size > MAX_PRESS_BYTES):
+            raise ConfigError(f"press description {path} is not a press description: "
+                              + ("not a regular file (a device, a pipe or a socket)" if not stat.S_ISREG(info.st_mode)
+                                 else f"{info.st_size:,} bytes, a press description is at most {MAX_PRESS_BYTES:,}"),
+                              hint="give the path of the press's .toml file (see examples/press.toml)")
         with path.open("rb") as fh:
             data = tomllib.load(fh)
     except FileNotFoundError:
@@ -285,6 +293,10 @@ def load_press(path) -> PressConfig:
     except UnicodeDecodeError:
         raise ConfigError(f"{path}: not a text (TOML) file") from None
     return press_from_dict(data, source=str(path))
+
+
+MAX_PRESS_BYTES = 1_000_000
+"""The largest press description read (the example is 2 kB)."""
 
 
 def example_press_path() -> Path:

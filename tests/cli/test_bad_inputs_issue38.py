@@ -175,6 +175,7 @@ FILES38.update({
     "las_scale_zero": ("scale0.las", _las_scale_zero),
     "metres_csv": ("metres.csv", _metres),
     "step_nul": ("nul.step", _STEP_NUL),
+    "job_deep": ("deep.job.json", "[" * 100_000),
     "comma_decimals_6": ("comma6.csv", "".join(f"{x},0,{y},5,{(x * x) % 7},25\n" for x in range(-600, 601, 100)
                                                for y in range(-400, 401, 100))),
     "comma_decimals_4": ("comma4.csv", "".join(f"{x},{y},{(x * x) % 7},5\n" for x in range(-600, 601, 100)
@@ -270,6 +271,15 @@ def _cases() -> list[dict]:
         {"id": "issue 38: decimal commas in z only (4 columns) -> unfold", "kind": "points",
          "files": ["comma_decimals_4"], "args": ["unfold", "{comma_decimals_4}", "-o", "{tmp}/flat.csv"],
          "expect": ["comma4.csv, line 1", "4 comma-separated columns", "decimal commas"]},
+        {"id": "issue 38: a job nested too deeply -> press", "kind": "job38", "files": ["job_deep"],
+         "args": ["press", "{job_deep}"], "expect": ["deep.job.json", "nested too deeply"]},
+        {"id": "issue 38: a device as the job -> press", "kind": "job38", "args": ["press", "/dev/zero"],
+         "expect": ["/dev/zero is not a regular file"]},
+        {"id": "issue 38: a device as the job -> panel", "kind": "job38", "args": ["panel", "--job", "/dev/zero"],
+         "expect": ["/dev/zero is not a regular file"]},
+        {"id": "issue 38: a device as the press -> plan", "kind": "press",
+         "args": ["plan", "{design}", "{flat}", "--thickness", "20", "--press", "/dev/zero"],
+         "expect": ["/dev/zero is not a press description"]},
         {"id": "issue 38: reseal without a reason", "kind": "option",
          "args": ["reseal", "{job}", "--reason", " "], "expect": ["--reason is empty"]},
     ]
