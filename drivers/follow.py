@@ -31,6 +31,7 @@ def abandon(reporter, why: str) -> None:
         reporter.finish()
 
 PLC_STALE_S = 1.0  # plc_heartbeat unchanged this long during motion: the PLC program has stopped
+LATE_BITS_SCANS = 10  # status bits may lag the state by this many scans before mppf stops believing them
 TOO_SOON_FRACTION = 0.5  # COMPLETE sooner than this share of the fastest possible move: not believed
 PROGRESS_S = 0.25  # actual positions read for the progress display this often during motion
 
@@ -179,6 +180,8 @@ class Follow:
         errors = {s: actual[s] - targets_mm[s] for s in SIDES}
         max_error = max(float(np.abs(e).max()) for e in errors.values())
         off = self._out_of_tolerance(targets_mm, actual)
+        if not off and not raw["flags"]["in_position"]:
+            raw = self._await_in_position(raw)
         if off or not raw["flags"]["in_position"]:
             stopped = self._stop_if_moving(f"COMPLETE with {len(off)} punch(es) out of position")
             self.audit.record(str(self.url), "complete", "out of tolerance", job_sha256=self.job_sha256, sequence=seq,
@@ -197,6 +200,15 @@ class Follow:
         return StepResult(sequence=seq, target_upper_mm=targets_mm["upper"], target_lower_mm=targets_mm["lower"],
                           actual_upper_mm=actual["upper"], actual_lower_mm=actual["lower"], max_error_mm=max_error,
                           duration_s=duration)
+
+    def _await_in_position(self, raw: dict) -> dict:
+        """Every punch in its band by the driver's reading but ``in_position`` still clear: status bits may come
+        a few scans after the state; wait up to :data:`LATE_BITS_SCANS` scans for it."""
+        deadline = self._clock.now() + LATE_BITS_SCANS * self.identity.scan_time_s + 2 * self.reply_timeout_s
+        while not raw["flags"]["in_position"] and self._clock.now() < deadline:
+            self._clock.sleep(self._poll_s)
+            raw = self._status_raw()
+        return raw
 
     def _out_of_tolerance(self, targets_mm, actual_mm) -> list[str]:
         tol = self.press.position_tolerance_mm + 0.5 * self.map.count_mm

@@ -125,11 +125,19 @@ def _command(sim, line: str, echo) -> bool:
     help="Inject a fault (repeatable): stuck:upper:3:5@40, estop[@T], overpressure[@T], freeze[@T], local[@T], "
     "slow:MS[@T], drop[:D][@T], restart[@T]; T = seconds into the motion. See docs/simulator.md.",
 )
+@click.option(
+    "--quirk",
+    "quirk_specs",
+    multiple=True,
+    metavar="QUIRK",
+    help="Behave like a misread PLC or let a foreign master act (repeatable): literal-complete, late-status:N, "
+    "borrow-ids, none-after-go, foreign-stop[@T]. See docs/simulator.md.",
+)
 @click.option("--status-every", type=float, default=5.0, show_default=True, help="Seconds between status lines.")
 @click.option("--duration", type=float, default=None, help="Stop after this many seconds (default: until Ctrl-C).")
 def sim_command(
     host, port, rtu_port, baud, parity, paced, press_path, time_scale, word_order, unit, watchdog, scan_ms, key,
-    fault_specs, status_every, duration,
+    fault_specs, quirk_specs, status_every, duration,
 ):  # fmt: skip
     """Run the simulated press PLC until Ctrl-C (or 'quit' on its standard input).
 
@@ -157,12 +165,15 @@ def sim_command(
         raise InputError(f"--scan-ms must be above 0 and at most 200 ms, got {scan_ms}",
                          hint="a PLC scans every 1-200 ms; 10 ms is typical")
     faults = [parse_fault_spec(spec) for spec in fault_specs]
+    from mppf.sim.plc.quirks import parse_quirk
+
+    quirks = [spec for spec in quirk_specs if parse_quirk(spec)]  # a bad spec: InputError naming it
     press = load_press(press_path or example_press_path())
     sim = start_simulated_plc(
         press, host=host or "127.0.0.1", port=5020 if port is None else port, rtu=rtu_port == "pty",
         rtu_port=rtu_port if rtu_port not in (None, "pty") else None, baud=baud, parity=parity, paced=paced,
         faults=faults, word_order=word_order, unit=unit, time_scale=time_scale, watchdog_s=watchdog or None,
-        scan_s=scan_ms / 1000.0, remote=key == "remote",
+        scan_s=scan_ms / 1000.0, remote=key == "remote", quirks=quirks,
     )
 
     def echo(text: str) -> None:
@@ -171,7 +182,8 @@ def sim_command(
     try:
         echo(f"simulated PLC listening on {sim.url}")
         echo(f"{press.name}: {press.rows} x {press.cols} punches, word order {word_order}, scan {scan_ms:g} ms, "
-             f"time scale {time_scale:g}, watchdog {watchdog:g} s, key switch {key}; Ctrl-C to stop; {STDIN_HELP}")
+             f"time scale {time_scale:g}, watchdog {watchdog:g} s, key switch {key}"
+             + (f", quirks {', '.join(quirks)}" if quirks else "") + f"; Ctrl-C to stop; {STDIN_HELP}")
         lines: queue.Queue = queue.Queue()
         threading.Thread(target=_read_stdin, args=(lines,), daemon=True, name="sim-stdin").start()
         started = time.monotonic()

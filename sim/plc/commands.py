@@ -136,6 +136,8 @@ class Commands:
             getattr(self, f"_do_{name.lower()}")(pair[1])
         result = self.map.results.code(refusal or "ACCEPTED")
         self.ack = (pair[0], pair[1], code, result)
+        a = self.map["command"].address
+        self._quirk_taken(self.regs[a: self.map["command_sequence"].end], str(name), refusal or "ACCEPTED")
         if from_owner or (name == "CLAIM" and refusal is None):
             self._owner_counter = pair[0]
             self.owner_ack = (pair[0], code, result)

@@ -12,8 +12,8 @@ quirk                       behaviour
                             COMPLETE in the scan of GO while the whole move follows
 ``late-status:N``           ``status_word`` published N scans late (1..10)
 ``borrow-ids``              a foreign master copies the readable owner id and validated
-                            token: GO as the owner once a job is VALIDATED, and a
-                            heartbeat with the owner's id every scan
+                            token: GO as the owner every scan while a job is VALIDATED,
+                            and a heartbeat with the owner's id every scan
 ``none-after-go``           a foreign master writes NONE into the mailbox right after
                             the scan that took a GO (the shared acknowledgement is
                             overwritten)
@@ -75,10 +75,11 @@ class Quirks:
         late = int(self.quirks.get("late-status") or 0)
         self._late_words: deque[int] = deque(maxlen=late + 1)
         self._valves_pending = None
-        self._borrowed_job = (0, 0)
         self._foreign_counter = 0
         self._foreign_beat = 0
         self._foreign_stop_due = "foreign-stop" in self.quirks
+        self._foreign_words: list[int] | None = None
+        self.foreign_results: list[tuple[str, str]] = []  # (command, result) of the foreign masters' commands
 
     # -------------------------------------------------------- literal-complete ---
     def _quirk_go(self) -> bool:
@@ -122,6 +123,13 @@ class Quirks:
         words = ([self.map.command(name), self._foreign_counter] + u32_to_words(master, order)
                  + u32_to_words(crc, order) + [0, 0] + [sequence])
         self.store(self.map["command"].address, words)
+        self._foreign_words = words
+
+    def _quirk_taken(self, words: list[int], command: str, result: str) -> None:
+        """The mailbox command just taken: recorded when it is a foreign master's."""
+        if self._foreign_words is not None and words == self._foreign_words:
+            self.foreign_results.append((command, result))
+            self._foreign_words = None
 
     def _quirk_after_scan(self, took_go: bool) -> None:
         """The foreign masters act on what they read right after a scan."""
@@ -130,8 +138,7 @@ class Quirks:
             self._foreign_beat = self._foreign_beat % 0xFFFF + 1
             self.store(self.map["heartbeat_counter"].address,
                        [self._foreign_beat] + u32_to_words(self.owner, self.word_order) + [0, 0])
-            if self.state == "VALIDATED" and self.validated != self._borrowed_job:
-                self._borrowed_job = self.validated
+            if self.state == "VALIDATED":  # GO as the owner, with the published token, every scan until it moves
                 self._foreign_command("GO", self.owner, *self.validated)
         if "none-after-go" in q and took_go:
             self._foreign_command("NONE", FOREIGN_MASTER)

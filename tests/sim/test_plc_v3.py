@@ -236,3 +236,10 @@ def test_bad_quirk_specs_are_named(spec, message):
     with pytest.raises(InputError) as info:
         parse_quirk(spec)
     assert message in info.value.message and spec in info.value.message
+
+
+def test_mppf_sim_refuses_an_unknown_quirk_with_exit_2(capsys):
+    from mppf.cli import main
+
+    assert main(["sim", "--port", "0", "--quirk", "literal", "--duration", "0.1"]) == 2
+    assert "unknown PLC quirk 'literal'" in capsys.readouterr().err
