@@ -31,6 +31,8 @@ from mppf.forming.material import MATERIALS
 
 MANIFEST_COLUMNS = ("name", "design", "flat", "thickness_mm", "material", "springback")
 """Columns of a manifest; ``design`` and ``thickness_mm`` are required (thickness may come from ``--thickness``)."""
+MAX_MANIFEST_BYTES = 50_000_000
+"""The largest manifest read (a row is about 100 bytes)."""
 KEY_VERSION = 1
 """Bumped when the meaning of the input key changes (finished jobs are then planned again)."""
 
@@ -120,6 +122,11 @@ def read_manifest(path, default_thickness_mm=None, default_material: str | None 
     """
     path = Path(path)
     try:
+        if path.exists() and (not path.is_file() or path.stat().st_size > MAX_MANIFEST_BYTES):
+            raise InputError(f"manifest {path} is not a manifest: "
+                             + ("not a regular file (a folder, a device or a pipe)" if not path.is_file() else
+                                f"{path.stat().st_size:,} bytes, a manifest is at most {MAX_MANIFEST_BYTES:,}"),
+                             hint="give the CSV file listing the plates")
         with path.open(newline="") as f:
             rows = list(csv.DictReader(f))
     except FileNotFoundError:

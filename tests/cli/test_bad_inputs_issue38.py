@@ -280,6 +280,9 @@ def _cases() -> list[dict]:
         {"id": "issue 38: a device as the press -> plan", "kind": "press",
          "args": ["plan", "{design}", "{flat}", "--thickness", "20", "--press", "/dev/zero"],
          "expect": ["/dev/zero is not a press description"]},
+        {"id": "issue 38: a device as the manifest -> batch", "kind": "batch",
+         "args": ["batch", "--manifest", "/dev/zero", "-o", "{tmp}/out"],
+         "expect": ["manifest /dev/zero is not a manifest: not a regular file"]},
         {"id": "issue 38: reseal without a reason", "kind": "option",
          "args": ["reseal", "{job}", "--reason", " "], "expect": ["--reason is empty"]},
     ]
