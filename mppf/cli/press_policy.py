@@ -188,6 +188,7 @@ def sigterm_as_ctrl_c() -> Iterator[None]:
         if signal.SIGHUP not in received:
             raise
         done = exc.message if isinstance(exc, Cancelled) else "cancelled before the press was reached"
+        done = done.replace(" (SIGHUP: the terminal or session was lost)", "").replace("cancelled by the operator; ", "")
         raise HungUp(f"SIGHUP (the terminal or session was lost): {done}",
                      hint="check the press ('mppf status') from a new session") from None
     finally:

@@ -80,8 +80,8 @@ def audit_entries(path):
         return log.entries()
 
 
-@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
-def test_ctrl_c_or_sigterm_to_mppf_press_stops_the_plc_and_exits_130(tmp_path, env, press_toml, capsys, signum):
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP], ids=["SIGINT", "SIGTERM", "SIGHUP"])
+def test_ctrl_c_sigterm_or_sighup_to_mppf_press_stops_the_plc_first(tmp_path, env, press_toml, capsys, signum):
     job_path = save_job(small_job(small_press(ROWS, COLS), n_steps=1), tmp_path / "job.json")
     audit = tmp_path / "audit.sqlite"
     # real time and no watchdog: a move of ~370 mm takes ~19 s, and only a STOP ends it early
@@ -104,12 +104,19 @@ def test_ctrl_c_or_sigterm_to_mppf_press_stops_the_plc_and_exits_130(tmp_path, e
         finally:
             press.kill()
         err = " ".join(err.split())
-        assert press.returncode == 130, err
-        assert "cancelled by the operator; STOP was sent" in err and "Traceback" not in err
+        assert press.returncode == (129 if signum == signal.SIGHUP else 130), err
+        assert "STOP was sent to the press; it came to rest" in err and "Traceback" not in err
+        assert "motion job 1 (mm of travel): done" not in err  # a cancelled motion is never reported done
+        if signum == signal.SIGHUP:
+            assert "SIGHUP (the terminal or session was lost): STOP was sent" in err
+        else:
+            assert "cancelled by the operator; STOP was sent" in err
         entries = [e for e in audit_entries(audit) if e.action != "release"]
         assert [(e.action, e.outcome) for e in entries][-2:] == [("go", "ok"), ("stop", "ok")]
         assert {e.job_sha256 for e in entries} == {load_job(job_path).sha256()}
         assert entries[-1].sequence == entries[-2].sequence == 1
+        if signum != signal.SIGINT:  # the log says why the press was stopped
+            assert signal.Signals(signum).name in entries[-1].detail
         # the PLC stopped (no watchdog could have done it) short of the targets
         time.sleep(0.3)  # braking from 20 mm/s at 100 mm/s^2 takes 0.2 s
         report = status(url, capsys)
