@@ -202,6 +202,10 @@ def run_plate(history, plate_id, draft, *, plc_url, scanner_spec, time_scale, au
 
     plate = history.plate(plate_id) if draft is None else None
     press = draft.press if plate is None else press_from_dict(plate.press, source=f"history of plate {plate_id}")
+    if plc_url:  # a real PLC: the press is this machine's installed one, when there is one (issue 38)
+        from mppf.planning.press import check_installed_press
+
+        check_installed_press(press, f"the press of plate {plate_id}")
     with sigterm_as_ctrl_c(), press_link(press, plc_url, audit=audit, time_scale=time_scale,
                                          reporter=reporter, yes=yes) as link:
         # the one job validator against this PLC (its matrix, its limits) before anything is recorded

@@ -346,3 +346,27 @@ def machine_press(press_path=None, *, dry_run: bool = False) -> tuple[PressConfi
     raise ConfigError(f"no press description for this machine: no --press given and none installed at {installed}",
                       hint=f"give --press PRESS.toml (this machine's press), or copy it once to {installed}; "
                            "the press block a job carries is never used")
+
+
+def check_installed_press(press: PressConfig, what: str) -> None:
+    """Refuse a press description that is not the installed one of this machine (when one is installed).
+
+    For the commands that take the press from elsewhere (``mppf loop --press``, a plate's
+    recorded press on ``--resume``) before they drive a real PLC.
+
+    Raises
+    ------
+    ConfigError
+        Naming the keys that differ and both values.
+    """
+    from mppf.core.paths import installed_press_path
+    from mppf.planning.validate import _press_differences
+
+    installed = installed_press_path()
+    if not installed.exists():
+        return
+    machine = load_press(installed)
+    if machine != press:
+        raise ConfigError(f"{what} is not this machine's press, the installed {installed}: "
+                          + "; ".join(_press_differences(press, machine, str(installed))[:10]),
+                          hint=f"give --press {installed} (this machine's press), or plan the plate for it")
