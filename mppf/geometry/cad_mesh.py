@@ -120,7 +120,23 @@ def read_cad_mesh(path, *, scale: float = 1.0,
         mesh = tessellate(model, chord_tolerance_mm)
         sewn = len(model.faces) == 1 or _sewn(model)
     points, triangles = _merge_coincident(mesh.points, mesh.triangles, 1e-6 * max(float(np.ptp(mesh.points)), 1.0))
+    if sewn and _closed(triangles):
+        from mppf.core.errors import FileFormatError
+
+        raise FileFormatError(path, f"is a closed solid ({len(model.faces)} face(s) without a free edge: a box, a "
+                                    "sphere or a whole body), not the open surface of one plate",
+                              hint="export only the plate's face(s) (see docs/cad.md), or cut it out of the hull "
+                                   "with 'mppf extract'")
     return points, (triangles if sewn else None)
+
+
+def _closed(triangles: np.ndarray) -> bool:
+    """Whether a triangle mesh has no free edge (every edge shared by two triangles): a closed surface."""
+    if triangles.size == 0:
+        return False
+    edges = np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    return bool(np.all(counts >= 2))
 
 
 def _sewn(model: CadModel) -> bool:
