@@ -1,0 +1,89 @@
+"""Issue 38 against a running simulated PLC: a job edited after planning never reaches the press.
+
+Each edit is refused before anything is written (no write request reaches the PLC, nothing moves):
+by the seal, and, sealed again by someone who has the key, by the machine's press, the plan's
+re-derived checks or the job validator.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from driver_helpers import small_job, small_press
+
+from mppf.cli import main
+from mppf.core.seal import load_key, seal_document
+from mppf.planning.job import save_job
+from mppf.planning.press import press_to_toml
+from mppf.sim.plc.host import start_simulated_plc
+
+
+@pytest.fixture
+def press():
+    return small_press()
+
+
+@pytest.fixture
+def sim(press):
+    handle = start_simulated_plc(press, time_scale=50.0, watchdog_s=2.0)
+    yield handle
+    handle.stop()
+
+
+@pytest.fixture(autouse=True)
+def home(tmp_path, monkeypatch, press):
+    monkeypatch.setenv("MPPF_HOME", str(tmp_path / "home"))
+    (tmp_path / "home").mkdir()
+    (tmp_path / "home" / "press.toml").write_text(press_to_toml(press))
+
+
+def _pair(doc, mm):
+    for key in ("upper_mm", "lower_mm"):
+        doc["steps"][-1][key][1][2] += mm
+
+
+def _dimpling(doc):
+    doc["press"]["forming"]["max_neighbour_diff_mm"] = 300.0
+    _pair(doc, 100.0)
+
+
+def _validation(doc):
+    doc["validation"] = {"passed": False, "n_steps": len(doc["steps"])}
+
+
+EDITS = {
+    "pair +2 mm": (lambda d: _pair(d, 2.0), "changed: step 2", None),
+    "dimpling limit 300, pair +100 mm": (_dimpling, "changed: press, step 2",
+                                         "[forming] max_neighbour_diff_mm is 300.0 in the job, 30.0 in"),
+    "pitch 150 -> 140": (lambda d: d["press"]["matrix"].update(pitch_x_mm=140.0), "changed: press",
+                         "[matrix] pitch_x_mm is 140.0 in the job, 150.0 in"),
+    "lower park 250": (lambda d: d["press"]["lower"].update(park_mm=250.0), "changed: press",
+                       "[lower] park_mm is 250.0 in the job, -400.0 in"),
+    "step 1 twice": (lambda d: d["steps"].insert(0, d["steps"][0]), "changed: step 3 (added)",
+                     "step 2 repeats step 1"),
+    "validation failed": (_validation, "changed: validation", "the planner's validation did not pass"),
+}
+
+
+@pytest.mark.parametrize("resealed", [False, True], ids=["as edited", "sealed again"])
+@pytest.mark.parametrize("name", sorted(EDITS))
+def test_an_edited_job_writes_nothing_to_the_plc(name, resealed, tmp_path, press, sim, capsys):
+    edit, sealed_words, resealed_words = EDITS[name]
+    if resealed and resealed_words is None:
+        pytest.skip("within every limit: only the seal can tell (a reseal is the deliberate way)")
+    doc = json.loads(save_job(small_job(press, n_steps=2), tmp_path / "job.json").read_text())
+    edit(doc)
+    if resealed:
+        doc = seal_document(doc, load_key(), sealed_by="someone who has the key")
+    path = tmp_path / "edited.json"
+    path.write_text(json.dumps(doc, indent=1))
+    before = sim.actual_positions_mm()
+    code = main(["press", str(path), "--plc", sim.url, "--yes", "--audit", str(tmp_path / "audit.sqlite")])
+    err = " ".join(capsys.readouterr().err.split())
+    assert code == 2 and (resealed_words if resealed else sealed_words) in err, err
+    assert "Traceback" not in err
+    assert sim.server.master_writes == 0 and sim.state() == "IDLE"
+    for a, b in zip(sim.actual_positions_mm(), before):
+        np.testing.assert_array_equal(a, b)
