@@ -107,9 +107,18 @@ def next_cycle(cycles: list[CycleRecord]) -> CycleRecord | None:
 
 
 def read_job(path) -> tuple[Job | None, str]:
-    """The job file at ``path`` and "" or None and why it cannot be read."""
+    """The job file at ``path`` and "" or None and why it cannot be shown.
+
+    Its seal is checked (:func:`mppf.planning.job.load_job`) and its placements re-derived from
+    the plan (:func:`mppf.planning.job_checks.check_plan`): the panel never shows the operator a
+    placement that could not be pressed.
+    """
+    from mppf.planning.job_checks import check_plan
+
     try:
-        return load_job(path), ""
+        job = load_job(path)
+        check_plan(job)
+        return job, ""
     except MppfError as exc:
         return None, exc.message
 

@@ -72,15 +72,29 @@ def _check_piece(where: str, steps, layout, extra: dict, press) -> list[str]:
             grown = offset_convex(layout.net_outline_mm, layout.margin_mm)
         except Exception:  # noqa: BLE001 - a degenerate outline is reported like a wrong one
             grown = None
-        if grown is None or grown.shape != layout.outline_mm.shape:
-            out.append(f"{where}the plate outline as cut ({len(layout.outline_mm)} corners) is not the net outline "
-                       f"grown by the {layout.margin_mm:g} mm trim margin")
+        if grown is None:
+            out.append(f"{where}the net outline cannot be grown by the {layout.margin_mm:g} mm trim margin")
         else:
-            off = float(np.abs(grown - layout.outline_mm).max())
+            off = _polygon_distance(grown, layout.outline_mm)
             if off > PLACEMENT_TOLERANCE_MM:
                 out.append(f"{where}the plate outline as cut is {off:.2f} mm away from the net outline grown by "
                            f"the {layout.margin_mm:g} mm trim margin")
     return out
+
+
+def _polygon_distance(a, b) -> float:
+    """Largest distance (mm) of a corner of either closed polygon from the other's outline (0: the same outline,
+    whatever the first corner or the corners on an edge)."""
+    def to_outline(points, polygon):
+        start, end = polygon, np.roll(polygon, -1, axis=0)
+        edge = end - start
+        length2 = np.maximum((edge ** 2).sum(axis=1), 1e-30)
+        t = np.clip(((points[:, None, :] - start[None]) * edge[None]).sum(axis=2) / length2[None], 0.0, 1.0)
+        nearest = start[None] + t[..., None] * edge[None]
+        return np.sqrt(((points[:, None, :] - nearest) ** 2).sum(axis=2)).min(axis=1)
+
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    return float(max(to_outline(a, b).max(), to_outline(b, a).max()))
 
 
 def _check_sections(job) -> list[str]:
