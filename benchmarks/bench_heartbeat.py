@@ -52,6 +52,12 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
         env.update(MPPF_HOME=tmp, PYTHONPYCACHEPREFIX=str(Path(tmp) / "pyc"))  # compiled once, as installed
+        # this installation's press and seal key: the job is sealed here and pressed by the subprocess
+        from mppf.core.paths import seal_key_path
+        from mppf.planning.press import press_to_toml
+
+        (Path(tmp) / "press.toml").write_text(press_to_toml(press))
+        env["MPPF_SEAL_KEY"] = str(seal_key_path())
         job = long_job(press, Path(tmp) / "job.json")
         with start_simulated_plc(press, time_scale=1.0, watchdog_s=WATCHDOG_S, scan_s=0.01) as sim:
             subprocess.run([*mppf_command(), "status", "--plc", sim.url], env=env, capture_output=True, timeout=60)
