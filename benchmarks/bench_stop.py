@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import shutil
 import statistics
 import subprocess
@@ -52,9 +53,20 @@ def long_job(press, path: Path) -> Path:
     return save_job(Job(press=press, thickness_mm=20.0, steps=[StepStrokes(lower + 20.0, lower, active)]), path)
 
 
+def install_press(path: Path) -> None:
+    """The 4 x 6 press as this machine's press (``mppf press --plc`` validates against it)."""
+    text = example_press_path().read_text()
+    text = re.sub(r"(?m)^rows = \d+", "rows = 4", text)
+    text = re.sub(r"(?m)^cols = \d+", "cols = 6", text)
+    path.write_text(text)
+
+
 def mppf_command() -> list[str]:
-    script = shutil.which("mppf")
-    return [script] if script else [sys.executable, "-m", "mppf"]
+    """The installed console script beside this Python (not a version manager's shim, which adds a shell)."""
+    script = Path(sys.executable).with_name("mppf")
+    if not script.is_file():
+        script = shutil.which("mppf")
+    return [str(script)] if script else [sys.executable, "-m", "mppf"]
 
 
 def timed_stop(sim, arrivals: list[float], env: dict) -> tuple[float, float]:
@@ -82,13 +94,28 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--repeat", type=int, default=10, help="STOPs on the idle PLC")
     parser.add_argument("--beside", type=int, default=3, help="STOPs beside a running job")
+    parser.add_argument("--load", type=int, default=0, help="busy-looping background processes during the run")
     args = parser.parse_args()
     press = small_press()
     rows = []
+    burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(args.load)]
+    try:
+        run(args, press, rows)
+    finally:
+        for proc in burners:
+            proc.kill()
+            proc.wait()
+    report(rows, args.load)
+
+
+def run(args, press, rows) -> None:
+    """The timed STOPs (idle PLC, then beside a running job) into ``rows``."""
     with tempfile.TemporaryDirectory() as tmp:
         env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
         env.update(MPPF_HOME=tmp, PYTHONPYCACHEPREFIX=str(Path(tmp) / "pyc"))
+        os.environ["MPPF_HOME"] = tmp  # the job is sealed with the key of the installation that presses it
         job = long_job(press, Path(tmp) / "job.json")
+        install_press(Path(tmp) / "press.toml")
         with start_simulated_plc(press, time_scale=1.0, watchdog_s=1.0) as sim:
             stop_address = sim.plc.map["stop_request"].address
             arrivals: list[float] = []
@@ -115,12 +142,16 @@ def main() -> None:
                 press_proc.wait(timeout=30)
             rows.append(("beside a running job (mppf press in another process)", [w for w, _ in beside],
                          [e for _, e in beside]))
+
+def report(rows, load_processes: int) -> None:
+    """The table, with the reference process starts (taken with the load gone)."""
     floor = process_start(["-c", "pass"], 5)
     pymodbus = process_start(["-c", "import pymodbus.client"], 5)
     started_ms = statistics.median(floor) * 1000
     load = os.getloadavg()
     print(f"mppf stop: start of the command to its STOP request on the wire (goal < {GOAL_S} s); "
-          f"load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f} on {os.cpu_count()} cores")
+          f"load average {load[0]:.1f} {load[1]:.1f} {load[2]:.1f} on {os.cpu_count()} cores, "
+          f"{load_processes} busy-looping process(es) of this benchmark beside")
     print(f"{'case':<58} {'n':>3} {'to wire median':>15} {'min':>7} {'max':>7} {'command ends':>13}  goal")
     for name, wire, total in rows:
         print(f"{name:<58} {len(wire):>3} {statistics.median(wire):>13.3f} s {min(wire):>7.3f} {max(wire):>7.3f} "

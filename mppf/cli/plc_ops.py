@@ -24,7 +24,30 @@ def connect_session(plc_url: str, *, audit=None, **options):
 
 
 def stop_plc(plc_url: str, audit_path=None) -> None:
-    """STOP the PLC at ``plc_url`` (audited, written ahead) and say what state it took it in."""
+    """STOP the PLC at ``plc_url`` and say what state it took it in.
+
+    Over TCP the STOP leaves first, on a bare socket (:mod:`mppf.drivers.fast_stop`), and is
+    recorded in the audit log right after; anything else (RTU, a device that is not an mppf
+    PLC of this map, no answer) takes the full session, audited ahead, which says what answered.
+    """
+    from mppf.drivers.fast_stop import NotHere, finish_stop, stop_over_tcp
+
+    try:
+        sent = stop_over_tcp(plc_url)
+    except NotHere:
+        sent = None
+    if sent is not None:
+        from mppf.core.errors import PressFault
+        from mppf.drivers.url import parse_plc_url
+
+        with open_audit(audit_path) as audit:
+            state = finish_stop(sent, audit)
+        where = parse_plc_url(plc_url)
+        if state.startswith("STOP NOT TAKEN"):
+            raise PressFault(f"STOP sent to {where}, but the PLC did not take it (stop_request stayed 1)",
+                             hint="stop the press at the machine, then check the PLC")
+        print(f"STOP sent to {where}: the PLC took it (state {state})", flush=True)
+        return
     with connect_session(plc_url, audit=open_audit(audit_path), heartbeat_s=None) as plc:
         plc.stop("mppf stop")
         state = plc.status().state
