@@ -61,6 +61,7 @@ class _Draft:
     press: object
     job: object
     press_path: Path
+    reach: dict | None = None
 
 
 def _check_options(thickness, scan_timeout, seed, audit_path) -> None:
@@ -137,7 +138,7 @@ def _new_plate_id(history, design, flat, press_path, thickness, plate_id) -> str
 def _draft_plate(plate_id, design, flat, press_path, thickness, plc_url, scanner_spec, settings, material, units,
                  reporter) -> _Draft:
     """Check the link and the scanner, read the files and plan the new plate (nothing recorded)."""
-    from mppf.loop.plate import plan_first_cycle
+    from mppf.loop.plate import plan_first_cycle, plate_reach
     from mppf.planning.press import load_press
 
     _check_link_and_scanner(plc_url, scanner_spec)  # before planning and recording anything
@@ -151,7 +152,10 @@ def _draft_plate(plate_id, design, flat, press_path, thickness, plc_url, scanner
     reporter.info(f"planning plate {plate_id}")
     job = plan_first_cycle(design_cloud, flat_cloud, press, thickness, settings=settings,
                            material=MATERIALS[material], reporter=reporter)
-    return _Draft(plate_id, design_cloud, flat_cloud, press, job, Path(press_path))
+    reach = plate_reach(press, job, design_cloud.points, settings.tolerance_mm)
+    if reach is not None:
+        reporter.info(reach["text"])
+    return _Draft(plate_id, design_cloud, flat_cloud, press, job, Path(press_path), reach)
 
 
 def _resumed_plate(history, design, flat, plate_id, press_path):
@@ -366,7 +370,8 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
                 reporter.info(f"plate {plate_id}: took over the stale lease of {taken_over}")
             draft = None if resume else _draft_plate(plate_id, design, flat, press_path, thickness, plc_url,
                                                      scanner_spec, settings, material, units, reporter)
-            setup = {"plc": plc_url, "scanner": scanner_spec, "seed": seed, "units": units, "material": material}
+            setup = {"plc": plc_url, "scanner": scanner_spec, "seed": seed, "units": units, "material": material,
+                     "reach": None if draft is None else draft.reach}
             audit = AuditLog(audit_path or history.path.parent / "audit.sqlite")
             comparisons = {}
 

@@ -118,7 +118,7 @@ class LearnedCorrection:
 
 def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, nominal: Material, cycles,
                        base_upper_mm, base_lower_mm, active, trust: float = 1.0, edge_mm=None,
-                       scale=None) -> LearnedCorrection:
+                       scale=None, response=None) -> LearnedCorrection:
     """The next strokes from every pressed and measured cycle of the plate.
 
     Parameters
@@ -141,8 +141,12 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
         cycle (:func:`mppf.measure.punches.edge_deviations`): near the design those punches
         are aimed between their own deviation and the edge's (:func:`mppf.correct.edge.balanced_error`).
     scale : (rows, cols) float, optional
-        Scale of the change asked for at each punch (:meth:`mppf.correct.policy.StepPlan.scale_mm`:
-        the measured response of the earlier corrections); default 1.
+        Scale of the change asked of the model at each punch (:meth:`mppf.correct.policy.StepPlan.scale_mm`:
+        the share of the way over the plate's measured response); default 1.
+    response : (rows, cols) float, optional
+        The plate's measured response to what the model predicts at each punch
+        (:meth:`mppf.correct.policy.StepPlan.response_mm`): the expected deviation counts the
+        model's change this many times; default 1.
 
     Returns
     -------
@@ -161,7 +165,7 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
     cycles = interrupted_share(section, grid, loaded, [_unknown_share(c) for c in cycles], measured)
     model = replay(section, loaded, cycles)
     # 3. the plate's response against the model's, learned on every secant
-    gain = _learn_response(grid, model, cycles)
+    gain = _learn_response(grid, model, cycles) if response is None else ModeGain(grid)
     # 4. the change wanted of the plate, and what to ask of the model for it
     error = grid.flat(np.where(grid.active, balanced_error(cycles[-1].error_mm, edge_mm), np.nan))
     error = np.where(grid.active & np.isfinite(error), error, 0.0)
@@ -178,8 +182,9 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
     # 6. what the model cannot make (a local error it does not describe): the displacement adjustment
     direct = trust * _direct_part(grid, section, model, base_mid, change, request, misfit)
     # 7. the strokes, held to the limits, and the steps they need
+    factor = np.ones(grid.shape) if response is None else np.where(grid.active, np.asarray(response, float), 1.0)
     return _strokes(press, grid, base_upper_mm, base_lower_mm, change + direct, error, gain, section, model,
-                    calibration, unreached, aim, direct)
+                    calibration, unreached, aim, direct, factor)
 
 
 def trust_region(rms_mm, predicted_rms_mm, rms_tolerance_mm: float | None = None, *, max_mm=None,
@@ -278,7 +283,7 @@ def _learn_response(grid: PunchGrid, model, cycles) -> ModeGain:
 
 
 def _strokes(press, grid, base_upper, base_lower, change, error, gain, section, model, calibration, unreached, aim,
-             direct):
+             direct, response):
     """The corrected strokes within the stroke limits, their steps and the expected deviation."""
     act = grid.active
     upper = np.where(act, np.asarray(base_upper, dtype=float) + change, np.nan)
@@ -291,7 +296,7 @@ def _strokes(press, grid, base_upper, base_lower, change, error, gain, section, 
     n_steps = max(1, int(np.ceil(largest_neighbour_difference(change, act) / press.max_neighbour_diff_mm - 1e-9)))
     kappa = grid.curvature(0.5 * (upper + lower))
     made = grid.heights(section.press(kappa, model.states[-1])[0] - model.unloaded[-1])
-    predicted = np.where(act, error + gain.plate_response(made) + direct, np.nan)
+    predicted = np.where(act, error + response * (gain.plate_response(made) + direct), np.nan)
     notes = [f"plate model calibrated on {sum(1 for k in model.unloaded)} cycle(s): effective yield stress "
              f"{section.yield_stress_mpa:.0f} MPa, hardening {section.hardening_mpa:.0f} MPa; shape misfit "
              f"{calibration.misfit_mm:.2f} mm RMS", f"aim {aim:.0%} of the way; learned response "

@@ -2,7 +2,7 @@
 
 The learned correction (:func:`mppf.correct.learned.learned_correction`) predicts what its
 strokes will do to the plate. Whether the plate does it is measured one cycle later. The
-policy turns those measurements into the size of the next step and where it starts:
+policy turns those measurements into the next step:
 
 - **measured response** ``rho`` of each correction: the plate's measured change at the
   punches against the change the correction promised there (the secant of what the plate
@@ -11,14 +11,17 @@ policy turns those measurements into the size of the next step and where it star
   promised change, ``m`` the measured one, ``s`` the noise of a punch deviation. Promises
   within the noise teach nothing (``rho`` stays near 1). It is measured separately at the
   outer ring of punches (the edges answer differently: a free edge carries no moment) and
-  inside it, and the next step is scaled per region (:attr:`StepPlan.scale_mm`);
-- **scale**: the next request is the last one's scale divided by the measured response (a
-  plate that moved twice what was promised is asked half as much; one that moved half, twice
-  as much), within :data:`SCALE_RANGE` (the range of responses the loop is built for);
-- **a correction that did not deliver** (the excess over the tolerances grew, or the plate
-  moved against the promise, ``rho <= 0``) is followed by a smaller, safer one: half the
-  smaller of the last scale and the measured one, started from the strokes of the best
-  cycle so far (:attr:`StepPlan.base`), not from the ones that made the plate worse.
+  inside it;
+- **the plate's response** to what the model predicts, ``R``: the product of the measured
+  ratios (each promise already counted the ``R`` known when it was made), within
+  :data:`RESPONSE_RANGE` (the range of answers the loop is built for). The model is asked for
+  ``f / R`` of the wanted change, and the promise is ``R`` times the model's change: a plate
+  that moved twice what was promised is asked half as much, and the promise says so;
+- **the share of the way** ``f``: 1; a correction that did not deliver (the excess over the
+  tolerances grew past the best one seen, or the plate moved against the promise,
+  ``rho <= 0``) is followed by a smaller, safer one, half the last share, started from the
+  strokes of the best cycle so far (:attr:`StepPlan.base`), not from the ones that made the
+  plate worse; a correction that delivered doubles the share back, up to 1.
 """
 
 from __future__ import annotations
@@ -27,8 +30,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-SCALE_RANGE = (0.25, 4.0)
-"""Smallest and largest scale of a request: the plate's answer may be a third to three times the model's."""
+RESPONSE_RANGE = (0.25, 4.0)
+"""Smallest and largest response of the plate to the model's change the policy assumes (the loop is built for
+plates answering a third to three times what the model predicts)."""
 
 DEFAULT_NOISE_MM = 0.3
 """Noise of a punch deviation (mm) when the scan gives none (the simulated scanner's point noise)."""
@@ -61,30 +65,42 @@ class StepPlan:
 
     Attributes
     ----------
-    scale : float
-        Scale of the request inside the outer ring of punches.
-    edge_scale : float
-        Scale of the request at the outer ring.
+    response : float
+        The plate's response to the model's predicted change inside the outer ring of punches.
+    edge_response : float
+        The same at the outer ring.
+    share : float
+        Share of the way to ask for, in (0, 1].
     base : int
         Index of the cycle whose final strokes the next strokes start from (the last one,
         or the best one after a correction that made the plate worse).
     ratios : list of float
-        Measured response of each correction so far (inside the ring).
+        Measured over promised change of each correction so far (inside the ring).
     backtrack : bool
         The last correction made the plate worse.
     notes : list of str
     """
 
-    scale: float = 1.0
-    edge_scale: float = 1.0
+    response: float = 1.0
+    edge_response: float = 1.0
+    share: float = 1.0
     base: int = -1
     ratios: list = field(default_factory=list)
     backtrack: bool = False
     notes: list = field(default_factory=list)
 
+    @property
+    def scale(self) -> float:
+        """Scale of the request inside the ring: share over response."""
+        return self.share / self.response
+
+    def response_mm(self, ring) -> np.ndarray:
+        """Response per punch (rows, cols): ``edge_response`` on the ``ring`` (rows, cols bool), else ``response``."""
+        return np.where(np.asarray(ring, dtype=bool), self.edge_response, self.response)
+
     def scale_mm(self, ring) -> np.ndarray:
-        """Scale per punch (rows, cols): ``edge_scale`` on the ``ring`` (rows, cols bool), ``scale`` elsewhere."""
-        return np.where(np.asarray(ring, dtype=bool), self.edge_scale, self.scale)
+        """Scale of the request per punch (rows, cols): the share over the response."""
+        return self.share / self.response_mm(ring)
 
 
 def excess(outcome: Outcome, tolerance_mm: float, rms_tolerance_mm: float) -> float:
@@ -129,7 +145,7 @@ def step_plan(outcomes, ring, tolerance_mm: float, rms_tolerance_mm: float,
     """
     ring = np.asarray(ring, dtype=bool)
     sizes = [excess(o, tolerance_mm, rms_tolerance_mm) for o in outcomes]
-    scale = edge_scale = 1.0
+    response = edge_response = share = 1.0
     ratios, notes, backtrack = [], [], False
     for k in range(1, len(outcomes)):
         before, after = outcomes[k - 1], outcomes[k]
@@ -142,18 +158,17 @@ def step_plan(outcomes, ring, tolerance_mm: float, rms_tolerance_mm: float,
         ratios.append(rho)
         worse = sizes[k] > min(sizes[:k])
         backtrack = worse or rho <= 0.0
-        scale = _next_scale(scale, rho, backtrack)
-        edge_scale = _next_scale(edge_scale, rho_edge, backtrack)
+        response = _learned(response, rho)
+        edge_response = _learned(edge_response, rho_edge)
+        share = 0.5 * share if backtrack else min(1.0, 2.0 * share)
         notes.append(f"correction {k}: the plate moved {rho:.2f} x what was promised inside the outer punches, "
                      f"{rho_edge:.2f} x at them" + ("; it made the plate worse" if worse else ""))
     base = int(np.argmin(sizes)) if backtrack else len(outcomes) - 1
     if backtrack:
-        notes.append(f"the next strokes start from cycle {base + 1}'s (the best so far), at scale {scale:.2f}")
-    return StepPlan(scale, edge_scale, base, ratios, backtrack, notes)
+        notes.append(f"the next strokes start from cycle {base + 1}'s (the best so far), {share:.0%} of the way")
+    return StepPlan(response, edge_response, share, base, ratios, backtrack, notes)
 
 
-def _next_scale(scale: float, rho: float, smaller: bool) -> float:
-    """The next request's scale: the last one over the measured response; halved (and never larger) when ``smaller``."""
-    measured = scale / rho if rho > 0.0 else scale
-    nxt = 0.5 * min(scale, measured) if smaller else measured
-    return float(np.clip(nxt, *SCALE_RANGE))
+def _learned(response: float, rho: float) -> float:
+    """The plate's response after a correction whose promise (made with ``response``) it answered ``rho`` times."""
+    return float(np.clip(response * rho, *RESPONSE_RANGE)) if rho > 0.0 else response

@@ -46,7 +46,8 @@ class Verdict:
 
 
 def convergence_verdict(rms_mm, predicted_rms_mm: float, rms_tolerance_mm: float, *, clipped: int = 0,
-                        unreached: int = 0, max_mm=None, tolerance_mm: float | None = None) -> Verdict | None:
+                        unreached: int = 0, max_mm=None, tolerance_mm: float | None = None,
+                        share: float = 1.0) -> Verdict | None:
     """The verdict on a plate still out of tolerance, or None when the next cycle is worth pressing.
 
     Called only for a plate out of tolerance (by its largest or its RMS deviation).
@@ -67,6 +68,10 @@ def convergence_verdict(rms_mm, predicted_rms_mm: float, rms_tolerance_mm: float
         Largest (form) deviation of the same cycles (mm), with ``tolerance_mm``.
     tolerance_mm : float, optional
         The tolerance of the largest deviation (mm).
+    share : float
+        Share of the way the next correction asks for (:attr:`mppf.correct.policy.StepPlan.share`):
+        a stall is judged only once a smaller step was tried (share below 1), and the predicted
+        improvement against :data:`MIN_PREDICTED_GAIN` times the share.
 
     Returns
     -------
@@ -77,7 +82,8 @@ def convergence_verdict(rms_mm, predicted_rms_mm: float, rms_tolerance_mm: float
     excess = [v / rms_tolerance_mm for v in rms]
     if max_mm is not None and tolerance_mm is not None:
         excess = [max(e, float(m) / tolerance_mm) for e, m in zip(excess, max_mm)]
-    if len(excess) >= 3 and all(b > (1.0 - MIN_MEASURED_GAIN) * a for a, b in zip(excess[-3:], excess[-2:])):
+    stalled = all(b > (1.0 - MIN_MEASURED_GAIN) * a for a, b in zip(excess[-3:], excess[-2:]))
+    if len(excess) >= 3 and share < 1.0 and stalled:
         shown = f"RMS {' -> '.join(f'{v:.2f}' for v in rms[-3:])} mm"
         if max_mm is not None:
             shown += f", largest {' -> '.join(f'{float(v):.2f}' for v in list(max_mm)[-3:])} mm"
@@ -86,7 +92,7 @@ def convergence_verdict(rms_mm, predicted_rms_mm: float, rms_tolerance_mm: float
             "check that the plate lies on its marks and has not slipped, that the scans are of this plate and "
             "register well, and the punches; then finish the plate by hand or restart it with a new plan",
         )
-    if predicted_rms_mm > (1.0 - MIN_PREDICTED_GAIN) * now and predicted_rms_mm > rms_tolerance_mm:
+    if predicted_rms_mm > (1.0 - MIN_PREDICTED_GAIN * min(share, 1.0)) * now and predicted_rms_mm > rms_tolerance_mm:
         if clipped:
             why = f"the strokes it needs lie beyond the press's stroke limits at {clipped} punches"
             what = "lay the plate on the press again with more room (re-plan it), or finish it by hand"

@@ -217,6 +217,7 @@ def learned_to_dict(learned: LearnedCorrection) -> dict:
 
 def step_to_dict(step) -> dict:
     """The correction step (:class:`mppf.correct.step.CorrectionStep`) as stored with the next cycle."""
-    return {**learned_to_dict(step.learned), "scale": round(step.plan.scale, 4),
-            "edge_scale": round(step.plan.edge_scale, 4), "base_cycle": step.plan.base + 1,
+    return {**learned_to_dict(step.learned), "response": round(step.plan.response, 4),
+            "edge_response": round(step.plan.edge_response, 4), "share": round(step.plan.share, 4),
+            "base_cycle": step.plan.base + 1,
             "measured_response": [round(float(r), 4) for r in step.plan.ratios]}

@@ -203,7 +203,7 @@ def run_loop(
         if record.state == CycleState.DONE:
             detail = run.verdicts[-1] if run.verdicts else None
             cycles = history.cycles(plate_id)
-            end = ending(record.decision, cycles, run.settings, detail)
+            end = ending(record.decision, cycles, run.settings, detail, reach=run.plate.settings.get("reach"))
             return LoopResult(plate_id, record.decision, cycles, resumed, end.text, end)
         number = _HANDLERS[record.state](run, record)
 

@@ -82,7 +82,7 @@ def exit_code(decision) -> int:
     return EXIT_OUT_OF_TOLERANCE
 
 
-def ending(decision, cycles, settings: LoopSettings, detail: str | None = None) -> Ending:
+def ending(decision, cycles, settings: LoopSettings, detail=None, reach: dict | None = None) -> Ending:
     """The ending of a plate's loop from its cycle records.
 
     Parameters
@@ -95,6 +95,9 @@ def ending(decision, cycles, settings: LoopSettings, detail: str | None = None) 
     detail : str or mppf.correct.verdict.Verdict, optional
         The rescans' own verdict text (a rescan not taken), or the correction's verdict (cannot
         converge: its reason and its advice).
+    reach : dict, optional
+        What the plan said the press can make (:meth:`mppf.forming.reach.Reach.to_dict`): a plate not in
+        tolerance whose plan said the tolerance may not be reached says so.
 
     Returns
     -------
@@ -107,6 +110,8 @@ def ending(decision, cycles, settings: LoopSettings, detail: str | None = None) 
         why, advice = f"{why}; {detail.reason}", detail.advice
     elif detail:
         why = f"{why}; {detail}"
+    if reach and not reach.get("reachable", True) and exit_code(decision) == EXIT_OUT_OF_TOLERANCE:
+        why = f"{why}; the plan said so: {reach.get('text', '')}"
     return Ending(str(decision), why, _region(measured[-1] if measured else None), advice, exit_code(decision))
 
 

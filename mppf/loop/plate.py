@@ -54,6 +54,17 @@ def plan_first_cycle(design: PointCloud, flat: PointCloud, press: PressConfig, t
                       springback=settings.springback, reporter=reporter, inputs=inputs, margin_mm=settings.margin_mm)
 
 
+def plate_reach(press: PressConfig, job: Job, design_points, tolerance_mm: float) -> dict | None:
+    """What the press can make of the planned plate (:func:`mppf.forming.reach.reach_estimate`) as a dict, or
+    None for a plate planned in sections (each section has its own outer punches)."""
+    from mppf.forming.reach import reach_estimate
+    from mppf.loop.section_steps import is_sectional
+
+    if is_sectional(job) or job.layout is None:
+        return None
+    return reach_estimate(press, job, design_points, tolerance_mm).to_dict()
+
+
 def record_plate(history: History, design: PointCloud, flat: PointCloud, press: PressConfig, thickness_mm: float,
                  job: Job, *, plate_id: str, work_dir, settings: LoopSettings = LoopSettings(),
                  setup: dict | None = None) -> PlateRecord:

@@ -17,11 +17,12 @@ def test_a_plate_that_still_improves_gets_no_verdict():
 
 def test_a_measured_stall_stops_the_plate_with_what_to_check():
     rms = [3.0, 2.9, 2.6]  # two corrections, each less than MIN_MEASURED_GAIN off
-    verdict = convergence_verdict(rms, 1.0, 1.0)
+    assert convergence_verdict(rms, 1.0, 1.0) is None  # at full share: a smaller step is tried first
+    verdict = convergence_verdict(rms, 1.0, 1.0, share=0.5)
     assert verdict is not None and "no longer falls" in verdict.reason
     assert "slipped" in verdict.advice and verdict.text.startswith("cannot converge:")
     # a stall near the tolerance (the largest deviation still out) stops it too
-    assert convergence_verdict([0.95, 0.8, 0.78], 0.7, 1.0) is not None
+    assert convergence_verdict([0.95, 0.8, 0.78], 0.7, 1.0, share=0.5) is not None
     assert 2.6 / 2.9 > 1 - MIN_MEASURED_GAIN
 
 
@@ -35,6 +36,8 @@ def test_a_correction_that_finds_no_way_on_says_why(clipped, unreached, words):
     assert verdict is not None and words in verdict.reason
     assert f"{stuck:.2f}" in verdict.reason and verdict.advice
     assert convergence_verdict([10.0, now], now * (1 - MIN_PREDICTED_GAIN) - 0.01, 1.0, clipped=clipped) is None
+    # a half step is expected to promise half as much
+    assert convergence_verdict([10.0, now], stuck, 1.0, clipped=clipped, share=0.5) is None
 
 
 def test_a_largest_deviation_that_no_longer_falls_stops_the_plate_even_with_a_good_rms():
@@ -42,5 +45,5 @@ def test_a_largest_deviation_that_no_longer_falls_stops_the_plate_even_with_a_go
     assert convergence_verdict(rms, 0.3, 1.0) is None  # the RMS alone still looks like progress
     verdict = convergence_verdict(rms, 0.3, 1.0, max_mm=largest, tolerance_mm=2.5)
     assert verdict is None  # the first correction took most off: not yet a stall
-    verdict = convergence_verdict(rms + [0.65], 0.3, 1.0, max_mm=largest + [3.7], tolerance_mm=2.5)
+    verdict = convergence_verdict(rms + [0.65], 0.3, 1.0, max_mm=largest + [3.7], tolerance_mm=2.5, share=0.5)
     assert verdict is not None and "largest 3.40 -> 3.60 -> 3.70 mm" in verdict.reason
