@@ -182,6 +182,10 @@ def _print_line(line: str) -> None:
     err_console.print(line, markup=False, highlight=False, soft_wrap=True)
 
 
+MIN_SIZED_POINTS = 10
+"""Fewest points of a plate's file whose size :func:`read_input` judges (fewer: the later steps say "too few")."""
+
+
 def read_input(path, units: str = "mm", scale: float = 1.0):
     """:func:`mppf.geometry.read.read_points` of a plate's file, its warnings printed on stderr.
 
@@ -200,8 +204,9 @@ def read_input(path, units: str = "mm", scale: float = 1.0):
     from mppf.geometry.read import PLATE_MIN_MM, read_points
 
     cloud = read_points(path, units=units, scale=scale)
-    extent = float(np.ptp(cloud.points, axis=0).max()) if cloud.n_points >= 3 else 0.0
-    if 0.0 < extent < PLATE_MIN_MM:  # too few points, or all at one spot: the readers' own messages
+    # too few points, or all at one spot: the fit's and unfolding's own messages say so
+    extent = float(np.ptp(cloud.points, axis=0).max()) if cloud.n_points >= MIN_SIZED_POINTS else 0.0
+    if 0.0 < extent < PLATE_MIN_MM:
         hint = ("is the file in metres? then give --units m" if units == "mm" else
                 "check the file's unit and --scale")
         raise GeometryError(f"{path}: the plate is only {extent:.3g} mm across (--units {units}"
