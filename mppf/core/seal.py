@@ -242,9 +242,11 @@ def verify_document(doc: dict, source: str, key: bytes | None = None) -> dict:
         expected = _mac(key, "job", {**{k: v for k, v in doc.items() if k != SEAL_KEY},
                                      SEAL_KEY: {k: v for k, v in seal.items() if k != "mac"}})
         matches = hmac.compare_digest(expected, seal["mac"])
-        body = {k: v for k, v in doc.items() if k != SEAL_KEY}
-        content_kept = hmac.compare_digest(_mac(key, "content", body), str(seal.get("content_mac")))
-        changed = [] if matches or content_kept else changed_parts(doc, key)
+        changed = []
+        if not matches:  # what changed: nothing of the content (the seal block was edited), or these parts
+            body = {k: v for k, v in doc.items() if k != SEAL_KEY}
+            if not hmac.compare_digest(_mac(key, "content", body), str(seal.get("content_mac"))):
+                changed = changed_parts(doc, key)
     except ValueError as exc:
         raise ConfigError(f"{source}: the job holds a value that is not plain JSON ({exc})",
                           hint="re-plan the plate with 'mppf plan'") from None
