@@ -47,6 +47,29 @@ def parse_plc_url(plc_url: str):
     return parse(plc_url)
 
 
+def _check_before_connecting(job, job_path, press, press_source: str, plc_url, audit_path) -> None:
+    """The job against the machine's press, before any PLC is connected (or simulated).
+
+    Never the job's own press block: a job planned for another press (identity or limits), or
+    one whose placements do not follow from its plan, is refused here and the refusal recorded in
+    the audit log; the whole validation runs again against the PLC once connected.
+
+    Raises
+    ------
+    ConfigError, LimitError
+        Naming the job file.
+    """
+    from mppf.planning.validate import validate_job
+
+    try:
+        validate_job(job, press_file=press, press_source=press_source)
+    except (ConfigError, LimitError) as exc:
+        with open_audit(audit_path) as audit:
+            audit.record(plc_url or "dry run", "limits", "refused", job_sha256=job.sha256(),
+                         detail=f"job {job_path}: {exc.message}"[:500])
+        raise type(exc)(f"job {job_path}: {exc.message}", hint=exc.hint) from None
+
+
 def _select_steps(job, step: int | None) -> list[int]:
     n = len(job.steps)
     if step is None:
@@ -107,7 +130,7 @@ def press_command(job_path, plc_url, step, section, yes, press_path, audit_path,
     from mppf.cli._common import RichReporter, check_db_path, console
     from mppf.cli._placement import placement_lines
     from mppf.planning.press import machine_press
-    from mppf.planning.validate import load_checked_job, validate_job
+    from mppf.planning.validate import load_checked_job
 
     if timeout_s is not None and not math.isfinite(timeout_s):
         raise InputError(f"--timeout must be a finite number of seconds, got {timeout_s}",
@@ -122,16 +145,7 @@ def press_command(job_path, plc_url, step, section, yes, press_path, audit_path,
     press, press_source = machine_press(press_path, dry_run=plc_url is None)
     if audit_path is not None:
         check_db_path(audit_path, "the audit log", "--audit")
-    # the machine's press, never the job's own press block: a job planned for another press (identity or
-    # limits), or one whose placements do not follow from its plan, is refused before any PLC is connected
-    # (or simulated); the whole validation runs again against the PLC below, recorded in the audit log
-    try:
-        validate_job(job, press_file=press, press_source=press_source)
-    except (ConfigError, LimitError) as exc:  # name the job file; the refusal goes to the audit log
-        with open_audit(audit_path) as audit:
-            audit.record(plc_url or "dry run", "limits", "refused", job_sha256=job.sha256(),
-                         detail=f"job {job_path}: {exc.message}"[:500])
-        raise type(exc)(f"job {job_path}: {exc.message}", hint=exc.hint) from None
+    _check_before_connecting(job, job_path, press, press_source, plc_url, audit_path)
     job.press = press  # equal to the job's block (checked): park heights and tolerances are the machine's
     dry_run = plc_url is None
     with sigterm_as_ctrl_c(), press_link(press, plc_url, audit=open_audit(audit_path), time_scale=time_scale,
