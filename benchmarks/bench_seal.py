@@ -47,9 +47,9 @@ def main() -> None:
             path = save_job(job, Path(tmp) / "job.json")
             doc = read_job_document(path)
             steps = sum(len(s.steps) for s in job.sections) if job.sections else len(job.steps)
-            times = [_mean_s(f, args.repeat) * 1e3 for f in (lambda: save_job(job, path), lambda: load_job(path),
-                                                               lambda: verify_document(doc, "job"),
-                                                               lambda: check_plan(job))]
+            runs = (lambda job=job, path=path: save_job(job, path), lambda path=path: load_job(path),
+                    lambda doc=doc: verify_document(doc, "job"), lambda job=job: check_plan(job))
+            times = [_mean_s(f, args.repeat) * 1e3 for f in runs]
             print(f"{name:<26}{path.stat().st_size / 1e3:>6.0f}kB{steps:>7}"
                   + "".join(f"{t:>9.1f}ms" for t in times[:2]) + "".join(f"{t:>10.1f}ms" for t in times[2:]))
 

@@ -160,8 +160,8 @@ def _check_section_placement(s, base, press) -> list[str]:
                    f"{off:.2f} mm from the marks of the flat so placed")
     punches = np.asarray(s.mark_punches)
     if punches.shape != (2, 2) or np.any(punches < 0) or np.any(punches >= np.array(press.shape)):
-        return out + [f"{where}mark punches {punches.tolist()} are not punches of the {press.rows} x {press.cols} "
-                      "press"]
+        return out + [(f"{where}mark punches {punches.tolist()} are not punches of the {press.rows} x "
+                       f"{press.cols} press")]
     axes = np.column_stack([press.punch_x_mm[punches[:, 1]], press.punch_y_mm[punches[:, 0]]])
     off = float(np.abs(axes - s.marks_press_mm).max())
     if off > PLACEMENT_TOLERANCE_MM:

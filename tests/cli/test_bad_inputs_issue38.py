@@ -185,9 +185,9 @@ FILES38.update({
     "manifest_7th": ("seven.csv", "name,design,flat,thickness_mm,material,springback\nP1,design.csv,,20,steel,no,x\n"),
     "manifest_newline": ("newline.csv", 'name,design,thickness_mm\n"P1\nP2",design.csv,20\n'),
     "manifest_thick": ("thick.csv", "name,design,thickness_mm\nP1,design.csv,1e6\n"),
-    "ply_2e9_faces": ("faces.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
-                                   "property float z\nelement face 2000000000\nproperty list uchar int vertex_indices\n"
-                                   "end_header\n0 0 0\n1000 0 0\n0 1000 0\n3 0 1 2\n"),
+    "ply_2e9_faces": ("faces.ply", ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                                    "property float z\nelement face 2000000000\nproperty list uchar int vertex_indices\n"
+                                    "end_header\n0 0 0\n1000 0 0\n0 1000 0\n3 0 1 2\n")),
     "scan_3_points": ("three.xyz", "0 0 0\n1000 0 0\n0 1000 0\n"),
     "press_job_nan_axis": ("nanaxis.job.json", _edited("job", lambda d: d["punch_x_mm"].__setitem__(3, float("nan")))),
 })

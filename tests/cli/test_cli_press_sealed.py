@@ -12,12 +12,12 @@ import json
 import numpy as np
 import pytest
 from driver_helpers import small_job, small_press
+from mppf.sim.plc.host import start_simulated_plc
 
 from mppf.cli import main
 from mppf.core.seal import load_key, seal_document
 from mppf.planning.job import save_job
 from mppf.planning.press import press_to_toml
-from mppf.sim.plc.host import start_simulated_plc
 
 
 @pytest.fixture

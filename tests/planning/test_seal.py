@@ -11,7 +11,14 @@ import pytest
 from driver_helpers import small_job, small_press
 
 from mppf.core.errors import ConfigError
-from mppf.core.seal import canonical, changed_parts, key_id, load_key, seal_document, verify_document
+from mppf.core.seal import (
+    canonical,
+    changed_parts,
+    key_id,
+    load_key,
+    seal_document,
+    verify_document,
+)
 from mppf.planning.job import load_job, save_job
 
 
