@@ -219,7 +219,8 @@ class Follow:
     def _fault_error(self, seq: int, raw: dict, targets_mm) -> PressFault:
         """The PressFault for a fault seen during motion (names the faulted punches)."""
         text = self.map.fault_text(raw["fault_code"])
-        what = "the e-stop was pressed" if raw["flags"]["estop"] else f"the PLC faulted: {text}"
+        what = (f"the e-stop was pressed during motion ({text})" if raw["flags"]["estop"]
+                else f"the PLC faulted during motion: {text}")
         details = ""
         try:
             bits = self._fault_bits()
@@ -232,5 +233,5 @@ class Follow:
             details = "; the per-punch fault bits could not be read"
         self.audit.record(str(self.url), "complete", "fault", job_sha256=self.job_sha256, sequence=seq,
                           detail=f"{text}{details}")
-        return PressFault(f"job {seq}: {what} during motion ({text}); STOP was sent{details}",
+        return PressFault(f"job {seq}: {what}; STOP was sent{details}",
                           hint="remove the cause, then 'mppf reset' and run the step again")

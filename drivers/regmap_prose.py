@@ -271,9 +271,13 @@ VALIDATE checks, on the PLC's copy of the setpoints, that the CRC matches `comma
 that every setpoint in use lies within `upper_min`..`upper_max` and `lower_min`..`lower_max`,
 and two machine-safety checks of its own, whatever the master believes about the press:
 
-- **Neighbour step** (NEIGHBOUR_STEP): a punch's move is its setpoint minus its actual
-  position at VALIDATE; for every two neighbouring punches of one matrix (same row, adjacent
-  columns, or same column, adjacent rows) the moves may differ by at most `dimpling_limit`.
+- **Neighbour step** (NEIGHBOUR_STEP): for two neighbouring punches of one matrix (same row,
+  adjacent columns, or same column, adjacent rows) the neighbour step is the smaller of two
+  differences: that of their setpoints (the step pressed into a flat plate) and that of their
+  moves, a move being the setpoint minus the punch's actual position at VALIDATE (the step
+  pressed on from where the punches stand). Every neighbour step must be at most
+  `dimpling_limit`: a job must be a lawful step from a flat plate or from the present shape
+  (the first step of a new plate or section starts from flat, the next ones from the last).
 - **Tip gap** (TIP_GAP): for every punch pair, upper setpoint minus lower setpoint (both are
   tip heights on the same z axis, so nothing else is subtracted) must be at least
   `tip_gap_min`.

@@ -17,8 +17,9 @@ masters wrote, once per scan:
   command changes. CLAIM draws a new nonce, published only as ``claim_reply`` = nonce XOR
   the claim key, and the claim key is cleared from the mailbox in the same scan.
 
-VALIDATE checks, besides the CRC and the stroke limits, the neighbour step (the moves of two
-neighbouring punches of one matrix may differ by at most the PLC's dimpling limit) and the
+VALIDATE checks, besides the CRC and the stroke limits, the neighbour step (two neighbouring
+punches of one matrix: the smaller of the difference of their setpoints and of their moves at
+most the PLC's dimpling limit) and the
 tip gap of every pair (upper - lower at least the PLC's minimum); parked pairs (both tips at
 their park heights) are left out of both.
 """
@@ -204,18 +205,27 @@ class Commands:
         return (np.abs(sp[0] - self.press.upper.park_mm) <= tol) & (np.abs(sp[1] - self.press.lower.park_mm) <= tol)
 
     def neighbour_step_mm(self) -> float:
-        """Largest difference between the moves of two neighbouring unparked punches of one matrix (mm).
+        """Largest neighbour step of the unparked punches of one matrix (mm).
 
-        A punch's move is its setpoint minus its actual position at VALIDATE.
+        The neighbour step of two neighbouring punches is the smaller of the difference of their
+        setpoints (pressed from a flat plate) and the difference of their moves, setpoint minus
+        actual position at VALIDATE (pressed on from where the punches stand): a job must be a
+        lawful step from one or the other.
         """
-        move = self._copy_mm() - self.hydraulics.position
+        sp = self._copy_mm()
+        move = sp - self.hydraulics.position
         free = ~self._parked()
         worst = 0.0
         for k in range(2):
-            for a, b, both in ((move[k][1:, :], move[k][:-1, :], free[1:, :] & free[:-1, :]),
-                               (move[k][:, 1:], move[k][:, :-1], free[:, 1:] & free[:, :-1])):
+            for axis in (0, 1):
+                a = [slice(None), slice(None)]
+                b = [slice(None), slice(None)]
+                a[axis], b[axis] = slice(1, None), slice(None, -1)
+                both = free[tuple(a)] & free[tuple(b)]
                 if both.any():
-                    worst = max(worst, float(np.abs(a - b)[both].max()))
+                    step = np.minimum(np.abs(sp[k][tuple(a)] - sp[k][tuple(b)]),
+                                      np.abs(move[k][tuple(a)] - move[k][tuple(b)]))
+                    worst = max(worst, float(step[both].max()))
         return worst
 
     def min_tip_gap_mm(self) -> float:
