@@ -61,7 +61,7 @@ def main() -> None:
         job = long_job(press, Path(tmp) / "job.json")
         with start_simulated_plc(press, time_scale=1.0, watchdog_s=WATCHDOG_S, scan_s=0.01) as sim:
             subprocess.run([*mppf_command(), "status", "--plc", sim.url], env=env, capture_output=True, timeout=60)
-            address = sim.plc.map["heartbeat_master"].address
+            address = sim.plc.map["heartbeat_counter"].address  # the first register of the beat (map 3)
             arrivals: list[float] = []
             sim.server.on_write = lambda a, values, t: a == address and arrivals.append(t)
             master = subprocess.Popen([*mppf_command(), "press", str(job), "--plc", sim.url, "--yes"], env=env,

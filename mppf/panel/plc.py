@@ -81,7 +81,7 @@ def send_stop(url: str, audit, reason: str, timeout_s: float = 1.0) -> None:
 
 
 def status_fields(report: dict) -> dict:
-    """What the page shows of a status report (:meth:`ModbusPress.status_report`, register map version 2).
+    """What the page shows of a status report (:meth:`ModbusPress.status_report`, register map version 3).
 
     Returns
     -------
