@@ -155,14 +155,16 @@ def test_status_stop_reset_against_a_sim_process(tmp_path, env, press_toml, caps
         end_sim(sim)
 
 
-def test_kill_9_of_the_master_during_motion_the_plc_stops_within_its_watchdog(tmp_path, env, press_toml):
-    """No STOP can come from a killed master: the PLC's watchdog ends the motion; the audit log keeps
+@pytest.mark.parametrize("quirk", [(), ("--quirk", "borrow-ids")], ids=["alone", "beside-a-master-borrowing-its-id"])
+def test_kill_9_of_the_master_during_motion_the_plc_stops_within_its_watchdog(tmp_path, env, press_toml, quirk):
+    """No STOP can come from a killed master: the PLC's watchdog ends the motion, also while another
+    master beats in the dead owner's name (its beats lack the owner's auth); the audit log keeps
     the intent row of GO, written before the GO was sent, and no outcome of the motion."""
     from mppf.drivers.modbus_session import ModbusSession
 
     job_path = save_job(small_job(small_press(ROWS, COLS), n_steps=1), tmp_path / "job.json")
     audit = tmp_path / "audit.sqlite"
-    sim, url = start_sim(env, press_toml, "--time-scale", "1", "--watchdog", "1.0", "--scan-ms", "10")
+    sim, url = start_sim(env, press_toml, "--time-scale", "1", "--watchdog", "1.0", "--scan-ms", "10", *quirk)
     try:
         press = subprocess.Popen(
             [sys.executable, "-m", "mppf", "press", str(job_path), "--plc", url, "--yes", "--audit", str(audit)],
