@@ -55,7 +55,7 @@ def press_step(history: History, record: CycleRecord, press: PressConfig, link: 
         From the press during the step: it stays started, not done.
     """
     step = record.steps[index - 1]
-    check_step_is_sealed(record, index)  # the history's copy of the strokes is not trusted alone
+    check_step_is_sealed(record, index, press)  # the history's copy of the strokes is not trusted alone
     reporter.info(f"cycle {record.cycle}: press step {index} of {len(record.steps)}" + (f" {what}" if what else ""))
     # committed before anything is sent: a crash from here on never presses this step again
     history.mark_step_started(record.plate_id, record.cycle, index)
@@ -69,11 +69,12 @@ def press_step(history: History, record: CycleRecord, press: PressConfig, link: 
     history.mark_step_done(record.plate_id, record.cycle, index, result_to_dict(result))
 
 
-def check_step_is_sealed(record: CycleRecord, index: int) -> None:
+def check_step_is_sealed(record: CycleRecord, index: int, press: PressConfig | None = None) -> None:
     """Refuse to press a step whose strokes in the history differ from the cycle's sealed job file.
 
     The job file's seal and recorded hash are checked (:func:`load_cycle_job`), then the step
-    ``index`` (1-based, over every section's steps) and the number of steps against it.
+    ``index`` (1-based, over every section's steps) and the number of steps against it, and the
+    press the setpoints are made for (parking heights) against the job's.
 
     Raises
     ------
@@ -83,7 +84,13 @@ def check_step_is_sealed(record: CycleRecord, index: int) -> None:
     from mppf.core.errors import ConfigError
     from mppf.loop.section_steps import cycle_steps
 
-    planned = cycle_steps(load_cycle_job(record))
+    job = load_cycle_job(record)
+    if press is not None and press != job.press:
+        raise ConfigError(f"cycle {record.cycle} of plate {record.plate_id}: the press recorded in the history is not "
+                          f"the press of its sealed job {record.job_path}; nothing was sent to the press",
+                          hint="the history was edited or damaged: restore it from its backup, or start the plate "
+                               "again")
+    planned = cycle_steps(job)
     if len(planned) != len(record.steps) or \
             steps_to_json([planned[index - 1]]) != steps_to_json([record.steps[index - 1]]):
         raise ConfigError(f"cycle {record.cycle} of plate {record.plate_id}: step {index} in the history is not step "

@@ -5,7 +5,8 @@ outline grown by the trim margin; a section's flat transform is the plate's one 
 shifted by the section's plate centre; its marks in plate coordinates are its marks in the flat
 file carried by that transform; its marks on the bed lie over the axes of its mark punches,
 which are the punches chosen from the section's active punches under the net plate; the job's
-own steps, transforms and layout are section 1's; the split's sections are all there, once
+own steps, transforms and layout are section 1's; its punch axes are its press's; the split's
+sections are all there, once
 each; the counts of steps and sections match the planner's reports; the planner's validation
 passed. :func:`check_plan` recomputes each of them and refuses a job where one differs by
 more than :data:`PLACEMENT_TOLERANCE_MM` (a hand edit, a broken tool, a planner bug): the seal
@@ -40,6 +41,10 @@ def check_plan(job) -> None:
         Listing every inconsistency: where (section, step), the stored and the re-derived value.
     """
     problems: list[str] = []
+    for name, axis in (("punch_x_mm", job.press.punch_x_mm), ("punch_y_mm", job.press.punch_y_mm)):
+        off = float(np.abs(np.asarray(getattr(job, name), dtype=float) - axis).max())
+        if off > PLACEMENT_TOLERANCE_MM:
+            problems.append(f"{name} is {off:.2f} mm away from the punch axes of its press (pitch and matrix)")
     problems += _check_piece("", job.steps, job.layout, job.extra, job.press)
     if job.sections is not None:
         problems += _check_sections(job)

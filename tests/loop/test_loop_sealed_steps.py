@@ -53,3 +53,13 @@ def test_a_job_file_edited_after_it_was_recorded_is_refused(planned_plate, tmp_p
     path.write_text(json.dumps(doc, indent=1))
     with pytest.raises(ConfigError, match="changed after it was sealed.*changed: thickness"):
         check_step_is_sealed(record, 1)
+
+
+def test_a_press_that_is_not_the_jobs_is_refused(planned_plate, tmp_path):
+    from driver_helpers import small_press
+
+    with _recorded(tmp_path, planned_plate) as history:
+        record = history.cycle("S1", 1)
+    check_step_is_sealed(record, 1, planned_plate[2])
+    with pytest.raises(ConfigError, match="the press recorded in the history is not the press of its sealed job"):
+        check_step_is_sealed(record, 1, small_press())

@@ -88,3 +88,9 @@ def test_an_outline_that_is_not_the_net_outline_grown_by_the_margin(single):
     with pytest.raises(ConfigError, match="outline as cut is 1000.00 mm away"):
         check_plan(dataclasses.replace(single, layout=layout))
     assert np.isfinite(single.layout.margin_mm)
+
+
+def test_punch_axes_that_are_not_the_presss_are_refused(single):
+    moved = dataclasses.replace(single, punch_x_mm=single.punch_x_mm + 5.0)
+    with pytest.raises(ConfigError, match="punch_x_mm is 5.00 mm away from the punch axes of its press"):
+        check_plan(moved)
