@@ -212,9 +212,21 @@ def changed_parts(doc: dict, key: bytes) -> list[str]:
     stored = stored if isinstance(stored, dict) else {}
     now = {name: _mac(key, name, value) for name, value in document_parts(
         {k: v for k, v in doc.items() if k != SEAL_KEY}).items()}
-    out = [f"{name} (added)" for name in now if name not in stored]
-    out += [f"{name} (removed)" for name in stored if name not in now]
-    out += [name for name in now if name in stored and not hmac.compare_digest(str(stored[name]), now[name])]
+    changed = [name for name in now if name in stored and not hmac.compare_digest(str(stored[name]), now[name])]
+    return changed + _whole_sections([n for n in now if n not in stored], "added") + \
+        _whole_sections([n for n in stored if n not in now], "removed")
+
+
+def _whole_sections(names: list, how: str) -> list[str]:
+    """``names`` tagged ``(how)``; every part of a section added or removed as a whole named once (``section 6``)."""
+    whole = {name[: -len(" placement")] for name in names if name.startswith("section ") and
+             name.endswith(" placement")}
+    out = []
+    for name in names:
+        section = " ".join(name.split()[:2]) if name.startswith("section ") else None
+        shown = f"{section if section in whole else name} ({how})"
+        if shown not in out:
+            out.append(shown)
     return out
 
 

@@ -371,7 +371,6 @@ def validate_job(job: Job, *, press_file: PressConfig | None = None, plc_shape: 
     from mppf.planning.job_checks import check_plan
 
     press = job.press
-    check_plan(job)  # placements, marks, sections and step counts re-derived from the plan
     if press_file is not None and press_file != press:
         raise ConfigError(f"the job was planned for another press than {press_source}: "
                           + "; ".join(_press_differences(press, press_file, press_source)[:MAX_LISTED]),
@@ -379,6 +378,7 @@ def validate_job(job: Job, *, press_file: PressConfig | None = None, plc_shape: 
     if plc_shape is not None and tuple(plc_shape) != press.shape:
         raise ConfigError(f"the job is for {press.rows} x {press.cols} punches, the PLC drives "
                           f"{plc_shape[0]} x {plc_shape[1]}", hint="use the job planned for this press")
+    check_plan(job)  # placements, marks, sections and step counts re-derived from the plan
     if plc_limits is not None:
         problems = _Problems()
         for side in SIDES:

@@ -61,7 +61,7 @@ EDITS = {
                          "[matrix] pitch_x_mm is 140.0 in the job, 150.0 in"),
     "lower park 250": (lambda d: d["press"]["lower"].update(park_mm=250.0), "changed: press",
                        "[lower] park_mm is 250.0 in the job, -400.0 in"),
-    "step 1 twice": (lambda d: d["steps"].insert(0, d["steps"][0]), "changed: step 3 (added)",
+    "step 1 twice": (lambda d: d["steps"].insert(0, d["steps"][0]), "changed: number of steps, step 2, step 3 (added)",
                      "step 2 repeats step 1"),
     "validation failed": (_validation, "changed: validation", "the planner's validation did not pass"),
 }
