@@ -1,0 +1,214 @@
+"""CalculiX input decks of the FE plate: the model and the steps of one press step.
+
+The model (written once, in the first run; later runs continue from its restart file):
+
+- the plate's C3D8I hexahedra (:mod:`mppf.sim.fe.mesh`), one ``*MATERIAL`` per yield-scatter bin
+  (elastic, ``*PLASTIC, HARDENING=KINEMATIC`` on the steel's flow curve scaled by the bin's yield
+  factor: reverse bending yields at the Bauschinger-lowered stress);
+- for each punch pair over the plate a lower and an upper tip node, coincident with the plate's
+  bottom / top node on the pair's axis, joined to it by a unilateral ``GAPUNI`` element along z
+  whose stiffness is the punch's compliance (``1 / c_punch``): the ball pushes, never pulls;
+- the plate's in-plane rigid motion held at two mid-thickness nodes (x, y at one, y at another),
+  the tips free only along z.
+
+A press step is three ``*STEP, NLGEOM`` (large deflection: bending and membrane coupled):
+
+1. ``APPROACH`` (not before the first press step, where the flat stroke set touches the flat plate):
+   the tips move to touch the plate as it lies, while three mid-thickness nodes still hold it;
+2. ``LOAD``: those holds are released and the tips travel to the step's tip heights (parked pairs
+   to their park heights) while the gaps close and open;
+3. ``RELEASE``: three mid-thickness nodes on punch axes far apart are frozen where they are
+   (``*BOUNDARY, FIXED``: statically determinate, they carry no force once the tips are gone)
+   and the tips retract :data:`RETRACT_MM`; the gaps open one by one as the plate springs back.
+
+Displacements are written to the .frd file at the end of each step, the tips' reactions (the
+contact forces) to the .dat file, the state to the restart file (``*RESTART, WRITE``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+RETRACT_MM = 300.0
+"""How far the tips retract from the plate in the release step."""
+
+FLOW_STRAINS = (0.0, 0.001, 0.002, 0.005, 0.01, 0.02, 0.04, 0.08, 0.15, 0.3, 1.0)
+"""Equivalent plastic strains of the tabulated flow curve."""
+
+YIELD_BIN = 0.005
+"""Width of the yield-factor bins (one material each)."""
+
+STEPS_PER_PRESS = 3
+"""Steps of one press step after the first (approach, load, release); the first has two."""
+
+
+def _lines(rows) -> list[str]:
+    return [",".join(f"{v:.6f}" if isinstance(v, float) else str(v) for v in row) for row in rows]
+
+
+def flow_curve(steel, yield_factor: float) -> np.ndarray:
+    """Tabulated flow curve (k, 2): stress MPa, equivalent plastic strain.
+
+    Parameters
+    ----------
+    steel : PlateSteel
+        Its ``flow_stress_mpa(alpha, yield_factor)`` (Swift + linear hardening).
+    yield_factor : float
+        Local factor on the initial yield stress.
+    """
+    alpha = np.array(FLOW_STRAINS)
+    stress = np.asarray(steel.flow_stress_mpa(alpha, np.full(len(alpha), yield_factor))[0], dtype=float)
+    return np.column_stack([stress, alpha])
+
+
+def model_lines(mesh, steel, yield_factor, punch_stiffness_n_mm: float) -> list[str]:
+    """The model definition (nodes, elements, gaps, materials, fixed supports).
+
+    Parameters
+    ----------
+    mesh : PlateMesh
+    steel : PlateSteel
+        The plate's true steel.
+    yield_factor : (e,) float
+        Yield factor of each element.
+    punch_stiffness_n_mm : float
+        Stiffness of a ball and its punch (the gap elements), N/mm.
+
+    Returns
+    -------
+    list of str
+    """
+    n, m = mesh.node_count, len(mesh.bottom)
+    lower, upper = tip_nodes(mesh)
+    out = ["*HEADING", "mppf FE plate (mppf.sim.fe)", "*NODE"]
+    out += _lines([(i + 1, *map(float, p)) for i, p in enumerate(mesh.xyz_mm)])
+    out += _lines([(int(lower[i]), *map(float, mesh.xyz_mm[mesh.bottom[i] - 1])) for i in range(m)])
+    out += _lines([(int(upper[i]), *map(float, mesh.xyz_mm[mesh.top[i] - 1])) for i in range(m)])
+    bins = np.round((np.asarray(yield_factor) - 1.0) / YIELD_BIN).astype(int)
+    for b in np.unique(bins):
+        ids = np.nonzero(bins == b)[0] + 1
+        out.append(f"*ELEMENT, TYPE=C3D8I, ELSET=PLATE{b - bins.min()}")
+        out += _lines([(int(e), *map(int, mesh.hexes[e - 1])) for e in ids])
+    first_gap = len(mesh.hexes) + 1
+    out.append("*ELEMENT, TYPE=GAPUNI, ELSET=GAPS")
+    out += _lines([(first_gap + i, int(lower[i]), int(mesh.bottom[i])) for i in range(m)])
+    out += _lines([(first_gap + m + i, int(mesh.top[i]), int(upper[i])) for i in range(m)])
+    out += ["*GAP, ELSET=GAPS", f"0.,0.,0.,1.,,{punch_stiffness_n_mm:.6g}"]
+    out += ["*NSET, NSET=TIPS"] + [str(int(v)) for v in np.concatenate([lower, upper])]
+    out += ["*NSET, NSET=PLATEN, GENERATE", f"1,{n},1"]
+    for b in np.unique(bins):
+        name = f"STEEL{b - bins.min()}"
+        out += [f"*MATERIAL, NAME={name}", "*ELASTIC", f"{steel.youngs_modulus_mpa:.6g},{steel.poisson:.6g}",
+                "*PLASTIC, HARDENING=KINEMATIC"]
+        out += [f"{s:.6f},{a:.6g}" for s, a in flow_curve(steel, 1.0 + YIELD_BIN * b)]
+        out += [f"*SOLID SECTION, ELSET=PLATE{b - bins.min()}, MATERIAL={name}"]
+    return out
+
+
+def tip_nodes(mesh) -> tuple[np.ndarray, np.ndarray]:
+    """Node ids (m,) of the lower and upper tips (after the plate's nodes)."""
+    n, m = mesh.node_count, len(mesh.bottom)
+    return n + 1 + np.arange(m), n + 1 + m + np.arange(m)
+
+
+def planar_holds(mesh) -> list[str]:
+    """Boundary lines of the in-plane supports and the tips' x, y (every step repeats them).
+
+    The mid-thickness node on the punch axis nearest the plate's centre is held in x and y, the
+    one farthest from it on the same punch row in y only (the plate may still shrink along x as
+    it bends).
+    """
+    xy = mesh.punch_xy_mm
+    a = int(np.argmin(np.linalg.norm(xy - xy.mean(axis=0), axis=1)))
+    row = np.nonzero(mesh.punch_index[:, 0] == mesh.punch_index[a, 0])[0]
+    b = int(row[np.argmax(np.abs(xy[row, 0] - xy[a, 0]))])
+    if b == a:  # a single pair on that row: the farthest pair, held across the line between them
+        b = int(np.argmax(np.linalg.norm(xy - xy[a], axis=1)))
+    along_x = abs(xy[b, 0] - xy[a, 0]) >= abs(xy[b, 1] - xy[a, 1])
+    dof = "2,2" if along_x else "1,1"
+    return ["TIPS,1,2,0.", f"{int(mesh.middle[a])},1,2,0.", f"{int(mesh.middle[b])},{dof},0."]
+
+
+def release_holds(mesh) -> np.ndarray:
+    """Indices (3,) of the punch pairs whose mid-thickness nodes hold the plate statically determinate.
+
+    The first two are the pairs farthest apart, the third the one farthest from the line
+    through them (the largest triangle of supports).
+    """
+    xy = mesh.punch_xy_mm
+    d = np.linalg.norm(xy[:, None, :] - xy[None, :, :], axis=2)
+    a, b = np.unravel_index(np.argmax(d), d.shape)
+    ab = xy[b] - xy[a]
+    cross = np.abs(ab[0] * (xy[:, 1] - xy[a, 1]) - ab[1] * (xy[:, 0] - xy[a, 0]))
+    return np.array([a, b, int(np.argmax(cross))])
+
+
+def step_lines(mesh, name: str, tips_z_mm: np.ndarray, *, new: bool, frozen: bool,
+               initial_increment: float = 0.25) -> list[str]:
+    """One static step: tips to heights, optionally the three release holds frozen.
+
+    Parameters
+    ----------
+    mesh : PlateMesh
+    name : str
+        A comment naming the step.
+    tips_z_mm : (2 m,) float
+        Absolute heights of the lower tips, then the upper tips, mm (their nodes' z).
+    new : bool
+        Replace every earlier boundary condition (``OP=NEW``): the holds of the step before are gone.
+    frozen : bool
+        Freeze the three release holds where the step before left them.
+    initial_increment : float
+        First increment, share of the step.
+    """
+    lower, upper = tip_nodes(mesh)
+    start = np.concatenate([mesh.xyz_mm[mesh.bottom - 1, 2], mesh.xyz_mm[mesh.top - 1, 2]])
+    move = np.asarray(tips_z_mm, dtype=float) - start
+    out = [f"** {name}", "*STEP, NLGEOM, INC=1000", "*STATIC", f"{initial_increment:.6g},1.,1e-6,0.5"]
+    # the approach carries next to no force: its residuals are judged against 1 N, not their own mean;
+    # the other steps start their time-average force at 1 kN, so that a step with next to no force
+    # (flat strokes on a flat plate) converges by the zero-force criterion (1e-5 of it)
+    out += ["*CONTROLS, RESET", "*CONTROLS, PARAMETERS=FIELD"]
+    out += ["0.005,0.01,,1."] if name == "APPROACH" else ["0.005,0.01,1000.,,0.02,1e-5,1e-3,1e-8"]
+    # more iterations before an increment is cut back: contacts opening and closing need a few
+    out += ["*CONTROLS, PARAMETERS=TIME INCREMENTATION", "8,10,9,200,10,4,0,5"]
+    out += ["*BOUNDARY, OP=NEW" if new else "*BOUNDARY"] + planar_holds(mesh)
+    out += [f"{int(node)},3,3,{dz:.6f}" for node, dz in zip(np.concatenate([lower, upper]), move)]
+    if frozen:
+        out += ["*BOUNDARY, FIXED"] + [f"{int(mesh.middle[i])},3,3" for i in release_holds(mesh)]
+    out += ["*NODE FILE, NSET=PLATEN", "U", "*NODE PRINT, NSET=TIPS, TOTALS=NO", "RF", "*RESTART, WRITE",
+            "*END STEP"]
+    return out
+
+
+def press_step_deck(mesh, model: list[str] | None, restart_step: int, touch_z_mm, tips_z_mm) -> str:
+    """The deck of one press step.
+
+    Parameters
+    ----------
+    mesh : PlateMesh
+    model : list of str or None
+        The model lines (the first press step), or None to continue from the restart file
+        (``*RESTART, READ, STEP=restart_step``).
+    restart_step : int
+        Steps run so far.
+    touch_z_mm : (2 m,) float or None
+        Tip heights touching the plate as it lies (the approach step); None: no approach
+        (the first press step).
+    tips_z_mm : (2 m,) float
+        The step's tip heights (absolute, lower then upper), mm.
+
+    Returns
+    -------
+    str
+    """
+    out = list(model) if model is not None else [f"*RESTART, READ, STEP={restart_step}"]
+    if touch_z_mm is not None:
+        out += step_lines(mesh, "APPROACH", touch_z_mm, new=False, frozen=False, initial_increment=1.0)
+    out += step_lines(mesh, "LOAD", tips_z_mm, new=True, frozen=False)
+    tips = np.asarray(tips_z_mm, dtype=float).copy()
+    m = len(mesh.bottom)
+    tips[:m] -= RETRACT_MM
+    tips[m:] += RETRACT_MM
+    out += step_lines(mesh, "RELEASE", tips, new=True, frozen=True, initial_increment=0.05)
+    return "\n".join(out) + "\n"

@@ -1,0 +1,319 @@
+"""The FE plate: a steel plate on the press computed by CalculiX, step by step, with plastic memory.
+
+:class:`FEPlate` has the interface of :class:`mppf.sim.plate.plate.SteelPlate` (``place``,
+``press_step``, ``formed``, ``state_dict`` / ``from_state``), so the dry run's scanner presses and
+scans it like the finite-difference plate. Each :meth:`FEPlate.press_step` is one ccx run of the
+deck of :func:`mppf.sim.fe.deck.press_step_deck` (approach, load, release); the first run writes
+the model, every later one continues from the restart file of the run before, so the plastic
+state (stresses, back stresses, plastic strains) carries from step to step and cycle to cycle.
+See docs/simulator-fe.md.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict
+
+import numpy as np
+from mppf.sim.fe.ccx import FESolveError, run_ccx
+from mppf.sim.fe.deck import STEPS_PER_PRESS, model_lines, press_step_deck
+from mppf.sim.fe.formed import FormedFEPlate
+from mppf.sim.fe.mesh import build_mesh
+from mppf.sim.fe.results import last_of_steps, read_frd
+from mppf.sim.plate.contact import Compliance
+from mppf.sim.plate.grid import _rotation, plate_frame
+from mppf.sim.plate.material import PlateSteel
+from mppf.sim.plate.scatter import PhysicalPlate, Scatter, sample_plate
+
+from mppf.core.errors import InputError
+from mppf.core.validate import check_number
+from mppf.planning.press import PressConfig, press_from_dict
+
+CELLS_PER_PITCH = 2
+"""Default element edges between neighbouring punch axes (docs/simulator-fe.md, mesh study)."""
+
+LAYERS = 2
+"""Default C3D8I elements through the thickness."""
+
+SMALLEST_STIFFNESS_N_MM = 1e4
+"""Ball stiffness used for a rigid press (``punch_mm_per_kn`` 0)."""
+
+NOMINAL_STEEL = PlateSteel()
+"""Default nominal steel."""
+
+DEFAULT_SCATTER = Scatter()
+"""Default scatter of a plate's properties."""
+
+DEFAULT_COMPLIANCE = Compliance()
+"""Default press compliance (only its punch part acts)."""
+
+OPTIONS = {"cells_per_pitch": CELLS_PER_PITCH, "layers": LAYERS}
+"""The plate's options and their defaults."""
+
+
+class FEPlate:
+    """One simulated physical steel plate on a press, computed by CalculiX.
+
+    Parameters
+    ----------
+    press : PressConfig
+    outline_xy_mm : (k, 2) float
+        The plate as cut (trim margin included) in press x, y, mm.
+    thickness_mm : float
+        Nominal thickness, mm.
+    steel : PlateSteel
+        Nominal steel (E, nu, yield stress, Swift + linear hardening; the Hill anisotropy is not used).
+    seed : int or None
+        Seed of the plate's scatter; None: exactly nominal.
+    scatter : Scatter
+    compliance : Compliance
+        Only the punch part acts (the stiffness of the gap elements); see docs/simulator-fe.md.
+    cells_per_pitch : int
+        Element edges between neighbouring punch axes.
+    layers : int
+        C3D8I elements through the thickness.
+    progress : callable, optional
+        Called with a line (str) while ccx runs.
+    """
+
+    def __init__(self, press: PressConfig, outline_xy_mm, thickness_mm: float, steel: PlateSteel = NOMINAL_STEEL, *,
+                 seed: int | None = 0, scatter: Scatter = DEFAULT_SCATTER, compliance: Compliance = DEFAULT_COMPLIANCE,
+                 cells_per_pitch: int = CELLS_PER_PITCH, layers: int = LAYERS, progress=None):
+        plate = sample_plate(steel, thickness_mm, scatter, seed)
+        self._build(press, outline_xy_mm, plate, compliance,
+                    {"cells_per_pitch": cells_per_pitch, "layers": layers}, progress)
+
+    @classmethod
+    def from_physical(cls, press: PressConfig, outline_xy_mm, plate: PhysicalPlate, *,
+                      compliance: Compliance = DEFAULT_COMPLIANCE, progress=None, **options) -> FEPlate:
+        """A flat FE plate of a given physical plate; ``options``: ``cells_per_pitch``, ``layers``."""
+        unknown = set(options) - set(OPTIONS)
+        if unknown:
+            raise InputError(f"unknown FE plate option(s) {', '.join(sorted(unknown))}",
+                             hint=f"use {', '.join(OPTIONS)}")
+        self = cls.__new__(cls)
+        self._build(press, outline_xy_mm, plate, compliance, {**OPTIONS, **options}, progress)
+        return self
+
+    def _build(self, press, outline_xy_mm, plate, compliance, options, progress):
+        """Mesh and initial state of the flat, stress-free plate between the flat stroke set."""
+        self.press, self.plate, self.compliance, self.progress = press, plate, compliance, progress
+        self.options = {
+            "cells_per_pitch": check_number("cells per pitch", options["cells_per_pitch"], low=1, high=8,
+                                            integer=True),
+            "layers": check_number("layers", options["layers"], low=1, high=8, integer=True)}
+        self.outline_xy_mm = np.asarray(outline_xy_mm, dtype=float)
+        centre, angle, _ = plate_frame(self.outline_xy_mm)
+        self._frame = (centre, angle)
+        self.mesh = build_mesh(press, self.outline_xy_mm, lambda xy: plate.thickness_at(self.to_plate(xy)),
+                               self.options["cells_per_pitch"], self.options["layers"])
+        m = len(self.mesh.bottom)
+        self.u_mm = np.zeros((self.mesh.node_count, 3))
+        self.loaded_u_mm = self.u_mm.copy()
+        self.force_n = np.zeros(2 * m)
+        self.tips_lower_mm = np.zeros(m)
+        self.tips_upper_mm = self.mesh.thickness_mm.copy()
+        self.tips_enabled = np.ones(m, dtype=bool)
+        self.restart = b""
+        self.ccx_steps = 0
+        self.steps = 0
+        self.last_seconds = 0.0
+
+    def to_plate(self, xy_mm) -> np.ndarray:
+        """Plate u, v (n, 2) of press x, y (n, 2) (the frame of the scatter fields), mm."""
+        centre, angle = self._frame
+        return (np.asarray(xy_mm, dtype=float).reshape(-1, 2) - centre) @ _rotation(angle)
+
+    @property
+    def punch_stiffness_n_mm(self) -> float:
+        """Stiffness of one ball and punch (the gap elements), N/mm."""
+        c = self.compliance.punch_mm_per_kn / 1000.0
+        return 1.0 / c if c > 0 else 1e3 * SMALLEST_STIFFNESS_N_MM
+
+    def place(self, placement_mm) -> None:
+        """Only the first placement: the FE plate is not pressed in sections.
+
+        Raises
+        ------
+        InputError
+            A placement other than (0, 0).
+        """
+        if np.any(np.abs(np.asarray(placement_mm, dtype=float)) > 1e-6):
+            raise InputError("the FE plate cannot be pressed in sections (its punch contacts are fixed to the "
+                             f"first placement), got placement {np.asarray(placement_mm).tolist()} mm",
+                             hint="use the finite-difference plate (--physics fd) for plates larger than the bed")
+
+    def press_step(self, upper_mm, lower_mm, active, *, share: float = 1.0) -> FormedFEPlate:
+        """Press one step (one ccx run) and let the plate spring back.
+
+        Parameters
+        ----------
+        upper_mm, lower_mm : (rows, cols) float
+            Tip heights as the PLC read them back, mm (inactive entries ignored, may be NaN).
+        active : (rows, cols) bool
+            Punch pairs in use; the others go to their park heights.
+        share : float
+            Share of the way from the last tips to these that the tips travel, in (0, 1].
+
+        Returns
+        -------
+        FormedFEPlate
+
+        Raises
+        ------
+        InputError
+            Grids of the wrong shape, NaN tips at active pairs, a gap below half the thickness,
+            ccx not installed.
+        FESolveError
+            ccx did not converge (its deck and log are kept).
+        """
+        share = check_number("share of the step", share, low=0.0, high=1.0, low_open=True)
+        lower, upper, enabled = self._check_step(upper_mm, lower_mm, active)
+        start_lower = np.where(self.tips_enabled, self.tips_lower_mm, self.press.lower.park_mm)
+        start_upper = np.where(self.tips_enabled, self.tips_upper_mm, self.press.upper.park_mm)
+        if share < 1.0:
+            lower = np.where(enabled, start_lower + share * (lower - start_lower), lower)
+            upper = np.where(enabled, start_upper + share * (upper - start_upper), upper)
+        first = self.ccx_steps == 0
+        model = None if not first else model_lines(self.mesh, self.plate.steel, self._yield_factor(),
+                                                    self.punch_stiffness_n_mm)
+        touch = None if first else np.concatenate(self._skins())
+        deck = press_step_deck(self.mesh, model, self.ccx_steps, touch, np.concatenate([lower, upper]))
+        run = run_ccx(deck, restart_in=None if first else self.restart, progress=self.progress)
+        steps = last_of_steps(read_frd(run.frd))
+        n_steps = STEPS_PER_PRESS - (1 if first else 0)
+        loaded_step, free_step = self.ccx_steps + n_steps - 1, self.ccx_steps + n_steps
+        if loaded_step not in steps or free_step not in steps:
+            raise FESolveError(f"ccx wrote no displacements for steps {loaded_step} and {free_step}",
+                               hint="see the kept log")
+        self.loaded_u_mm, self.u_mm = self._displacements(steps[loaded_step]), self._displacements(steps[free_step])
+        self.force_n = self._contact_forces(lower, upper)
+        self.restart, self.ccx_steps, self.last_seconds = run.restart, free_step, run.seconds
+        self.tips_lower_mm, self.tips_upper_mm, self.tips_enabled = lower, upper, enabled
+        self.steps += 1
+        return self.formed
+
+    def _yield_factor(self) -> np.ndarray:
+        """Yield factor (e,) of each element (the plate's field at its centre)."""
+        return self.plate.yield_factor(self.to_plate(self.mesh.hex_centre_xy_mm))
+
+    def _displacements(self, block) -> np.ndarray:
+        """Displacements (n, 3) of the plate's nodes from a DISP block, mm."""
+        u = np.zeros((self.mesh.node_count, 3))
+        keep = block.nodes <= self.mesh.node_count
+        u[block.nodes[keep] - 1] = block.values[keep, :3]
+        return u
+
+    def _skins(self, u_mm=None) -> tuple[np.ndarray, np.ndarray]:
+        """Heights (m,) of the bottom and top nodes on the punch axes, mm."""
+        z = self.mesh.xyz_mm[:, 2] + (self.u_mm if u_mm is None else u_mm)[:, 2]
+        return z[self.mesh.bottom - 1], z[self.mesh.top - 1]
+
+    def _contact_forces(self, lower, upper) -> np.ndarray:
+        """Ball forces (2 m,) at the end of loading from the gaps' overclosure, N."""
+        bottom, top = self._skins(self.loaded_u_mm)
+        k = self.punch_stiffness_n_mm
+        return np.concatenate([k * np.maximum(lower - bottom, 0.0), k * np.maximum(top - upper, 0.0)])
+
+    @property
+    def formed(self) -> FormedFEPlate:
+        """The plate as it is now (free after its last step), scanner compatible."""
+        key = (self.steps, id(self.u_mm))
+        if getattr(self, "_formed_key", None) != key:
+            self._formed = self._build_formed()
+            self._formed_key = key
+        return self._formed
+
+    def _build_formed(self) -> FormedFEPlate:
+        mesh, m = self.mesh, len(self.mesh.bottom)
+        levels = mesh.column[..., [0, -1]]
+        used = levels[..., 0] > 0
+        bottom, top = levels[used][:, 0] - 1, levels[used][:, 1] - 1
+
+        def mid(u):
+            xyz = mesh.xyz_mm + u
+            return 0.5 * (xyz[bottom] + xyz[top])
+
+        loaded_mid = mid(self.loaded_u_mm)
+        pushed = (self.force_n[:m] > 0) | (self.force_n[m:] > 0)
+        contact = 0.5 * (mesh.xyz_mm[mesh.bottom - 1] + self.loaded_u_mm[mesh.bottom - 1]
+                         + mesh.xyz_mm[mesh.top - 1] + self.loaded_u_mm[mesh.top - 1])
+        return FormedFEPlate(self.outline_xy_mm, self.plate, loaded_mid, mid(self.u_mm),
+                             np.column_stack([mesh.punch_xy_mm[pushed], contact[pushed, 2]]),
+                             self._spread(self.force_n[:m]), self._spread(self.force_n[m:]), self.to_plate)
+
+    def _spread(self, values) -> np.ndarray:
+        """(rows, cols) of per-pair values, NaN where no pair acts on the plate."""
+        out = np.full(self.press.shape, np.nan)
+        out[self.mesh.punch_index[:, 0], self.mesh.punch_index[:, 1]] = values
+        return out
+
+    def _check_step(self, upper_mm, lower_mm, active):
+        """Tips (m,) of the pairs over the plate and which of them are active (parked ones at park)."""
+        upper, lower = np.asarray(upper_mm, dtype=float), np.asarray(lower_mm, dtype=float)
+        act = np.asarray(active, dtype=bool)
+        for name, arr in (("upper_mm", upper), ("lower_mm", lower), ("active", act)):
+            if arr.shape != self.press.shape:
+                raise InputError(f"{name} has shape {arr.shape}, the press has {self.press.shape}")
+        if not (np.all(np.isfinite(upper[act])) and np.all(np.isfinite(lower[act]))):
+            raise InputError("NaN or infinite tip height at an active punch", hint="every active punch needs a height")
+        r, c = self.mesh.punch_index[:, 0], self.mesh.punch_index[:, 1]
+        enabled = act[r, c]
+        if enabled.sum() < 3:
+            raise InputError(f"a plate needs at least 3 active punch pairs over it, got {int(enabled.sum())}")
+        p_lower = np.where(enabled, lower[r, c], self.press.lower.park_mm)
+        p_upper = np.where(enabled, upper[r, c], self.press.upper.park_mm)
+        gap = np.where(enabled, p_upper - p_lower, np.inf)
+        half = 0.5 * self.mesh.thickness_mm
+        if np.any(gap < half):
+            i = int(np.argmin(gap - half))
+            raise InputError(f"the gap between upper and lower tips is {gap[i]:.3f} mm at punch (row {r[i]}, "
+                             f"col {c[i]}), less than half the plate thickness {2 * half[i]:.3f} mm",
+                             hint="the step would crush the plate; check the strokes")
+        return p_lower, p_upper, enabled
+
+    # --- save / restore ------------------------------------------------------------
+    def state_dict(self) -> dict:
+        """Everything to rebuild this plate as it is now: settings (JSON) + arrays + the restart file.
+
+        Returns
+        -------
+        dict
+            Save it with ``np.savez(path, **state)``.
+        """
+        config = {"press": self.press.to_dict(), "outline_xy_mm": self.outline_xy_mm.tolist(),
+                  "plate": self.plate.to_dict(), "options": self.options, "compliance": asdict(self.compliance)}
+        return {"config": json.dumps(config), "model": "fe", "steps": np.array(self.steps),
+                "ccx_steps": np.array(self.ccx_steps), "u_mm": self.u_mm.copy(), "loaded_u_mm": self.loaded_u_mm.copy(),
+                "force_n": self.force_n.copy(), "tips_lower_mm": self.tips_lower_mm.copy(),
+                "tips_upper_mm": self.tips_upper_mm.copy(), "tips_enabled": self.tips_enabled.copy(),
+                "restart": np.frombuffer(self.restart, dtype=np.uint8).copy()}
+
+    @classmethod
+    def from_state(cls, state, progress=None) -> FEPlate:
+        """The plate of :meth:`state_dict` (a dict, or what ``np.load`` returns).
+
+        Raises
+        ------
+        InputError
+            Something is missing or does not fit the mesh the settings describe.
+        """
+        names = ("u_mm", "loaded_u_mm", "force_n", "tips_lower_mm", "tips_upper_mm", "tips_enabled")
+        missing = {"config", "steps", "ccx_steps", "restart", *names} - set(state)
+        if missing:
+            raise InputError(f"saved FE plate state lacks {', '.join(sorted(missing))}",
+                             hint="save it with FEPlate.state_dict()")
+        config = json.loads(str(np.asarray(state["config"])))
+        self = cls.from_physical(press_from_dict(config["press"], "saved plate state"),
+                                 np.asarray(config["outline_xy_mm"]), PhysicalPlate.from_dict(config["plate"]),
+                                 compliance=Compliance(**config["compliance"]), progress=progress,
+                                 **config["options"])
+        for name in names:
+            like = getattr(self, name)
+            value = np.array(state[name], dtype=like.dtype)
+            if value.shape != like.shape:
+                raise InputError(f"saved FE plate state: {name} has shape {value.shape}, the plate needs {like.shape}")
+            setattr(self, name, value)
+        self.steps, self.ccx_steps = int(np.asarray(state["steps"])), int(np.asarray(state["ccx_steps"]))
+        self.restart = np.asarray(state["restart"], dtype=np.uint8).tobytes()
+        return self

@@ -1,0 +1,130 @@
+"""Fast tests of the FE plate's mesh, deck writer and result readers (no ccx run)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from mppf.sim.fe import ccx
+from mppf.sim.fe.deck import flow_curve, model_lines, press_step_deck, release_holds
+from mppf.sim.fe.mesh import build_mesh
+from mppf.sim.fe.results import last_of_steps, read_dat_forces, read_frd
+from mppf.sim.plate.material import PlateSteel
+
+from mppf.core.errors import FileFormatError, GeometryError, InputError
+from mppf.planning.press import example_press_path, load_press
+
+OUTLINE = np.array([[-500.0, -320.0], [500.0, -320.0], [500.0, 320.0], [-500.0, 320.0]])
+
+
+@pytest.fixture(scope="module")
+def press():
+    return load_press(example_press_path())
+
+
+def thickness(xy):
+    """20 mm, 2 % thicker towards +x."""
+    return 20.0 * (1.0 + 0.02 * np.asarray(xy)[:, 0] / 500.0)
+
+
+def test_mesh_puts_node_columns_on_the_punch_axes_and_follows_the_local_thickness(press):
+    mesh = build_mesh(press, OUTLINE, thickness, cells_per_pitch=2, layers=3)
+    # 75 mm cells, axes at x +-75, +-225, +-375 and y +-75, +-225 (and the edge lines)
+    assert len(mesh.bottom) == 6 * 4  # x: -375..375 (6 axes), y: -225..225 (4 axes)
+    assert np.allclose(mesh.xyz_mm[mesh.bottom - 1, :2], mesh.punch_xy_mm)
+    assert np.allclose(mesh.xyz_mm[mesh.top - 1, :2], mesh.punch_xy_mm)
+    assert np.allclose(mesh.xyz_mm[mesh.bottom - 1, 2], 0.0)
+    assert np.allclose(mesh.xyz_mm[mesh.top - 1, 2], thickness(mesh.punch_xy_mm))
+    assert mesh.x_mm[0] == -500.0 and mesh.x_mm[-1] == 500.0
+    assert np.all(np.diff(mesh.x_mm) > 0.25 * 75.0 - 1e-9)
+    assert mesh.hexes.shape == ((len(mesh.x_mm) - 1) * (len(mesh.y_mm) - 1) * 3, 8)
+    # every hexahedron has a positive volume (bottom face counter-clockwise seen from above)
+    p = mesh.xyz_mm[mesh.hexes - 1]
+    e1, e2, e3 = p[:, 1] - p[:, 0], p[:, 3] - p[:, 0], p[:, 4] - p[:, 0]
+    assert np.all(np.einsum("ij,ij->i", np.cross(e1, e2), e3) > 0)
+
+
+def test_mesh_of_a_plate_off_the_punches_is_refused(press):
+    tiny = np.array([[0.0, 0.0], [60.0, 0.0], [60.0, 60.0], [0.0, 60.0]]) + 10.0
+    with pytest.raises(GeometryError, match="at least 3"):
+        build_mesh(press, tiny, thickness, cells_per_pitch=2, layers=2)
+
+
+def test_model_has_hexahedra_gaps_and_kinematic_hardening_per_yield_bin(press):
+    mesh = build_mesh(press, OUTLINE, thickness, cells_per_pitch=1, layers=2)
+    factor = np.where(mesh.hex_centre_xy_mm[:, 0] > 0, 1.02, 1.0)
+    lines = model_lines(mesh, PlateSteel(), factor, 1e5)
+    text = "\n".join(lines)
+    m = len(mesh.bottom)
+    gap_start = lines.index("*ELEMENT, TYPE=GAPUNI, ELSET=GAPS")
+    assert sum(1 for line in lines[gap_start + 1:gap_start + 1 + 2 * m] if line.count(",") == 2) == 2 * m
+    assert text.count("*MATERIAL") == 2 and text.count("HARDENING=KINEMATIC") == 2
+    assert "0.,0.,0.,1.,,100000" in text
+    curve = flow_curve(PlateSteel(), 1.02)
+    assert curve[0, 1] == 0.0 and curve[0, 0] == pytest.approx(1.02 * 235.0)
+    assert np.all(np.diff(curve[:, 0]) > 0)
+
+
+def test_press_step_deck_reads_the_restart_and_holds_the_plate_for_the_release(press):
+    mesh = build_mesh(press, OUTLINE, thickness, cells_per_pitch=1, layers=2)
+    m = len(mesh.bottom)
+    tips = np.concatenate([np.zeros(m), mesh.thickness_mm])
+    first = press_step_deck(mesh, ["*NODE"], 0, None, tips)
+    assert "*RESTART, READ" not in first and first.count("*STEP") == 2
+    later = press_step_deck(mesh, None, 2, tips, tips)
+    assert later.startswith("*RESTART, READ, STEP=2") and later.count("*STEP") == 3
+    release = later[later.index("** RELEASE"):]
+    assert "*BOUNDARY, FIXED" in release
+    held = release_holds(mesh)
+    assert len(set(held.tolist())) == 3
+    a, b, c = mesh.punch_xy_mm[held]
+    ab, ac = b - a, c - a
+    assert abs(ab[0] * ac[1] - ab[1] * ac[0]) > 1e5  # a real triangle, not a line
+
+
+FRD = """    1C
+    1UUSER
+    1PSTEP                         1           1           1
+  100CL  101 1.000000000           2                     0    1           1
+ -4  DISP        4    1
+ -5  D1          1    2    1    0
+ -5  D2          1    2    2    0
+ -5  D3          1    2    3    0
+ -5  ALL         1    2    0    0    1ALL
+ -1         1 1.00000E+00 0.00000E+00-2.50000E+00
+ -1         2-1.00000E+00 2.00000E-01 3.00000E+00
+ -3
+    1PSTEP                         2           1           2
+  100CL  101 2.000000000           2                     0    2           1
+ -4  DISP        4    1
+ -5  D1          1    2    1    0
+ -1         1 5.00000E-01 0.00000E+00-1.25000E+00
+ -1         2-5.00000E-01 1.00000E-01 1.50000E+00
+ -3
+ 9999
+"""
+
+
+def test_frd_reader_returns_each_steps_last_displacements():
+    blocks = read_frd(FRD)
+    assert [b.step for b in blocks] == [1, 2]
+    steps = last_of_steps(blocks)
+    assert steps[2].time == 2.0
+    assert np.allclose(steps[1].values, [[1.0, 0.0, -2.5], [-1.0, 0.2, 3.0]])
+    assert steps[2].nodes.tolist() == [1, 2]
+    with pytest.raises(FileFormatError, match="bad result line"):
+        read_frd(FRD.replace("-1.25000E+00", "-1.2x000E+00"))
+
+
+def test_dat_reader_returns_forces_of_a_node_set():
+    dat = ("\n forces (fx,fy,fz) for set TIPS and time  0.1000000E+01\n\n"
+           "        11  1.000000E+00 -2.000000E+00  3.500000E+03\n        12  0.0 0.0 -3.5E+03\n\n")
+    (time, nodes, forces), = read_dat_forces(dat, "tips")
+    assert time == 1.0 and nodes.tolist() == [11, 12]
+    assert forces[:, 2].tolist() == [3500.0, -3500.0]
+
+
+def test_missing_ccx_says_how_to_install_it(monkeypatch):
+    monkeypatch.setenv("MPPF_CCX", "ccx-that-is-not-installed")
+    with pytest.raises(InputError, match="apt-get install calculix-ccx") as info:
+        ccx.run_ccx("*NODE\n")
+    assert info.value.exit_code == 2
