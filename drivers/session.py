@@ -11,7 +11,8 @@ The protocol (docs/register-map.md): a command is the mailbox written in ONE req
 copying the counter and the master id into the acknowledgement registers with a result
 code, and the master waits for the acknowledgement of its own pair. STOP has its own
 register and is obeyed from anyone. A master owns the PLC after CLAIM and keeps its lease
-with the heartbeat (started by the transport's host after the claim). Every command and
+with the heartbeat (started by the transport's host after the claim); the mailbox, the nonce
+and the auth words are :mod:`mppf.drivers.mailbox`'s. Every command and
 write is written ahead into the audit log (:mod:`mppf.drivers.audit`).
 """
 
@@ -20,11 +21,12 @@ from __future__ import annotations
 import os
 import time
 
-from mppf.core.errors import LinkError, PlcError, PressFault, PressRefused
+from mppf.core.errors import LinkError, PlcError, PressFault
 from mppf.core.presslink import PressStatus
 from mppf.drivers import codec, regmap as rm
 from mppf.drivers.audit import NULL_AUDIT, Audited
 from mppf.drivers.identity import identify
+from mppf.drivers.mailbox import Mailbox, new_master_id
 
 STATUS_SPAN = ("stop_request", "refused_setpoint_writes")
 """The registers read for a status: the STOP register and the whole status block (one request)."""
@@ -48,12 +50,7 @@ class WallClock:
         time.sleep(seconds)
 
 
-def new_master_id() -> int:
-    """A random 32-bit master id, never 0 (one per session; the audit log records it)."""
-    return int.from_bytes(os.urandom(4), "big") or 1
-
-
-class PlcSession:
+class PlcSession(Mailbox):
     """A connected press PLC: status, STOP, and the owner's commands (no numpy, no pymodbus).
 
     Connects on construction and reads the PLC's identity (:func:`mppf.drivers.identity.identify`).
@@ -262,126 +259,6 @@ class PlcSession:
             "heartbeat": {"master": codec.words_to_u32(hb[1:3], ident.word_order), "counter": hb[0]},
             "refused_setpoint_writes": raw["refused_setpoint_writes"],
         }
-
-    # ----------------------------------------------------------------- mailbox ---
-    def _send(self, name: str, *, sequence: int = 0, crc: int = 0) -> int:
-        """Write the mailbox with the auth of the nonce (one request, one attempt, never retried); the counter."""
-        self._counter = self._counter % 0xFFFF + 1
-        order = self.identity.word_order
-        head = [self.map.command(name), self._counter] + codec.u32_to_words(self.master_id, order)
-        head += codec.u32_to_words(crc, order)
-        auth = codec.auth_crc32(self._nonce, head + [sequence])
-        self._io.write_command(self.map["command"].address, head + codec.u32_to_words(auth, order) + [sequence])
-        return self._counter
-
-    def _acknowledged(self, raw: dict, counter: int) -> dict | None:
-        """The status with ``result_code`` of this master's command ``counter``, once the PLC took it.
-
-        The owner's acknowledgement registers are looked at first (no other master's command
-        changes them); the shared ones only name a command of this master that the PLC refused
-        before it knew us as the owner (a refused CLAIM).
-        """
-        if raw["owner_master"] == self.master_id and raw["owner_ack_counter"] == counter:
-            return dict(raw, result_code=raw["owner_result_code"])
-        if raw["ack_counter"] == counter and raw["ack_master"] == self.master_id:
-            return raw
-        return None
-
-    def _await_ack(self, counter: int) -> dict | None:
-        """Poll until the PLC acknowledges ``counter`` of this master; the status then, or None on timeout."""
-        deadline = self._clock.now() + self.ack_timeout_s
-        while True:
-            raw = self._acknowledged(self._status_raw(), counter)
-            if raw is not None:
-                return raw
-            if self._clock.now() >= deadline:
-                return None
-            self._clock.sleep(self._poll_s)
-
-    def _command(self, name: str, *, sequence: int = 0, crc: int = 0) -> dict:
-        """Send a command and wait for its acknowledgement; return the status read with it.
-
-        Raises
-        ------
-        PressRefused
-            No acknowledgement within :attr:`ack_timeout_s`.
-        LinkError, PlcError
-        """
-        raw = self._await_ack(self._send(name, sequence=sequence, crc=crc))
-        if raw is None:
-            raise PressRefused(
-                f"the PLC at {self.url} did not acknowledge {name} within {self.ack_timeout_s:.1f} s",
-                hint="check that the PLC program runs ('mppf status': plc_heartbeat counts) and that no other "
-                     "master writes the command mailbox")
-        return raw
-
-    def _result(self, raw: dict) -> str:
-        return self.map.results.name(raw["result_code"]) or f"result {raw['result_code']}"
-
-    # -------------------------------------------------------------- ownership ---
-    def claim(self) -> None:
-        """Own the PLC (CLAIM) and start the heartbeat; nothing is written while another master owns it.
-
-        Raises
-        ------
-        PressRefused
-            Another master holds a live lease, or the PLC refused the claim.
-        LinkError, PlcError
-        """
-        raw = self._status_raw()
-        owner, lease_ok = raw["owner_master"], raw["flags"]["lease_ok"]
-        if owner == self.master_id and lease_ok and self._nonce:
-            self._owner = True
-            self._start_heartbeat()
-            return
-        if owner not in (0, self.master_id) and lease_ok:
-            self.audit.record(str(self.url), "claim", "not sent", job_sha256=self.job_sha256,
-                              detail=f"owned by master 0x{owner:08X}")
-            raise PressRefused(f"the PLC at {self.url} is owned by master 0x{owner:08X}, whose lease is alive: "
-                               "another master is driving the press; nothing was written",
-                               hint="wait until it has finished (see 'mppf status'), or stop it with 'mppf stop'")
-        key = new_master_id()  # the claim key: any 32-bit number but 0
-        with Audited(self, "claim", detail=f"master 0x{self.master_id:08X}") as row:
-            self._nonce = 0
-            raw = self._command("CLAIM", crc=key)
-            if not raw["result_code"]:
-                self._nonce = raw["claim_reply"] ^ key
-            else:
-                row.outcome, row.detail = "refused", self.map.result_text(raw["result_code"])
-                raise PressRefused(f"the PLC at {self.url} refused CLAIM: {row.detail}; nothing was written",
-                                   hint="wait until the other master has finished (see 'mppf status')")
-        self._owner = True
-        self._start_heartbeat()
-
-    def release(self) -> None:
-        """Give the PLC back (RELEASE) and stop the heartbeat; refused (and recorded) while it moves."""
-        if not self._owner:
-            return
-        try:
-            with Audited(self, "release") as row:
-                raw = self._command("RELEASE")
-                if raw["result_code"]:
-                    row.outcome, row.detail = "refused", self.map.result_text(raw["result_code"])
-        finally:
-            self._owner = False
-            self._stop_heartbeat()
-
-    def reset(self) -> None:
-        """Reset latched faults and drop the job (claims the PLC first; on request only).
-
-        Raises
-        ------
-        PressRefused
-            Another master owns the PLC, or the PLC refused (e.g. the e-stop is still pressed).
-        LinkError
-        """
-        self.claim()
-        with Audited(self, "reset") as row:
-            raw = self._command("RESET")
-            if raw["result_code"]:
-                row.outcome, row.detail = "refused", self.map.result_text(raw["result_code"])
-                raise PressRefused(f"the PLC at {self.url} refused RESET: {row.detail}",
-                                   hint="remove the cause (release the e-stop), then reset again")
 
     # -------------------------------------------------------------------- STOP ---
     def stop(self, reason: str = "operator request", *, wait: bool = True) -> None:

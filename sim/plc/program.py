@@ -38,20 +38,17 @@ from mppf.drivers.regmap import RegisterMap, load_register_map
 from mppf.planning.press import PressConfig
 from mppf.sim.hydraulics import Hydraulics
 from mppf.sim.plc.commands import MATRICES, Commands
+from mppf.sim.plc.motion import MAX_STEP_S, MAX_STEPS_PER_SCAN, Motion  # noqa: F401 - re-exported
 from mppf.sim.plc.program_faults import ProgramFaults
 from mppf.sim.plc.quirks import Quirks
 
-MAX_STEP_S = 0.02
-"""Longest integration step of the motion (simulated s)."""
-MAX_STEPS_PER_SCAN = 50
-"""Coarser steps rather than a scan that falls further and further behind."""
 MAX_SCAN_S = 0.2
 """Longest scan period the simulated PLC accepts (the register map's scan_time_max_ms)."""
 BEATS_KEPT = 20000
 """Owner heartbeats whose arrival times are kept (:attr:`PlcProgram.beats`)."""
 
 
-class PlcProgram(Commands, ProgramFaults, Quirks):
+class PlcProgram(Commands, Motion, ProgramFaults, Quirks):
     """The simulated press PLC's program (no communication, no threads).
 
     Parameters
@@ -294,51 +291,6 @@ class PlcProgram(Commands, ProgramFaults, Quirks):
                 refused = True
         if refused:
             self.refused_writes = (self.refused_writes + 1) & 0xFFFF
-
-    def _configure(self, limits: dict) -> None:
-        """The PLC's own configuration: positioning timeout, rest threshold, neighbour step, tip gap."""
-        known = {"positioning_timeout_s": 2.0, "rest_speed_mm_s": 0.5, "rest_time_s": 0.05, "tip_gap_min_mm": 5.0}
-        unknown = sorted(set(limits) - set(known))
-        if unknown:
-            raise InputError(f"unknown PLC setting {unknown[0]!r}", hint=f"known: {', '.join(known)}")
-        for key, default in known.items():
-            value = limits.get(key, default)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and 0 <= value <= 65.0):
-                raise InputError(f"PLC setting {key} must be a number from 0 to 65, got {value!r}")
-            setattr(self, key, float(value))
-        self.dimpling_limit_mm = float(self.press.max_neighbour_diff_mm)
-
-    def _run_motion(self, dt_s: float) -> None:
-        """Advance the hydraulics by the scan's simulated time; end motion when every punch is at rest."""
-        sim_dt = dt_s * self.time_scale
-        steps = min(max(1, math.ceil(sim_dt / MAX_STEP_S - 1e-9)), MAX_STEPS_PER_SCAN)
-        for _ in range(steps):
-            self.hydraulics.step(sim_dt / steps)
-            self._still_s = 0.0 if self.hydraulics.moving else self._still_s + sim_dt / steps
-            if self.state != "EXECUTING":
-                continue
-            self.motion_time_s += sim_dt / steps
-            self._run_motion_faults()
-            if self.frozen:  # the program halted in this step: this scan publishes its last image
-                return
-        if self._quirk_end_of_motion():
-            return
-        if self.state == "EXECUTING" and self.at_rest:
-            self._check_stuck()
-            if self.state == "EXECUTING" and self.in_band:
-                self.state = "COMPLETE"
-        elif self.state == "STOPPING" and self.at_rest:
-            self.state = "STOPPED"
-
-    @property
-    def at_rest(self) -> bool:
-        """Every punch slower than the rest speed for the rest time (the map's definition, speed part)."""
-        return not self.hydraulics.moving and self._still_s >= self.rest_time_s - 1e-9
-
-    @property
-    def in_band(self) -> bool:
-        """Every punch within the position tolerance of its goal."""
-        return bool(np.all(np.abs(self.hydraulics.position - self.goal_mm) <= self.press.position_tolerance_mm))
 
     def _latch(self, name: str, *, halt: bool = True) -> None:
         """Latch fault ``name`` (the first fault keeps its code), drop the job, stop the punches."""
