@@ -25,9 +25,10 @@ def _check_reason(reason: str) -> str:
     if not text:
         raise InputError("--reason is empty: a reseal records why the job was changed",
                          hint='give e.g. --reason "strokes of row 3 lowered 1 mm after the trial plate"')
-    if len(text) > MAX_REASON_CHARS or any(ord(ch) < 32 for ch in text):
+    control = any(ord(ch) < 32 or ord(ch) == 127 for ch in text)
+    if len(text) > MAX_REASON_CHARS or control:
         raise InputError(f"--reason must be one line of at most {MAX_REASON_CHARS} characters, got "
-                         f"{len(text)} character(s){' with control characters' if any(ord(c) < 32 for c in text) else ''}",
+                         f"{len(text)} character(s){' with control characters' if control else ''}",
                          hint="say briefly why the job was changed")
     return text
 
@@ -58,7 +59,8 @@ def _previous_seal(doc: dict) -> tuple[str, list[str]]:
 
 @click.command("reseal")
 @click.argument("job_path", metavar="JOB.json", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--reason", required=True, help="Why the job was changed (recorded in the audit log with your user name).")
+@click.option("--reason", required=True,
+              help="Why the job was changed (recorded in the audit log with your user name).")
 @click.option("--press", "press_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="This machine's press description (default: the installed $MPPF_HOME/press.toml).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,

@@ -265,7 +265,8 @@ def verify_document(doc: dict, source: str, key: bytes | None = None) -> dict:
     if not matches:
         what = ", ".join(changed[:12]) + (f" and {len(changed) - 12} more" if len(changed) > 12 else "") \
             if changed else "the seal block itself"
-        raise ConfigError(f"{source}: the job was changed after it was sealed (by {seal.get('sealed_by', '?')}): changed: {what}; nothing was sent to the press",
+        raise ConfigError(f"{source}: the job was changed after it was sealed (by {seal.get('sealed_by', '?')}): "
+                          f"changed: {what}; nothing was sent to the press",
                           hint="re-plan the plate with 'mppf plan' (never edit a job by hand); for a deliberate "
                                f"change run 'mppf reseal {source} --reason \"...\"'")
     return seal

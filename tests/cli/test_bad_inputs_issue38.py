@@ -126,9 +126,11 @@ EDITS = {  # key: (good job, edit, words with the seal, words when sealed again 
     "lower_park_250": ("job", _press_key("lower", "park_mm", 250.0), [SEAL, "press"],
                        ["planned for another press", "park_mm is 250.0 in the job, -400.0 in"]),
     "section2_centre_1000": ("sectional_job", _section(2, _shift(("plate_centre_mm",), 1000.0)),
-                             [SEAL, "section 2 placement"], ["does not follow from its own plan", "section 2 plate centre"]),
+                             [SEAL, "section 2 placement"],
+                             ["does not follow from its own plan", "section 2 plate centre"]),
     "section3_marks_300": ("sectional_job", _section(3, _shift(("marks", "press_mm"), 300.0)),
-                           [SEAL, "section 3 placement"], ["does not follow from its own plan", "section 3 marks on the bed"]),
+                           [SEAL, "section 3 placement"],
+                           ["does not follow from its own plan", "section 3 marks on the bed"]),
     "section3_plate_marks_300": ("sectional_job", _section(3, _shift(("marks", "plate_mm"), 300.0)),
                                  [SEAL, "section 3 placement"], ["section 3 marks in plate coordinates"]),
     "section2_flat_tf_500": ("sectional_job", _section(2, _flat_tf_shift), [SEAL, "section 2 placement"],
@@ -185,9 +187,10 @@ FILES38.update({
     "manifest_7th": ("seven.csv", "name,design,flat,thickness_mm,material,springback\nP1,design.csv,,20,steel,no,x\n"),
     "manifest_newline": ("newline.csv", 'name,design,thickness_mm\n"P1\nP2",design.csv,20\n'),
     "manifest_thick": ("thick.csv", "name,design,thickness_mm\nP1,design.csv,1e6\n"),
-    "ply_2e9_faces": ("faces.ply", ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
-                                    "property float z\nelement face 2000000000\nproperty list uchar int vertex_indices\n"
-                                    "end_header\n0 0 0\n1000 0 0\n0 1000 0\n3 0 1 2\n")),
+    "ply_2e9_faces": ("faces.ply", ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
+                                    "property float y\nproperty float z\nelement face 2000000000\n"
+                                    "property list uchar int vertex_indices\nend_header\n"
+                                    "0 0 0\n1000 0 0\n0 1000 0\n3 0 1 2\n")),
     "scan_3_points": ("three.xyz", "0 0 0\n1000 0 0\n0 1000 0\n"),
     "press_job_nan_axis": ("nanaxis.job.json", _edited("job", lambda d: d["punch_x_mm"].__setitem__(3, float("nan")))),
 })
@@ -229,7 +232,8 @@ def _cases() -> list[dict]:
          "args": ["batch", "--manifest", "{manifest_thick}", "-o", "{tmp}/out"],
          "expect": ["thick.csv, line 2", "thickness_mm 1e+06 mm is above the largest plate the press takes, 50 mm"]},
         {"id": "issue 38: batch --thickness 1e6", "kind": "batch",
-         "args": ["batch", "{design}", "--thickness", "1e6", "-o", "{tmp}/out"], "expect": ["--thickness", "at most 50 mm, got 1000000.0 mm"]},
+         "args": ["batch", "{design}", "--thickness", "1e6", "-o", "{tmp}/out"],
+         "expect": ["--thickness", "at most 50 mm, got 1000000.0 mm"]},
         {"id": "issue 38: PLY header with 2e9 faces -> compare", "kind": "points", "files": ["ply_2e9_faces"],
          "args": ["compare", "{design}", "{ply_2e9_faces}"],
          "expect": ["faces.ply", "announces 2,000,000,000 face element(s)", "only 32 bytes follow"]},
@@ -238,7 +242,8 @@ def _cases() -> list[dict]:
         {"id": "issue 38: scan of 3 points -> register", "kind": "points", "files": ["scan_3_points"],
          "args": ["register", "{scan_3_points}", "{design}"], "expect": ["three.xyz", "has 3 point(s)"]},
         {"id": "issue 38: compare --margin 1e9", "kind": "option",
-         "args": ["compare", "{design}", "{design}", "--margin", "1e9"], "expect": ["--margin", "from 0 to 500 mm, got 1000000000.0 mm"]},
+         "args": ["compare", "{design}", "{design}", "--margin", "1e9"],
+         "expect": ["--margin", "from 0 to 500 mm, got 1000000000.0 mm"]},
         {"id": "issue 38: compare --mark 10 km away", "kind": "option",
          "args": ["compare", "{design}", "{design}", "--mark", "10000000,0,0"],
          "expect": ["--mark 1e+07,0,0 lies", "mm outside the scan", "design.csv"]},
