@@ -144,6 +144,8 @@ def stop_over_tcp(url: str, reason: str = "mppf stop") -> dict:
 def finish_stop(sent: dict, audit) -> str:
     """After the STOP left: record it, wait until the PLC took it, return the state it is in (or why not known)."""
     rmap, sock, unit = sent["map"], sent["sock"], sent["unit"]
+    audit.record(sent["url"], "connect", "ok", detail=f"master 0x{sent['master']:08X}, word order {sent['order']}, "
+                                                      f"map version {rmap.version} (mppf stop: STOP first)")
     row = audit.intent(sent["url"], "stop", detail=f"{sent['reason']}; master 0x{sent['master']:08X}; sent at "
                                                    f"{sent['sent_at']:.3f} (STOP first, recorded after)")
     deadline = time.monotonic() + 2 * sent["timeout_s"] + 0.5
