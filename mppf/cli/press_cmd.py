@@ -47,6 +47,26 @@ def parse_plc_url(plc_url: str):
     return parse(plc_url)
 
 
+def _load_sealed_job(job_path, plc_url, audit_path):
+    """The job file through the one strict loader; a job refused by its seal is recorded in the audit log.
+
+    Raises
+    ------
+    InputError
+        As :func:`mppf.planning.validate.load_checked_job` (a :class:`~mppf.core.seal.SealError`
+        for a seal that does not match).
+    """
+    from mppf.core.seal import SealError
+    from mppf.planning.validate import load_checked_job
+
+    try:
+        return load_checked_job(job_path)
+    except SealError as exc:  # an edited job: who tried to press it, and what changed, are kept
+        with open_audit(audit_path) as audit:
+            audit.record(plc_url or "dry run", "seal", "refused", detail=exc.message[:500])
+        raise
+
+
 def _check_before_connecting(job, job_path, press, press_source: str, plc_url, audit_path) -> None:
     """The job against the machine's press, before any PLC is connected (or simulated).
 
@@ -130,12 +150,11 @@ def press_command(job_path, plc_url, step, section, yes, press_path, audit_path,
     from mppf.cli._common import RichReporter, check_db_path, console
     from mppf.cli._placement import placement_lines
     from mppf.planning.press import machine_press
-    from mppf.planning.validate import load_checked_job
 
     if timeout_s is not None and not math.isfinite(timeout_s):
         raise InputError(f"--timeout must be a finite number of seconds, got {timeout_s}",
                          hint="leave it out for the default (from the longest move)")
-    job = load_checked_job(job_path)  # numbers where numbers belong, the seal, before anything else
+    job = _load_sealed_job(job_path, plc_url, audit_path)  # numbers where numbers belong, the seal, first
     if section is not None and job.sections is None:
         raise InputError(f"--section {section}: the job {job_path.name} is a single piece (no sections)",
                          hint="leave --section out for a single-piece job")

@@ -29,6 +29,11 @@ from pathlib import Path
 
 from mppf.core.errors import ConfigError
 
+
+class SealError(ConfigError):
+    """A job whose seal does not match its content, is missing, or was made by another installation (exit 2)."""
+
+
 ALGORITHM = "HMAC-SHA256"
 KEY_BYTES = 32
 MAX_KEY_FILE_BYTES = 4096
@@ -235,18 +240,20 @@ def verify_document(doc: dict, source: str, key: bytes | None = None) -> dict:
 
     Raises
     ------
-    ConfigError
+    SealError
         No seal, a seal of another installation's key, or content that differs from the seal
         (naming the parts that changed: strokes of step K, section N placement, press, ...).
+    ConfigError
+        The key cannot be read, or the document holds values that are not plain JSON.
     """
     seal = doc.get(SEAL_KEY)
     if not isinstance(seal, dict) or not isinstance(seal.get("mac"), str):
-        raise ConfigError(f"{source}: the job has no seal (it was not written by 'mppf plan', or its seal was "
+        raise SealError(f"{source}: the job has no seal (it was not written by 'mppf plan', or its seal was "
                           "removed)", hint="re-plan the plate with 'mppf plan'; for a deliberate change run "
                                            f"'mppf reseal {source} --reason \"...\"'")
     key = load_key() if key is None else key
     if seal.get("key_id") != key_id(key):
-        raise ConfigError(f"{source}: the job was sealed by another installation (seal key {seal.get('key_id')!r}, "
+        raise SealError(f"{source}: the job was sealed by another installation (seal key {seal.get('key_id')!r}, "
                           f"this installation's is {key_id(key)!r})",
                           hint="plan the plate on this installation, or check the job and run "
                                f"'mppf reseal {source} --reason \"...\"'")
@@ -265,7 +272,7 @@ def verify_document(doc: dict, source: str, key: bytes | None = None) -> dict:
     if not matches:
         what = ", ".join(changed[:12]) + (f" and {len(changed) - 12} more" if len(changed) > 12 else "") \
             if changed else "the seal block itself"
-        raise ConfigError(f"{source}: the job was changed after it was sealed (by {seal.get('sealed_by', '?')}): "
+        raise SealError(f"{source}: the job was changed after it was sealed (by {seal.get('sealed_by', '?')}): "
                           f"changed: {what}; nothing was sent to the press",
                           hint="re-plan the plate with 'mppf plan' (never edit a job by hand); for a deliberate "
                                f"change run 'mppf reseal {source} --reason \"...\"'")

@@ -241,14 +241,14 @@ def check_seal(doc: dict, source: str, *, require_seal: bool = True) -> None:
 
     Raises
     ------
-    ConfigError
+    SealError
         See :func:`mppf.core.seal.verify_document`; an unsealed version-1..3 job when ``require_seal``.
     """
-    from mppf.core.seal import SEAL_KEY, verify_document
+    from mppf.core.seal import SEAL_KEY, SealError, verify_document
 
     if doc.get("version") in READ_VERSIONS and doc["version"] < SEALED_VERSION and SEAL_KEY not in doc:
         if require_seal:
-            raise ConfigError(f"{source}: an older, unsealed job (version {doc['version']}): nothing ties its "
+            raise SealError(f"{source}: an older, unsealed job (version {doc['version']}): nothing ties its "
                               "strokes to the plan, so it is not pressed",
                               hint=f"re-plan the plate with 'mppf plan', or check the job and run 'mppf reseal "
                                    f"{source} --reason \"...\" --press PRESS.toml'")

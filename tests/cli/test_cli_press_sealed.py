@@ -12,6 +12,7 @@ import json
 import numpy as np
 import pytest
 from driver_helpers import small_job, small_press
+from mppf.drivers.audit import AuditLog
 from mppf.sim.plc.host import start_simulated_plc
 
 from mppf.cli import main
@@ -85,5 +86,8 @@ def test_an_edited_job_writes_nothing_to_the_plc(name, resealed, tmp_path, press
     assert code == 2 and (resealed_words if resealed else sealed_words) in err, err
     assert "Traceback" not in err
     assert sim.server.master_writes == 0 and sim.state() == "IDLE"
+    with AuditLog(tmp_path / "audit.sqlite") as log:  # the refusal is kept: the seal's, or the validator's
+        refused = [(e.action, e.outcome) for e in log.entries()]
+    assert refused == [("limits" if resealed else "seal", "refused")], refused
     for a, b in zip(sim.actual_positions_mm(), before):
         np.testing.assert_array_equal(a, b)
