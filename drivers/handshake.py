@@ -187,8 +187,17 @@ class Handshake:
             if raw["result_code"]:
                 row.outcome, row.detail = "refused", self.map.result_text(raw["result_code"])
                 raise PressRefused(f"the PLC refused job {seq} (CRC 0x{crc:08X}): {row.detail}; GO was not sent",
-                                   hint="run the step again; if it repeats, check the PLC limits and other masters")
+                                   hint=self._validate_hint(self._result(raw)))
         reporter.info(f"job {seq} validated by the PLC (CRC 0x{crc:08X})")
+
+    def _validate_hint(self, result: str) -> str:
+        """What to do after a refused VALIDATE: the machine's own limits are not a passing hiccup."""
+        ident = self.identity
+        if result in ("NEIGHBOUR_STEP", "TIP_GAP", "LIMIT"):
+            return (f"the job does not fit this press's own limits (dimpling limit {ident.dimpling_limit_mm:g} mm, "
+                    f"smallest tip gap {ident.tip_gap_min_mm:g} mm, strokes {ident.limits_mm}): nothing moved; "
+                    "plan the plate again with this machine's press file, never with edited strokes")
+        return "run the step again; if it repeats, check the PLC and other masters ('mppf status')"
 
     # ------------------------------------------------------------------- GO ---
     def _check_heartbeat(self, seq: int) -> None:

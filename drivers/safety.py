@@ -138,7 +138,7 @@ class Safety:
         """The link failed during a step: STOP once after reconnecting (if GO was sent)."""
         if not go_sent:
             return LinkError(
-                f"link to the PLC lost before GO: {exc.message}; GO was not sent, the press did not move",
+                f"link to the PLC lost before GO: {exc.message}; GO was not sent, so this job never started",
                 hint="check the link, then run the step again (it uploads and verifies afresh)",
             )
         try:

@@ -187,3 +187,25 @@ def test_a_plc_of_another_map_version_is_refused_with_exit_3(start_sim, press):
     sim._call(lambda: sim.plc.regs.__setitem__(MAP["map_version"].address, 2))
     sim._call(lambda: sim.plc._shadow.__setitem__(MAP["map_version"].address, 2))
     assert main(["status", "--plc", sim.url]) == 3
+
+
+@pytest.mark.parametrize("what, result", [("neighbour", "NEIGHBOUR_STEP"), ("gap", "TIP_GAP")])
+def test_the_plc_refuses_a_job_beyond_its_own_limits_whatever_the_master_believes(start_sim, press, audit, what,
+                                                                                   result):
+    """The master's press description claims a dimpling limit of 300 mm; the PLC keeps its own 30 mm."""
+    import dataclasses
+
+    believed = dataclasses.replace(press, max_neighbour_diff_mm=300.0)
+    upper, lower = step_setpoints(press)
+    if what == "neighbour":
+        upper[1, 2] += 100.0  # one pair raised 100 mm
+        lower[1, 2] += 100.0
+    else:
+        upper = lower + 1.0  # every pair's tips 1 mm apart (the neighbours alike: only the gap is wrong)
+    sim = start_sim()
+    with ModbusPress(sim.url, believed, audit=audit) as plc, pytest.raises(PressRefused) as info:
+        plc.run_step(upper, lower)
+    assert result in str(info.value) and "GO was not sent" in str(info.value)
+    assert "dimpling limit 30 mm" in info.value.hint
+    assert ("validate", "refused") in actions(audit) and ("go", "ok") not in actions(audit)
+    assert at_rest(sim) and sim.state() == "IDLE"  # released: the refused job dropped
