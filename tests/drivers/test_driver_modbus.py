@@ -156,7 +156,7 @@ def test_link_dropped_mid_upload_no_go_then_a_retry_works(start_sim, press, audi
         sim.inject("drop", after_writes=2, duration_s=1.5)  # write 1 is the CLAIM: the first setpoint frame is lost
         with pytest.raises(LinkError) as info:
             plc.run_step(upper, lower)
-        assert "before GO" in str(info.value) and "did not move" in str(info.value)
+        assert "before GO" in str(info.value) and "GO was not sent, so this job never started" in str(info.value)
         flags = sim.status_bits()
         assert not flags["busy"] and sim.state() != "VALIDATED"
         assert ("go", "ok") not in actions(audit) and ("upload", "failed") in actions(audit)
