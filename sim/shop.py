@@ -12,7 +12,9 @@ an elastic-plastic plate in equilibrium between the balls, plastic memory from s
 step and cycle to cycle, press compliance, seeded scatter), written independently of the
 planner's plate model. ``plate_model="planner"`` gives the old simple plate instead
 (:class:`mppf.sim.planner_plate.PlannerModelPlate`: the planner's own model with a scattered yield
-stress and thickness; no memory). The plate's state is saved in the work folder after every
+stress and thickness; no memory); ``plate_model="fe"`` the FE plate (:class:`mppf.sim.fe.plate.FEPlate`:
+the same interface, computed by CalculiX, one ccx run per press step, its restart file in the state). The
+plate's state is saved in the work folder after every
 cycle (:data:`STATE_FILE`, with the steps it has been pressed with), so a dry run resumed in
 another process (``mppf loop --resume``) continues on the same plate and never presses a
 step on it twice.
@@ -48,8 +50,12 @@ from mppf.forming.material import Material
 from mppf.planning.job import Job, reference_corner_xy
 from mppf.sim.scanner import SimulatedScanner
 
-PLATE_MODELS = ("steel", "planner")
-"""The simulated plates: the steel plate of :mod:`mppf.sim.plate`, or the planner's own model."""
+PLATE_MODELS = ("steel", "planner", "fe")
+"""The simulated plates: the steel plate of :mod:`mppf.sim.plate`, the planner's own model, or the FE plate
+computed by CalculiX (:mod:`mppf.sim.fe`)."""
+
+PHYSICS = {"fd": "steel", "fe": "fe"}
+"""The ``--physics`` choices of the commands and the plate model each one names."""
 
 STATE_FILE = "sim-plate.npz"
 """The simulated plate's state in the plate's work folder."""
@@ -97,14 +103,15 @@ class SimulatedPlateScanner:
     material : Material
         Nominal material (the steel plate's nominal steel unless ``steel`` is given).
     plate_model : str
-        "steel" (default) or "planner" (:data:`PLATE_MODELS`).
+        "steel" (default), "planner" or "fe" (:data:`PLATE_MODELS`).
     steel : PlateSteel, optional
         The steel plate's nominal steel (default ``PlateSteel.from_material(material)``):
         a mill's steel differs from the nominal material the planner assumes.
     plate_options : dict, optional
         More keyword arguments of :class:`mppf.sim.plate.plate.SteelPlate` (``scatter``,
         ``compliance``, ``grid_spacing_mm``...), or of :class:`mppf.sim.planner_plate.PlannerModelPlate`
-        (``yield_scatter``, ``thickness_scatter``).
+        (``yield_scatter``, ``thickness_scatter``), or of :class:`mppf.sim.fe.plate.FEPlate` (``scatter``,
+        ``compliance``, ``cells_per_pitch``, ``layers``).
     noise_mm, occlusion_fraction, outlier_fraction : float
         Scanner imperfections (see :class:`mppf.sim.scanner.SimulatedScanner`).
     spacing_mm : float
@@ -126,6 +133,10 @@ class SimulatedPlateScanner:
                  reference_mark: bool = True, net_outline_xy_mm=None):
         if plate_model not in PLATE_MODELS:
             raise InputError(f"unknown simulated plate model {plate_model!r}", hint=f"use {' or '.join(PLATE_MODELS)}")
+        if plate_model == "fe":
+            from mppf.sim.fe.ccx import find_ccx
+
+            find_ccx()  # without CalculiX: how to install it, before anything is pressed
         self.press = press
         self.thickness_mm = float(thickness_mm)
         self.outline_xy_mm = np.asarray(outline_xy_mm, dtype=float)
@@ -174,9 +185,15 @@ class SimulatedPlateScanner:
             return PlannerModelPlate(self.press, self.outline_xy_mm, self.thickness_mm, self.material, seed=self.seed,
                                      **self.plate_options)
         from mppf.sim.plate.material import PlateSteel
-        from mppf.sim.plate.plate import SteelPlate
 
         steel = PlateSteel.from_material(self.material) if self.steel is None else self.steel
+        if self.plate_model == "fe":
+            from mppf.sim.fe.plate import FEPlate
+
+            return FEPlate(self.press, self.outline_xy_mm, self.thickness_mm, steel, seed=self.seed,
+                           **self.plate_options)
+        from mppf.sim.plate.plate import SteelPlate
+
         return SteelPlate(self.press, self.outline_xy_mm, self.thickness_mm, steel, seed=self.seed,
                           **self.plate_options)
 
@@ -217,6 +234,8 @@ class SimulatedPlateScanner:
         state_path = context.work_dir / STATE_FILE
         # 1. the plate as the last run left it (another process, after a crash)
         self._restore(state_path)
+        if hasattr(self.plate, "progress"):  # the FE plate: ccx's progress lines to the operator
+            self.plate.progress = context.reporter.info
         # 2. press every step of the cycle not yet pressed on it, in order
         steps = context.steps or (PressedStep(cycle, 1, context.upper_mm, context.lower_mm, context.active),)
         for step in steps:

@@ -38,8 +38,11 @@ def _check_plate_name(name: str) -> None:
               help="Bundled hull plate (mppf/examples/hull/NAME.csv).")
 @click.option("--seed", type=int, default=DEMO_SEED, show_default=True, help="Seed of the simulated plate and scans.")
 @click.option("--thickness", type=float, default=DEMO_THICKNESS_MM, show_default=True, help="Plate thickness (mm).")
+@click.option("--physics", type=click.Choice(["fd", "fe"]), default="fd", show_default=True,
+              help="Simulated plate: the finite-difference steel plate (fd) or the finite-element plate computed "
+                   "by CalculiX (fe, needs ccx; docs/simulator-fe.md).")
 @time_scale_option
-def demo(out_dir, plate_name, seed, thickness, time_scale):
+def demo(out_dir, plate_name, seed, thickness, time_scale, physics):
     """Unfold, plan, press, scan, compare and loop on a bundled hull plate, all simulated.
 
     A dry run: the simulated PLC runs in this process and is driven over loopback Modbus
@@ -54,6 +57,10 @@ def demo(out_dir, plate_name, seed, thickness, time_scale):
     check_number("--thickness", thickness, low=0.0, low_open=True, high=200.0, unit="mm",
                  hint="give the plate thickness in mm, e.g. 20")
     _check_plate_name(plate_name)
+    if physics == "fe":
+        from mppf.sim.fe.ccx import find_ccx
+
+        find_ccx()  # without CalculiX: how to install it (exit 2)
 
     from mppf.drivers.audit import AuditLog
     from mppf.loop.demo import run_demo
@@ -71,7 +78,7 @@ def demo(out_dir, plate_name, seed, thickness, time_scale):
 
     try:
         run = run_demo(out_dir, plate_name=plate_name, seed=seed, thickness_mm=thickness, connect=connect,
-                       reporter=reporter, on_cycle=print_cycle)
+                       reporter=reporter, on_cycle=print_cycle, physics=physics)
         files = demo_report(run, intro=(
             f"Dry run of mppf demo on the bundled hull plate {plate_name}, {thickness:g} mm, seed {seed}: "
             f"{dry_run} (the real driver), simulated plate (true material scattered around the nominal) "

@@ -87,13 +87,14 @@ def _scanner(history, plate, spec: str, press, scan_timeout_s: float):
         return DirectoryScanner(spec, timeout_s=scan_timeout_s)
     from mppf.geometry.read import read_points
     from mppf.planning.job import load_job
-    from mppf.sim.shop import SimulatedPlateScanner
+    from mppf.sim.shop import PHYSICS, SimulatedPlateScanner
 
     flat = read_points(plate.flat_path, units=plate.settings.get("units", "mm"))
     first_job = load_job(history.cycle(plate.plate_id, 1).job_path)
     material = MATERIALS[plate.settings.get("material", "steel")]
     return SimulatedPlateScanner.for_job(press, plate.thickness_mm, first_job, flat.points,
-                                         seed=int(plate.settings.get("seed", 0)), material=material)
+                                         seed=int(plate.settings.get("seed", 0)), material=material,
+                                         plate_model=PHYSICS[plate.settings.get("physics", "fd")])
 
 
 def _check_link_and_scanner(plc_url: str | None, scanner_spec: str) -> None:
@@ -282,6 +283,9 @@ def _latest_job(history, plate_id):
 @click.option("--work-dir", type=click.Path(file_okay=False, path_type=Path),
               help="Folder for the plate's job and scan files [default: plates/ID next to the history].")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the simulated plate and scans.")
+@click.option("--physics", type=click.Choice(["fd", "fe"]), default="fd", show_default=True,
+              help="Simulated plate of a dry run: the finite-difference steel plate (fd) or the finite-element "
+                   "plate computed by CalculiX (fe, needs ccx; docs/simulator-fe.md). Recorded with the plate.")
 @time_scale_option
 @click.option("--scan-timeout", type=float, default=1800.0, show_default=True,
               help="Longest wait for the operator's scan file (s).")
@@ -314,7 +318,7 @@ def _latest_job(history, plate_id):
 def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, rms_tolerance, max_cycles, gain,
          no_springback, margin_mm, material, history_path, audit_path, plate_id, work_dir, seed, time_scale,
          scan_timeout, on_pressed, on_pressed_timeout, mark_timeout, mark_settle, rescans, rescan_timeout, resume,
-         as_json, yes, write_report_, operator, units):
+         as_json, yes, write_report_, operator, units, physics):
     """Plan, press, measure, compare, correct, press again, until the plate is in tolerance.
 
     Stops when the largest absolute form deviation is within --tolerance and the RMS within
@@ -344,6 +348,10 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
 
     # every option and file checked before anything is read, planned or recorded
     _check_options(thickness, scan_timeout, seed, audit_path)
+    if physics == "fe":
+        from mppf.sim.fe.ccx import find_ccx
+
+        find_ccx()  # without CalculiX: how to install it (exit 2), before anything is recorded
     settings = LoopSettings(tolerance_mm=tolerance, rms_tolerance_mm=rms_tolerance, max_cycles=max_cycles,
                             gain=gain, springback=not no_springback, margin_mm=margin_mm, on_pressed=on_pressed,
                             on_pressed_timeout_s=_positive("--on-pressed-timeout", on_pressed_timeout),
@@ -371,6 +379,7 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
             draft = None if resume else _draft_plate(plate_id, design, flat, press_path, thickness, plc_url,
                                                      scanner_spec, settings, material, units, reporter)
             setup = {"plc": plc_url, "scanner": scanner_spec, "seed": seed, "units": units, "material": material,
+                     "physics": physics,
                      "reach": None if draft is None else draft.reach}
             audit = AuditLog(audit_path or history.path.parent / "audit.sqlite")
             comparisons = {}

@@ -102,7 +102,7 @@ def in_process_press(press: PressConfig) -> ContextManager[PressLink]:
 
 def run_demo(out, *, plate_name: str = DEMO_PLATE, seed: int = DEMO_SEED, thickness_mm: float = DEMO_THICKNESS_MM,
              connect: Connect = in_process_press, reporter: Reporter = NULL_REPORTER,
-             on_cycle: CycleCallback | None = None) -> DemoRun:
+             on_cycle: CycleCallback | None = None, physics: str = "fd") -> DemoRun:
     """Unfold, plan, press, scan, compare and loop on a bundled plate, all simulated.
 
     Parameters
@@ -119,6 +119,9 @@ def run_demo(out, *, plate_name: str = DEMO_PLATE, seed: int = DEMO_SEED, thickn
     reporter : Reporter
     on_cycle : callable, optional
         As :func:`mppf.loop.cycle.run_loop`.
+    physics : str
+        The simulated plate: "fd" (the finite-difference steel plate) or "fe" (the CalculiX plate,
+        :data:`mppf.sim.shop.PHYSICS`).
 
     Raises
     ------
@@ -133,8 +136,10 @@ def run_demo(out, *, plate_name: str = DEMO_PLATE, seed: int = DEMO_SEED, thickn
     from mppf.loop.plate import start_plate
     from mppf.planning.job import load_job
     from mppf.planning.press import example_press_path, load_press
-    from mppf.sim.shop import SimulatedPlateScanner
+    from mppf.sim.shop import PHYSICS, SimulatedPlateScanner
 
+    if physics not in PHYSICS:
+        raise InputError(f"unknown plate physics {physics!r}", hint=f"use {' or '.join(PHYSICS)}")
     out = Path(out)
     design = bundled_plate(plate_name)
     try:
@@ -159,7 +164,7 @@ def run_demo(out, *, plate_name: str = DEMO_PLATE, seed: int = DEMO_SEED, thickn
     with History(out / "history.sqlite") as history:
         plate_id = f"demo-{plate_name.split('_')[0]}-s{seed}-{time.strftime('%Y%m%d-%H%M%S')}"
         start_plate(history, design, flat, press, thickness_mm, plate_id=plate_id, work_dir=out / "plates" / plate_id,
-                    settings=settings, setup={"plc": None, "scanner": "sim", "seed": seed}, reporter=reporter)
+                    settings=settings, setup={"plc": None, "scanner": "sim", "seed": seed, "physics": physics}, reporter=reporter)
         job = load_job(history.cycle(plate_id, 1).job_path)
         # the flat for the cutter as the job lays it on the press: cut and net outlines, the reference mark
         from mppf.geometry.dxf import flat_drawing, write_flat_dxf
@@ -169,7 +174,8 @@ def run_demo(out, *, plate_name: str = DEMO_PLATE, seed: int = DEMO_SEED, thickn
                              flat_drawing(unfolding.flat[:, :2], unfolding.faces, margin, tf_press_flat=job.tf_press_flat,
                                           label=f"{plate_name}, margin {margin:g} mm"))
         # 3. the loop on the press, the simulated plate and scanner
-        scanner = SimulatedPlateScanner.for_job(press, thickness_mm, job, flat.points, seed=seed)
+        scanner = SimulatedPlateScanner.for_job(press, thickness_mm, job, flat.points, seed=seed,
+                                                plate_model=PHYSICS[physics])
         with connect(press) as link:
             result = run_loop(history, plate_id, link, scanner, reporter=reporter, on_cycle=collect)
         plate = history.plate(plate_id)
