@@ -135,7 +135,7 @@ def run_direct(press, planned: Planned, plate, max_cycles: int, policy: bool = T
     final = job.steps[-1]
     active = final.active
     steps, cycles, outcomes, strokes = job.steps, [], [], []
-    row = {"max": [], "rms": [], "decisions": [], "ok_at": None, "verdict": None, "scale": []}
+    row = {"max": [], "rms": [], "decisions": [], "ok_at": None, "verdict": None, "share": []}
     promised = None
     tolerances = Tolerances(TOL_MM, RMS_TOL_MM)
     for cycle in range(1, max_cycles + 1):
@@ -156,7 +156,7 @@ def run_direct(press, planned: Planned, plate, max_cycles: int, policy: bool = T
             break
         step = correct_step(press, job.layout.design_mid_mm, THICKNESS_MM, NOMINAL, cycles, outcomes, strokes,
                             active, edge, tolerances, policy=policy)
-        row["scale"].append(round(step.plan.scale, 3))
+        row["share"].append(round(step.plan.share, 3))
         if step.verdict is not None:
             row["decisions"].append("cannot_converge")
             row["verdict"] = step.verdict.text

@@ -18,8 +18,7 @@
    memory (:func:`mppf.correct.invert.invert`: crossing what stays elastic, reverse bending
    where the plate is over-bent), integrated to strokes, in a few virtual cycles on the
    model (:func:`mppf.correct.solve.solve_change`), inside a trust region in curvature
-   that shrinks when the earlier corrections promised more than they gave
-   (:func:`trust_region`);
+   (the size of the step asked for is the step policy's, :mod:`mppf.correct.policy`);
 6. what the model cannot make (more than half of the wanted change left) gets the classic
    displacement adjustment (:func:`_direct_part`);
 7. the strokes are held to the stroke limits; :func:`steps_towards` splits the way from the
@@ -51,16 +50,6 @@ AIM = (0.92, 0.95)
 """Share of the way to the design aimed at: by the first correction, and once a secant is known
 (short of the design: an over-bent region needs a reverse bend, an under-bent one only more of
 the same)."""
-
-TRUST_POOR, TRUST_GOOD = 0.25, 0.75
-"""Ratios of measured to predicted improvement below which the trust region halves, above which it doubles."""
-
-WORSE_THAN_BEST = 1.25
-"""A cycle whose excess over the tolerances is more than this times the best one seen counts as a step that made
-the plate worse (:func:`trust_region`)."""
-
-MIN_TRUST = 0.125
-"""Smallest trust region (share of the full one)."""
 
 DIRECT_GAIN = 0.7
 """Gain of the displacement adjustment on what the model step cannot make."""
@@ -118,7 +107,7 @@ class LearnedCorrection:
 
 def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, nominal: Material, cycles,
                        base_upper_mm, base_lower_mm, active, trust: float = 1.0, edge_mm=None,
-                       scale=None, response=None) -> LearnedCorrection:
+                       scale=None) -> LearnedCorrection:
     """The next strokes from every pressed and measured cycle of the plate.
 
     Parameters
@@ -134,19 +123,15 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
         The strokes to correct (the last cycle's final step as planned), NaN where inactive.
     active : (rows, cols) bool
     trust : float
-        Size of the trust region, in (0, 1] (:func:`trust_region`): scales the reach in
-        curvature and the share of the way aimed at.
+        Size of the trust region, in (0, 1]: scales the reach in curvature and the share of the
+        way aimed at (the loop leaves it at 1 and sizes the step by ``scale``).
     edge_mm : (rows, cols) float, optional
         The deviation of the net plate's edge beyond the outer-row punches after the last
         cycle (:func:`mppf.measure.punches.edge_deviations`): near the design those punches
         are aimed between their own deviation and the edge's (:func:`mppf.correct.edge.balanced_error`).
     scale : (rows, cols) float, optional
-        Scale of the change asked of the model at each punch (:meth:`mppf.correct.policy.StepPlan.scale_mm`:
-        the share of the way over the plate's measured response); default 1.
-    response : (rows, cols) float, optional
-        The plate's measured response to what the model predicts at each punch
-        (:meth:`mppf.correct.policy.StepPlan.response_mm`): the expected deviation counts the
-        model's change this many times; default 1.
+        Share of the wanted change asked for at each punch (:attr:`mppf.correct.policy.StepPlan.share`);
+        default 1.
 
     Returns
     -------
@@ -165,7 +150,7 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
     cycles = interrupted_share(section, grid, loaded, [_unknown_share(c) for c in cycles], measured)
     model = replay(section, loaded, cycles)
     # 3. the plate's response against the model's, learned on every secant
-    gain = _learn_response(grid, model, cycles) if response is None else ModeGain(grid)
+    gain = _learn_response(grid, model, cycles)
     # 4. the change wanted of the plate, and what to ask of the model for it
     error = grid.flat(np.where(grid.active, balanced_error(cycles[-1].error_mm, edge_mm), np.nan))
     error = np.where(grid.active & np.isfinite(error), error, 0.0)
@@ -182,62 +167,8 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
     # 6. what the model cannot make (a local error it does not describe): the displacement adjustment
     direct = trust * _direct_part(grid, section, model, base_mid, change, request, misfit)
     # 7. the strokes, held to the limits, and the steps they need
-    factor = np.ones(grid.shape) if response is None else np.where(grid.active, np.asarray(response, float), 1.0)
     return _strokes(press, grid, base_upper_mm, base_lower_mm, change + direct, error, gain, section, model,
-                    calibration, unreached, aim, direct, factor)
-
-
-def trust_region(rms_mm, predicted_rms_mm, rms_tolerance_mm: float | None = None, *, max_mm=None,
-                 tolerance_mm: float | None = None) -> float:
-    """The trust region of the next correction, in (0, 1], from how well the earlier ones predicted.
-
-    Classic trust-region bookkeeping on the measured RMS: for every correction the ratio of
-    the measured to the predicted improvement; below :data:`TRUST_POOR` the region halves
-    (a correction that made the plate worse: a quarter), above :data:`TRUST_GOOD` it doubles
-    (to at most 1), never below :data:`MIN_TRUST`.
-
-    Parameters
-    ----------
-    rms_mm : sequence of float
-        Measured RMS deviation of each cycle (mm), the first one first.
-    predicted_rms_mm : sequence of float or None
-        The RMS predicted for each cycle by the correction that made its strokes (None for
-        the first cycle, or when unknown), same length.
-    rms_tolerance_mm : float, optional
-        With it, the region is halved once the RMS is within it (only the largest deviation
-        is out: near the tolerance a bold step costs more than a careful one), unless the last
-        correction delivered what it promised (its ratio at least :data:`TRUST_GOOD`): a model
-        just shown right is followed at full size (a halved aim leaves a third of a last edge
-        or corner error where the plate answers a small step less than a large one).
-    max_mm : sequence of float, optional
-        Largest (form) deviation of the same cycles (mm), with ``tolerance_mm`` and
-        ``rms_tolerance_mm``: when the last cycle's excess over the tolerances (the larger of
-        largest deviation / tolerance and RMS / RMS tolerance) is more than
-        :data:`WORSE_THAN_BEST` times the best one seen, the region is a quarter (whatever
-        the RMS says: a correction that threw one region far off is not followed by a bold one).
-    tolerance_mm : float, optional
-        The tolerance of the largest deviation (mm).
-    """
-    trust, ratio = 1.0, None
-    for before, after, predicted in zip(rms_mm, rms_mm[1:], predicted_rms_mm[1:]):
-        if predicted is None or not np.isfinite(predicted) or before <= predicted:
-            ratio = None
-            continue
-        ratio = (before - after) / (before - predicted)
-        if ratio < 0.0:  # it made the plate worse
-            trust *= 0.25
-        elif ratio < TRUST_POOR:
-            trust *= 0.5
-        elif ratio > TRUST_GOOD:
-            trust = min(1.0, 2.0 * trust)
-    known = max_mm is not None and all(m is not None and r is not None for r, m in zip(rms_mm, max_mm))
-    if rms_tolerance_mm is not None and tolerance_mm is not None and known and len(rms_mm) > 1:
-        excess = [max(r / rms_tolerance_mm, m / tolerance_mm) for r, m in zip(rms_mm, max_mm)]
-        if excess[-1] > WORSE_THAN_BEST * min(excess[:-1]):
-            trust *= 0.25
-    if rms_tolerance_mm is not None and rms_mm[-1] <= rms_tolerance_mm and (ratio is None or ratio < TRUST_GOOD):
-        trust *= 0.5
-    return max(trust, MIN_TRUST)
+                    calibration, unreached, aim, direct)
 
 
 def _direct_part(grid: PunchGrid, section: Section, model, base_mid, change, request, misfit: float) -> np.ndarray:
@@ -283,7 +214,7 @@ def _learn_response(grid: PunchGrid, model, cycles) -> ModeGain:
 
 
 def _strokes(press, grid, base_upper, base_lower, change, error, gain, section, model, calibration, unreached, aim,
-             direct, response):
+             direct):
     """The corrected strokes within the stroke limits, their steps and the expected deviation."""
     act = grid.active
     upper = np.where(act, np.asarray(base_upper, dtype=float) + change, np.nan)
@@ -296,7 +227,7 @@ def _strokes(press, grid, base_upper, base_lower, change, error, gain, section, 
     n_steps = max(1, int(np.ceil(largest_neighbour_difference(change, act) / press.max_neighbour_diff_mm - 1e-9)))
     kappa = grid.curvature(0.5 * (upper + lower))
     made = grid.heights(section.press(kappa, model.states[-1])[0] - model.unloaded[-1])
-    predicted = np.where(act, error + response * (gain.plate_response(made) + direct), np.nan)
+    predicted = np.where(act, error + gain.plate_response(made) + direct, np.nan)
     notes = [f"plate model calibrated on {sum(1 for k in model.unloaded)} cycle(s): effective yield stress "
              f"{section.yield_stress_mpa:.0f} MPa, hardening {section.hardening_mpa:.0f} MPa; shape misfit "
              f"{calibration.misfit_mm:.2f} mm RMS", f"aim {aim:.0%} of the way; learned response "

@@ -1,8 +1,9 @@
-"""How large the next correction may be: the step policy, from what the plate has shown.
+"""How large the next correction may be and where it starts: the step policy, from what the plate has shown.
 
 The learned correction (:func:`mppf.correct.learned.learned_correction`) predicts what its
-strokes will do to the plate. Whether the plate does it is measured one cycle later. The
-policy turns those measurements into the next step:
+strokes will do to the plate and learns the plate's response per smooth mode and per punch
+from every secant (:class:`mppf.correct.secant.ModeGain`). Whether a correction delivered is
+measured one cycle later. The policy turns that into the next step:
 
 - **measured response** ``rho`` of each correction: the plate's measured change at the
   punches against the change the correction promised there (the secant of what the plate
@@ -10,14 +11,9 @@ policy turns those measurements into the next step:
   scan's noise: ``rho = (sum p m + n s^2) / (sum p^2 + n s^2)`` over the n punches, ``p`` the
   promised change, ``m`` the measured one, ``s`` the noise of a punch deviation. Promises
   within the noise teach nothing (``rho`` stays near 1). It is measured separately at the
-  outer ring of punches (the edges answer differently: a free edge carries no moment) and
-  inside it;
-- **the plate's response** to what the model predicts, ``R``: the product of the measured
-  ratios (each promise already counted the ``R`` known when it was made), within
-  :data:`RESPONSE_RANGE` (the range of answers the loop is built for). The model is asked for
-  ``f / R`` of the wanted change, and the promise is ``R`` times the model's change: a plate
-  that moved twice what was promised is asked half as much, and the promise says so;
-- **the share of the way** ``f``: 1; a correction that did not deliver (the excess over the
+  outer ring of punches (a free edge carries no moment and answers differently) and inside it,
+  and reported with the correction;
+- **the share of the way**: 1. A correction that did not deliver (the excess over the
   tolerances grew past the best one seen, or the plate moved against the promise,
   ``rho <= 0``) is followed by a smaller, safer one, half the last share, started from the
   strokes of the best cycle so far (:attr:`StepPlan.base`), not from the ones that made the
@@ -31,8 +27,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 RESPONSE_RANGE = (0.25, 4.0)
-"""Smallest and largest response of the plate to the model's change the policy assumes (the loop is built for
-plates answering a third to three times what the model predicts)."""
+"""The plate's answer to the model's prediction the loop is built for: a third to three times (with margin)."""
+
+MIN_SHARE = 0.125
+"""Smallest share of the way: three halvings (a step that small no longer crosses a plate's elastic stretch)."""
 
 DEFAULT_NOISE_MM = 0.3
 """Noise of a punch deviation (mm) when the scan gives none (the simulated scanner's point noise)."""
@@ -65,42 +63,26 @@ class StepPlan:
 
     Attributes
     ----------
-    response : float
-        The plate's response to the model's predicted change inside the outer ring of punches.
-    edge_response : float
-        The same at the outer ring.
     share : float
         Share of the way to ask for, in (0, 1].
     base : int
         Index of the cycle whose final strokes the next strokes start from (the last one,
         or the best one after a correction that made the plate worse).
     ratios : list of float
-        Measured over promised change of each correction so far (inside the ring).
+        Measured over promised change of each correction so far (inside the outer punches).
+    edge_ratios : list of float
+        The same at the outer punches.
     backtrack : bool
         The last correction made the plate worse.
     notes : list of str
     """
 
-    response: float = 1.0
-    edge_response: float = 1.0
     share: float = 1.0
     base: int = -1
     ratios: list = field(default_factory=list)
+    edge_ratios: list = field(default_factory=list)
     backtrack: bool = False
     notes: list = field(default_factory=list)
-
-    @property
-    def scale(self) -> float:
-        """Scale of the request inside the ring: share over response."""
-        return self.share / self.response
-
-    def response_mm(self, ring) -> np.ndarray:
-        """Response per punch (rows, cols): ``edge_response`` on the ``ring`` (rows, cols bool), else ``response``."""
-        return np.where(np.asarray(ring, dtype=bool), self.edge_response, self.response)
-
-    def scale_mm(self, ring) -> np.ndarray:
-        """Scale of the request per punch (rows, cols): the share over the response."""
-        return self.share / self.response_mm(ring)
 
 
 def excess(outcome: Outcome, tolerance_mm: float, rms_tolerance_mm: float) -> float:
@@ -145,8 +127,7 @@ def step_plan(outcomes, ring, tolerance_mm: float, rms_tolerance_mm: float,
     """
     ring = np.asarray(ring, dtype=bool)
     sizes = [excess(o, tolerance_mm, rms_tolerance_mm) for o in outcomes]
-    response = edge_response = share = 1.0
-    ratios, notes, backtrack = [], [], False
+    share, ratios, edge_ratios, notes, backtrack = 1.0, [], [], [], False
     for k in range(1, len(outcomes)):
         before, after = outcomes[k - 1], outcomes[k]
         if after.promised_mm is None:
@@ -155,20 +136,13 @@ def step_plan(outcomes, ring, tolerance_mm: float, rms_tolerance_mm: float,
         measured = after.error_mm - before.error_mm
         rho = response_ratio(promised[~ring], measured[~ring], noise_mm)
         rho_edge = response_ratio(promised[ring], measured[ring], noise_mm)
-        ratios.append(rho)
+        ratios.append(rho), edge_ratios.append(rho_edge)
         worse = sizes[k] > min(sizes[:k])
         backtrack = worse or rho <= 0.0
-        response = _learned(response, rho)
-        edge_response = _learned(edge_response, rho_edge)
-        share = 0.5 * share if backtrack else min(1.0, 2.0 * share)
+        share = max(MIN_SHARE, 0.5 * share) if backtrack else min(1.0, 2.0 * share)
         notes.append(f"correction {k}: the plate moved {rho:.2f} x what was promised inside the outer punches, "
                      f"{rho_edge:.2f} x at them" + ("; it made the plate worse" if worse else ""))
     base = int(np.argmin(sizes)) if backtrack else len(outcomes) - 1
     if backtrack:
         notes.append(f"the next strokes start from cycle {base + 1}'s (the best so far), {share:.0%} of the way")
-    return StepPlan(response, edge_response, share, base, ratios, backtrack, notes)
-
-
-def _learned(response: float, rho: float) -> float:
-    """The plate's response after a correction whose promise (made with ``response``) it answered ``rho`` times."""
-    return float(np.clip(response * rho, *RESPONSE_RANGE)) if rho > 0.0 else response
+    return StepPlan(share, base, ratios, edge_ratios, backtrack, notes)

@@ -38,7 +38,9 @@ MIN_SECANT_MM = 0.3
 """RMS of the model's change below which a secant is not used (mm)."""
 
 GAIN_RANGE = (0.4, 2.5)
-"""Singular values of the response ratio are clipped to this range."""
+"""Singular values of the response ratio are clipped to this range (what one secant may teach: a wider range,
+that of :data:`mppf.correct.policy.RESPONSE_RANGE`, let a secant taken in the elastic stretch of a plate, where it
+hardly moves, amplify the next request into a far worse cycle)."""
 
 LOCAL_RANGE = (0.4, 2.5)
 """Range of the local response ratio of a punch."""

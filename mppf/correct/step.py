@@ -94,7 +94,7 @@ def correct_step(press: PressConfig, design_mid_mm, thickness_mm: float, nominal
             if policy else StepPlan())
     upper, lower = strokes[plan.base]
     learned = learned_correction(press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower, active,
-                                 edge_mm=edge_mm, scale=plan.scale_mm(ring), response=plan.response_mm(ring))
+                                 edge_mm=edge_mm, scale=np.full(ring.shape, plan.share))
     learned.notes.extend(plan.notes)
     verdict = convergence_verdict([o.rms_mm for o in outcomes], learned.predicted_rms_mm,
                                   tolerances.rms_tolerance_mm, clipped=int(learned.clipped.sum()),

@@ -217,7 +217,6 @@ def learned_to_dict(learned: LearnedCorrection) -> dict:
 
 def step_to_dict(step) -> dict:
     """The correction step (:class:`mppf.correct.step.CorrectionStep`) as stored with the next cycle."""
-    return {**learned_to_dict(step.learned), "response": round(step.plan.response, 4),
-            "edge_response": round(step.plan.edge_response, 4), "share": round(step.plan.share, 4),
-            "base_cycle": step.plan.base + 1,
-            "measured_response": [round(float(r), 4) for r in step.plan.ratios]}
+    return {**learned_to_dict(step.learned), "share": round(step.plan.share, 4), "base_cycle": step.plan.base + 1,
+            "measured_response": [round(float(r), 4) for r in step.plan.ratios],
+            "measured_edge_response": [round(float(r), 4) for r in step.plan.edge_ratios]}

@@ -113,34 +113,3 @@ def test_the_next_steps_keep_the_dimpling_limit_and_end_on_the_strokes(setup):
     assert any("calibrated" in note for note in learned.notes)
 
 
-def test_the_trust_region_shrinks_when_a_correction_promised_more_than_it_gave():
-    from mppf.correct.learned import MIN_TRUST, trust_region
-
-    assert trust_region([10.0], [None]) == 1.0
-    assert trust_region([10.0, 2.0], [None, 1.5]) == 1.0  # as predicted
-    assert trust_region([10.0, 8.0], [None, 1.0]) == 0.5  # promised 9 mm off, gave 2
-    assert trust_region([10.0, 12.0], [None, 1.0]) == 0.25  # made it worse
-    assert trust_region([10.0, 8.0, 2.1], [None, 1.0, 2.0]) == 1.0  # the next one delivered: grows back
-    assert trust_region([10.0, 12.0, 13.0, 14.0], [None, 1.0, 1.0, 1.0]) == MIN_TRUST
-
-
-def test_a_cycle_much_worse_than_the_best_seen_quarters_the_trust_region():
-    from mppf.correct.learned import trust_region
-
-    # the RMS fell as predicted, but one region was thrown far off: the largest deviation grew
-    assert trust_region([4.0, 1.2], [None, 1.2], 1.0, max_mm=[9.0, 3.0], tolerance_mm=2.5) == 1.0
-    assert trust_region([4.0, 1.2, 1.1], [None, 1.2, 1.1], 1.0, max_mm=[9.0, 3.0, 6.0], tolerance_mm=2.5) == 0.25
-    # measured against the best cycle seen, not only the last one
-    assert trust_region([4.0, 1.2, 1.2, 1.1], [None, 1.2, 1.2, 1.1], 1.0, max_mm=[9.0, 3.0, 3.6, 4.2],
-                        tolerance_mm=2.5) == 0.25
-    # without the largest deviations the rule does not apply
-    assert trust_region([4.0, 1.2, 1.1], [None, 1.2, 1.1], 1.0) == 1.0
-
-
-def test_near_the_tolerance_the_trust_region_halves_unless_the_last_correction_delivered():
-    from mppf.correct.learned import trust_region
-
-    # the RMS is within its tolerance, only the largest deviation is out
-    assert trust_region([4.0, 0.9], [None, 0.8], 1.0) == 1.0  # delivered 3.1 of the 3.2 mm promised: full size
-    assert trust_region([4.0, 2.0, 0.9], [None, 1.9, 0.3], 1.0) == 0.5  # the last gave 1.1 of 1.7 mm: careful
-    assert trust_region([4.0, 0.9], [None, None], 1.0) == 0.5  # no promise to judge it by: careful

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mppf.correct.policy import RESPONSE_RANGE, Outcome, response_ratio, step_plan
+from mppf.correct.policy import MIN_SHARE, Outcome, response_ratio, step_plan
 from mppf.correct.step import outer_ring
 
 ACTIVE = np.ones((6, 8), dtype=bool)
@@ -36,15 +36,13 @@ def test_the_response_ratio_is_the_measured_over_the_promised_change_and_noise_p
     assert response_ratio(0.01 * promised, 0.03 * promised, 0.3) == pytest.approx(1.0, abs=0.05)
 
 
-def test_a_plate_that_moved_twice_the_promise_is_asked_half_as_much():
+def test_a_correction_that_delivered_is_followed_at_full_share_from_the_last_strokes():
     e0 = _field(2, 8.0)
     promised = 0.1 * e0  # the correction promised to take 90 % off
-    e1 = e0 + 2.0 * (promised - e0)  # the plate moved twice that: over-bent by 80 %
+    e1 = e0 + 2.0 * (promised - e0)  # the plate moved twice that: over-bent by 80 %, still better than before
     plan = step_plan(_cycles([e0, e1], [None, promised], [20.0, 19.0]), RING, 2.5, 1.0, noise_mm=0.1)
-    assert plan.response == pytest.approx(2.0, rel=0.02) and plan.edge_response == pytest.approx(2.0, rel=0.05)
-    assert plan.scale == pytest.approx(0.5, rel=0.02) and plan.share == 1.0 and not plan.backtrack
-    assert plan.base == 1  # on from the last strokes
-    np.testing.assert_allclose(plan.scale_mm(RING), plan.share / plan.response_mm(RING))
+    assert plan.ratios[0] == pytest.approx(2.0, rel=0.02) and plan.edge_ratios[0] == pytest.approx(2.0, rel=0.05)
+    assert plan.share == 1.0 and not plan.backtrack and plan.base == 1
     assert "moved 2.00 x what was promised" in plan.notes[0]
 
 
@@ -58,10 +56,14 @@ def test_a_correction_that_made_the_plate_worse_is_followed_by_a_half_step_from_
     assert "start from cycle 2's (the best so far), 50% of the way" in plan.notes[-1]
 
 
-def test_the_response_stays_within_its_range_and_the_first_correction_is_full_size():
-    assert step_plan(_cycles([_field(6, 5.0)], [None], [12.0]), RING, 2.5, 1.0).scale == 1.0
+def test_the_first_correction_is_full_size_and_a_plate_moved_against_the_promise_backtracks():
+    assert step_plan(_cycles([_field(6, 5.0)], [None], [12.0]), RING, 2.5, 1.0).share == 1.0
     e0 = _field(7, 8.0)
     promised = 0.5 * e0
-    e1 = e0 + 10.0 * (promised - e0)
-    plan = step_plan(_cycles([e0, e1], [None, promised], [20.0, 90.0]), RING, 2.5, 1.0)
-    assert plan.response == RESPONSE_RANGE[1] and plan.backtrack and plan.base == 0
+    e1 = e0 - 0.2 * (promised - e0)  # moved the other way (a little)
+    plan = step_plan(_cycles([e0, e1], [None, promised], [20.0, 19.5]), RING, 2.5, 1.0)
+    assert plan.ratios[0] < 0 and plan.backtrack and plan.share == 0.5
+    # three bad corrections in a row: the share stops at MIN_SHARE
+    outcomes = _cycles([e0, e1, e1 * 1.1, e1 * 1.2, e1 * 1.3], [None, promised, promised, promised, promised],
+                       [20.0, 21.0, 22.0, 23.0, 24.0])
+    assert step_plan(outcomes, RING, 2.5, 1.0).share == MIN_SHARE
