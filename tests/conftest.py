@@ -27,13 +27,16 @@ os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
 for _name in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS", "MPPF_THREADS"):
     os.environ.setdefault(_name, "1")
 
-# Job files are sealed with the installation's key (mppf.core.seal), kept in the data folder; the tests use
-# their own key, one for the run, shared by every test process and every `mppf` subprocess (the tests give
-# subprocesses data folders of their own), never the user's.
-if "MPPF_SEAL_KEY" not in os.environ:
+# The tests never use the user's data folder (audit log, history, the installed press, the seal key): one
+# for the run unless a test sets its own. Job files are sealed with the installation's key (mppf.core.seal);
+# the tests share one key for the run between every test process and every `mppf` subprocess (the tests give
+# subprocesses data folders of their own).
+if "MPPF_SEAL_KEY" not in os.environ or "MPPF_HOME" not in os.environ:
     import tempfile
 
-    os.environ["MPPF_SEAL_KEY"] = os.path.join(tempfile.mkdtemp(prefix="mppf-test-key-"), "seal.key")
+    _run_home = tempfile.mkdtemp(prefix="mppf-test-home-")
+    os.environ.setdefault("MPPF_HOME", _run_home)
+    os.environ.setdefault("MPPF_SEAL_KEY", os.path.join(_run_home, "seal.key"))
 
 import numpy  # noqa: F401 - loaded before the BLAS limit below, so that it applies
 import pytest
