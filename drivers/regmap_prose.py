@@ -182,7 +182,8 @@ RESULTS = """\
 apply to one command, the PLC reports the one listed first (and tests only the ones in the
 command's `checks`). So a command with master id 0 is BAD_MASTER whatever else is wrong; a
 command from a master that does not own the PLC is NOT_OWNER even while the e-stop is
-pressed; with the e-stop pressed every owner command but CLAIM is ESTOP_ACTIVE; a GO in the
+pressed; a command with the owner's id but not its auth is BAD_AUTH, also while the e-stop
+is pressed; with the e-stop pressed every owner command but CLAIM is ESTOP_ACTIVE; a GO in the
 wrong state is WRONG_STATE before the key switch (REMOTE_DISABLED) and the token
 (TOKEN_MISMATCH) are looked at; a VALIDATE is SEQUENCE_REUSED before its CRC is computed,
 and LIMIT only when the CRC matches.
@@ -326,11 +327,12 @@ reply, never commands, heartbeats or STOP. Over RTU the frames are separated by 
 POWER_ON = """\
 ## 12. Power-on state
 
-State IDLE; no owner; mailbox, acknowledgement, heartbeat and STOP registers 0; tokens and
-`last_sequence` 0; `refused_writes` and `stop_count` 0; setpoint registers equal to the actual
+State IDLE; no owner and no nonce (`claim_reply` 0); mailbox, both acknowledgements,
+heartbeat and STOP registers 0; tokens and `last_sequence` 0; `refused_writes`,
+`refused_setpoint_writes` and `stop_count` 0; setpoint registers equal to the actual
 positions (the PLC's copy the same); no fault, unless the e-stop circuit is open (FAULT,
 ESTOP); `remote_enabled` as the key switch stands; identity registers filled. A restart is a
-power-on: ownership, tokens and sequences are lost, the punches stay where they are.
+power-on: ownership, nonce, tokens and sequences are lost, the punches stay where they are.
 """
 
 SAFETY = """\

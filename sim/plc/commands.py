@@ -76,6 +76,7 @@ class Commands:
         """STOP: a motion brakes (STOPPING), a job is dropped (STOPPED); FAULT stays FAULT."""
         self._motion_faults = []
         self.stop_cause = cause
+        self.validated = (0, 0)  # STOP always drops the validated job
         if self.state == "EXECUTING":
             self.state = "STOPPING"
             self.hydraulics.stop()

@@ -226,6 +226,9 @@ def test_a_foreign_stop_arrives_during_the_motion():
     owner = _owner(program)
     crc, _ = _validated(owner)
     assert owner.command("GO", 1, crc) == "ACCEPTED"
+    program.advance(0.4)  # the foreign master writes its STOP after this scan
+    program.advance(SCAN_S)
+    assert owner.state() == "STOPPING" and owner.field("validated_sequence") == 0  # STOP drops the token at once
     _run(program, owner, ("STOPPED",))
     assert owner.field("stop_count") == 1 and owner.field("last_stop_master") == FOREIGN_MASTER
 
