@@ -125,6 +125,11 @@ def _command(sim, line: str, echo) -> bool:
     help="Inject a fault (repeatable): stuck:upper:3:5@40, estop[@T], overpressure[@T], freeze[@T], local[@T], "
     "slow:MS[@T], drop[:D][@T], restart[@T]; T = seconds into the motion. See docs/simulator.md.",
 )
+@click.option("--tip-gap-min", type=float, default=5.0, show_default=True,
+              help="The PLC's smallest tip gap (upper - lower setpoint of a pair) VALIDATE accepts, mm.")
+@click.option("--positioning-timeout", type=float, default=2.0, show_default=True,
+              help="The PLC's positioning timeout in s of motion: a punch out of its band this long after every punch "
+                   "came to rest latches STUCK_PUNCH.")
 @click.option(
     "--quirk",
     "quirk_specs",
@@ -137,7 +142,7 @@ def _command(sim, line: str, echo) -> bool:
 @click.option("--duration", type=float, default=None, help="Stop after this many seconds (default: until Ctrl-C).")
 def sim_command(
     host, port, rtu_port, baud, parity, paced, press_path, time_scale, word_order, unit, watchdog, scan_ms, key,
-    fault_specs, quirk_specs, status_every, duration,
+    fault_specs, tip_gap_min, positioning_timeout, quirk_specs, status_every, duration,
 ):  # fmt: skip
     """Run the simulated press PLC until Ctrl-C (or 'quit' on its standard input).
 
@@ -156,7 +161,8 @@ def sim_command(
     if rtu_port and (host is not None or port is not None):
         raise InputError("--rtu cannot be combined with --host/--port", hint="serve either TCP or RTU")
     for name, value, low in (("--time-scale", time_scale, None), ("--watchdog", watchdog, 0.0),
-                             ("--status-every", status_every, None), ("--duration", duration, 0.0)):
+                             ("--status-every", status_every, None), ("--duration", duration, 0.0),
+                             ("--tip-gap-min", tip_gap_min, 0.0), ("--positioning-timeout", positioning_timeout, 0.0)):
         if value is not None and not (math.isfinite(value) and (value > 0 if low is None else value >= low)):
             raise InputError(f"{name} must be a {'positive number' if low is None else 'number >= 0'}, got {value}",
                              hint=f"give {name} {'above 0' if low is None else 'of 0 or more'}; "
@@ -174,6 +180,7 @@ def sim_command(
         rtu_port=rtu_port if rtu_port not in (None, "pty") else None, baud=baud, parity=parity, paced=paced,
         faults=faults, word_order=word_order, unit=unit, time_scale=time_scale, watchdog_s=watchdog or None,
         scan_s=scan_ms / 1000.0, remote=key == "remote", quirks=quirks,
+        limits={"tip_gap_min_mm": tip_gap_min, "positioning_timeout_s": positioning_timeout},
     )
 
     def echo(text: str) -> None:

@@ -246,3 +246,10 @@ def test_mppf_sim_refuses_an_unknown_quirk_with_exit_2(capsys):
 
     assert main(["sim", "--port", "0", "--quirk", "literal", "--duration", "0.1"]) == 2
     assert "unknown PLC quirk 'literal'" in capsys.readouterr().err
+
+
+def test_mppf_sim_names_a_bad_plc_setting(capsys):
+    from mppf.cli import main
+
+    assert main(["sim", "--port", "0", "--tip-gap-min", "-3", "--duration", "0.1"]) == 2
+    assert "--tip-gap-min must be a number >= 0, got -3" in capsys.readouterr().err
