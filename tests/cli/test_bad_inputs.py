@@ -12,6 +12,7 @@ A handful run again through a real ``python -m mppf``.
 from __future__ import annotations
 
 import json
+import os
 import re
 import shutil
 import socket
@@ -144,7 +145,9 @@ def test_bad_input_is_answered_with_exit_2_and_one_clear_message(case, tmp_path,
     assert not list(tmp_path.glob("plates/*")), "a plate folder was made"
 
 
-SUBPROCESS_CASES = ["plate id with path traversal", "plate id with markup", "truncated binary STL -> fit"]
+SUBPROCESS_CASES = ["plate id with path traversal", "plate id with markup", "truncated binary STL -> fit",
+                    "issue 38: pair_up_2 -> press --plc", "issue 38: section2_centre_1000 -> press (dry run)",
+                    "issue 38: a space in the PLC host -> press"]
 
 
 @pytest.mark.parametrize("case_id", SUBPROCESS_CASES)
@@ -152,10 +155,13 @@ def test_bad_input_through_a_real_process(case_id, tmp_path, good_inputs):
     case = next(c for c in CASES if c["id"] == case_id)
     args = _materialise(case, tmp_path, good_inputs)
     proc = subprocess.run([sys.executable, "-m", "mppf", *args], capture_output=True, text=True, timeout=120,
-                          env={"MPPF_HOME": str(tmp_path / "home"), "PATH": "/usr/bin:/bin", "COLUMNS": "80"})
+                          env={"MPPF_HOME": str(tmp_path / "home"), "PATH": "/usr/bin:/bin", "COLUMNS": "80",
+                               "MPPF_SEAL_KEY": os.environ["MPPF_SEAL_KEY"]})  # the key the good jobs were sealed with
     text = " ".join(proc.stderr.split())
     assert proc.returncode == EXIT_INPUT, text
     assert "Traceback" not in proc.stderr and text.startswith("error:"), text
+    for words in case["expect"]:
+        assert words in text, f"{words!r} missing from: {text}"
     for words in case["expect"]:
         assert words in text
     lines = [line for line in proc.stderr.splitlines() if line.strip()]
