@@ -101,7 +101,7 @@ def test_a_link_reset_for_1_5_s_is_reconnected_and_the_press_stopped(tmp_path):
             took = time.monotonic() - started
             stops = [(e.outcome, e.detail) for e in audit.entries() if e.action == "stop"]
         assert "STOP was sent after reconnecting" in str(info.value), str(info.value)
-        assert proxy.resets >= 3  # several tries met a connection accepted and reset
+        assert proxy.resets >= 1  # tries met connections accepted and reset at once
         assert stops and stops[0][0] == "ok"
         assert sim.state() == "STOPPED" and took < 10
     finally:
