@@ -120,9 +120,20 @@ def test_a_simulator_reached_with_plc_is_asked_for_like_any_plc(job_path, sim, t
 
 
 def test_real_plc_with_yes_runs(job_path, sim, tmp_path, capsys):
-    assert main(["press", str(job_path), "--plc", sim.url, "--yes", "--audit", str(tmp_path / "a.sqlite")]) == 0
+    # the simulator at --plc moves 50x faster than the press: said with --time-scale, else its COMPLETE is refused
+    args = ["press", str(job_path), "--plc", sim.url, "--yes", "--audit", str(tmp_path / "a.sqlite")]
+    assert main(args + ["--time-scale", "50"]) == 0
     out = capsys.readouterr().out
     assert "2 step(s) pressed" in out and "dry run" not in out
+
+
+def test_a_complete_sooner_than_the_press_can_move_is_refused(job_path, sim, tmp_path, capsys):
+    audit = tmp_path / "a.sqlite"
+    assert main(["press", str(job_path), "--plc", sim.url, "--yes", "--audit", str(audit)]) == 4
+    err = " ".join(capsys.readouterr().err.split())
+    assert "the PLC reported COMPLETE after" in err and "cannot be believed" in err and "at rest" in err
+    assert ("complete", "too soon") in [a[:2] for a in audit_actions(audit)]
+    assert not sim.wait_idle(2.0)["busy"]
 
 
 def test_estop_during_motion_exits_4_and_the_press_is_stopped(job_path, sim, tmp_path, capsys):
