@@ -223,11 +223,17 @@ def finished_row(plate: Plate, options: BatchOptions, key: str) -> dict | None:
     """The summary row of a finished job with this input key, or None (no job, another key, unreadable)."""
     from mppf.planning.job import load_job
 
+    from mppf.core.seal import SealError
+
     path = job_path(plate, options)
     if not path.is_file():
         return None
     try:
         job = load_job(path)
+    except SealError as exc:  # planned again (the edited job is replaced), and said so in the summary
+        row = plan_plate_files(plate, options, key)
+        note = f"the job in the output folder had been changed after it was sealed, planned again ({exc.message})"
+        return {**row, "warnings": "; ".join(w for w in (row.get("warnings"), note) if w)}
     except InputError:
         return None
     batch = job.extra.get("batch", {})

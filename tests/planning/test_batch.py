@@ -155,3 +155,18 @@ def test_a_plan_that_steps_at_its_section_borders_is_a_warning_in_the_summary():
     row = summary_row(Plate(name="p", design="p.csv", flat=None, thickness_mm=20.0), job, 0.01, ["flat: fine"], 1.0,
                       1.0)
     assert row["warnings"] == f"flat: fine; {warning}" and row["border_step_mm"] == 5.5 and row["sections"] == 2
+
+
+def test_a_finished_job_changed_after_its_seal_is_planned_again_and_said_so(plate_dir, tmp_path):
+    import json
+
+    plates = read_manifest(plate_dir / "plates.csv")[:1]
+    run_batch(plates, _options(tmp_path))
+    path = tmp_path / "S1.job.json"
+    doc = json.loads(path.read_text())
+    doc["thickness_mm"] = 19.0  # edited by hand in the output folder
+    path.write_text(json.dumps(doc))
+    (row,) = run_batch(plates, _options(tmp_path))
+    assert row["status"] == "planned" and "had been changed after it was sealed" in row["warnings"]
+    assert "changed: thickness" in row["warnings"]
+    assert load_job(path).thickness_mm == 20.0  # the edited job was replaced by the plan
