@@ -36,10 +36,11 @@ def mbpoll() -> str:
 
 
 def run_mbpoll(mbpoll, *args) -> dict[int, str]:
-    """Run mbpoll once; return {reference: value text} of its output."""
+    """Run mbpoll once; return {reference: value text} of its output (a value above 32767 is followed by its
+    signed reading in brackets, left out)."""
     result = subprocess.run([mbpoll, "-1", "-0", *args], capture_output=True, text=True, timeout=20)
     assert result.returncode == 0, result.stdout + result.stderr
-    return {int(ref): value for ref, value in re.findall(r"^\[(\d+)\]:\s+(\S+)\s*$", result.stdout, re.M)}
+    return {int(ref): value for ref, value in re.findall(r"^\[(\d+)\]:\s+(\S+)", result.stdout, re.M)}
 
 
 @pytest.mark.parametrize("word_order", ["ABCD", "CDAB"])
@@ -76,3 +77,34 @@ def test_mbpoll_reads_magic_over_rtu_on_a_pty(mbpoll):
             mbpoll, "-m", "rtu", "-b", "19200", "-P", parity, "-a", "1", "-r", "0", "-c", "2", "-t", "4:hex", sim.serial_port
         )
         assert [magic[0], magic[1]] == ["0x4D50", "0x5046"]
+
+
+def test_a_bare_master_claims_with_a_key_and_cannot_borrow_the_owners_id(mbpoll):
+    """Section 7 of the map with mbpoll alone: CLAIM with a claim key returns the nonce masked, never in clear;
+    the same id without the auth is refused BAD_AUTH (a PLC programmer's check)."""
+    from mppf.drivers import codec
+
+    with run_simulated_plc(PRESS, watchdog_s=None) as sim:
+        port = str(sim.port)
+        mailbox = MAP["command"].address
+        key = 0x12345678
+        # CLAIM: command 1, counter 7, master 0x0000ABCD, claim key, auth 0 0, sequence 0 (ABCD word order)
+        words = [MAP.command("CLAIM"), 7, 0, 0xABCD] + codec.u32_to_words(key) + [0, 0, 0]
+        run_mbpoll(mbpoll, "-p", port, "-a", "1", "-r", str(mailbox), "-t", "4", "127.0.0.1", *map(str, words))
+        sim.scans(3)
+        status = run_mbpoll(mbpoll, "-p", port, "-a", "1", "-r", str(MAP["owner_master"].address), "-c", "8",
+                            "-t", "4", "127.0.0.1")
+        first = MAP["owner_master"].address
+        owner = codec.words_to_u32([int(status[first]), int(status[first + 1])])
+        reply_at = MAP["claim_reply"].address
+        reply = codec.words_to_u32([int(status[reply_at]), int(status[reply_at + 1])])
+        assert owner == 0xABCD and MAP.results.name(int(status[MAP["owner_result_code"].address])) == "ACCEPTED"
+        nonce = sim._call(lambda: sim.plc.nonce)
+        assert reply == nonce ^ key and reply != nonce
+        assert run_mbpoll(mbpoll, "-p", port, "-a", "1", "-r", str(MAP["command_crc"].address), "-c", "2", "-t", "4",
+                          "127.0.0.1") == {MAP["command_crc"].address: "0", MAP["command_crc"].address + 1: "0"}
+        # RESET in the owner's name without its auth: BAD_AUTH
+        words = [MAP.command("RESET"), 8, 0, 0xABCD, 0, 0, 0, 0, 0]
+        run_mbpoll(mbpoll, "-p", port, "-a", "1", "-r", str(mailbox), "-t", "4", "127.0.0.1", *map(str, words))
+        sim.scans(3)
+        assert sim.result() == "BAD_AUTH"
