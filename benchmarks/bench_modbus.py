@@ -54,9 +54,10 @@ def press_32x32():
 
 
 def setpoints(press, k: int):
+    """Random setpoints the PLC's own checks take: neighbours within 20 mm of each other, tips 60-70 mm apart."""
     rng = np.random.default_rng(k)
-    upper = np.round(rng.uniform(50.0, 200.0, press.shape), 2)
-    lower = np.round(rng.uniform(-200.0, 0.0, press.shape), 2)
+    lower = np.round(rng.uniform(-200.0, -180.0, press.shape), 2)
+    upper = np.round(lower + 60.0 + rng.uniform(0.0, 10.0, press.shape), 2)
     return upper, lower
 
 
