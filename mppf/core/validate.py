@@ -73,9 +73,14 @@ def check_number(
         hint = f"give {what} {allowed}" if allowed != "finite" else f"give a finite {what[2:]}"
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise error(f"{name} must be {what}, got {value!r}", hint=hint)
-    number = float(value)
+    try:
+        number = float(value)
+    except OverflowError:  # an integer beyond any float (a TOML or JSON file may hold one)
+        number = math.inf
     if not math.isfinite(number):
-        raise error(f"{name} must be a finite number, got {value!r}", hint=hint)
+        big = isinstance(value, int) and abs(value) >= 10**30
+        shown = f"an integer of {len(str(abs(value)))} digits" if big else repr(value)
+        raise error(f"{name} must be a finite number, got {shown}", hint=hint)
     if integer:
         if number != int(number):
             raise error(f"{name} must be a whole number, got {value!r}", hint=hint)

@@ -295,13 +295,18 @@ def read_job_document(path) -> dict:
     except (IsADirectoryError, UnicodeDecodeError, PermissionError) as exc:
         raise InputError(f"job file {path} cannot be read: {exc}") from None
     try:
-        doc = json.loads(text)
+        doc = json.loads(text, parse_int=_parse_int)
     except json.JSONDecodeError as exc:
         raise ConfigError(f"{path}, line {exc.lineno}: not valid JSON: {exc.msg}") from None
     except RecursionError:
         raise ConfigError(f"{path}: not a job: its JSON is nested too deeply to be one",
                           hint="give the job file 'mppf plan' wrote") from None
     return doc
+
+
+def _parse_int(text: str):
+    """A JSON integer: an int, or beyond 18 digits a float (infinite beyond floats: refused as not finite)."""
+    return int(text) if len(text.lstrip("-")) <= 18 else float(text)
 
 
 MAX_JOB_BYTES = 256_000_000

@@ -110,7 +110,7 @@ def check_job_document(doc, source: str = "job") -> None:
                     problems.add([f"{where}step {k} {side} punch ({label(r, c)}) is parked (not active) but has a "
                                   f"stroke {value:.2f} mm; parked punches stand at park {parks.get(side, '?')} mm"])
     problems.add(f"{where} is {value} (not a finite number)" for where, value in _non_finite(
-        {k: v for k, v in doc.items() if k not in ("steps", "sections")}))
+        {k: v for k, v in doc.items() if k not in ("steps", "sections", "thickness_mm")}))
     for i, sec in enumerate(sections, start=1):
         if isinstance(sec, dict):
             problems.add(f"section {i} {where} is {value} (not a finite number)"

@@ -178,6 +178,9 @@ FILES38.update({
     "metres_csv": ("metres.csv", _metres),
     "step_nul": ("nul.step", _STEP_NUL),
     "job_deep": ("deep.job.json", "[" * 100_000),
+    "job_big_int": ("bigint.job.json", lambda path, good: path.write_text(
+        Path(good["job"]).read_text().replace('"thickness_mm": 20.0', '"thickness_mm": ' + "9" * 400, 1))),
+    "press_big_int": ("bigint.toml", _PRESS.read_text().replace("rows = 16", "rows = " + "9" * 400)),
     "comma_decimals_6": ("comma6.csv", "".join(f"{x},0,{y},5,{(x * x) % 7},25\n" for x in range(-600, 601, 100)
                                                for y in range(-400, 401, 100))),
     "comma_decimals_4": ("comma4.csv", "".join(f"{x},{y},{(x * x) % 7},5\n" for x in range(-600, 601, 100)
@@ -278,6 +281,11 @@ def _cases() -> list[dict]:
          "expect": ["comma4.csv, line 1", "4 comma-separated columns", "decimal commas"]},
         {"id": "issue 38: a job nested too deeply -> press", "kind": "job38", "files": ["job_deep"],
          "args": ["press", "{job_deep}"], "expect": ["deep.job.json", "nested too deeply"]},
+        {"id": "issue 38: an integer of 400 digits in a job -> press", "kind": "job38", "files": ["job_big_int"],
+         "args": ["press", "{job_big_int}"], "expect": ["bigint.job.json", "thickness_mm is Infinity"]},
+        {"id": "issue 38: an integer of 400 digits in a press -> plan", "kind": "press", "files": ["press_big_int"],
+         "args": ["plan", "{design}", "{flat}", "--thickness", "20", "--press", "{press_big_int}"],
+         "expect": ["bigint.toml", "rows must be a finite number, got an integer of 400 digits"]},
         {"id": "issue 38: a device as the job -> press", "kind": "job38", "args": ["press", "/dev/zero"],
          "expect": ["/dev/zero is not a regular file"]},
         {"id": "issue 38: a device as the job -> panel", "kind": "job38", "args": ["panel", "--job", "/dev/zero"],
