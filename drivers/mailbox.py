@@ -33,6 +33,7 @@ class Mailbox:
         head += codec.u32_to_words(crc, order)
         auth = codec.auth_crc32(self._nonce, head + [sequence])
         self._io.write_command(self.map["command"].address, head + codec.u32_to_words(auth, order) + [sequence])
+        self._sent_code = self.map.command(name)
         return self._counter
 
     def _acknowledged(self, raw: dict, counter: int) -> dict | None:
@@ -42,7 +43,8 @@ class Mailbox:
         changes them); the shared ones only name a command of this master that the PLC refused
         before it knew us as the owner (a refused CLAIM).
         """
-        if raw["owner_master"] == self.master_id and raw["owner_ack_counter"] == counter:
+        ours = raw["owner_ack_counter"] == counter and raw["owner_ack_command"] == getattr(self, "_sent_code", None)
+        if ours and raw["owner_master"] in (self.master_id, 0):  # 0: our RELEASE accepted (no owner now)
             return dict(raw, result_code=raw["owner_result_code"])
         if raw["ack_counter"] == counter and raw["ack_master"] == self.master_id:
             return raw
