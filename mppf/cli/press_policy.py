@@ -82,6 +82,7 @@ def reset_question(yes: bool):
 
     def confirm(question: str) -> bool:
         if yes:
+            click.echo(f"NOTE: {question}: yes (--yes)", err=True)
             return True
         if not sys.stdin.isatty():
             return False

@@ -127,6 +127,17 @@ def test_real_plc_with_yes_runs(job_path, sim, tmp_path, capsys):
     assert "2 step(s) pressed" in out and "dry run" not in out
 
 
+def test_a_press_stopped_by_someone_else_is_named_before_its_reset(job_path, sim, tmp_path, capsys):
+    audit = tmp_path / "a.sqlite"
+    assert main(["stop", "--plc", sim.url, "--audit", str(tmp_path / "other.sqlite")]) == 0  # another operator
+    assert sim.state() == "STOPPED"
+    capsys.readouterr()
+    assert main(["press", str(job_path), "--plc", sim.url, "--yes", "--time-scale", "50", "--audit", str(audit)]) == 0
+    err = " ".join(capsys.readouterr().err.split())
+    assert "is STOPPED by a STOP request of master 0x" in err and "1 STOP request(s)" in err and "yes (--yes)" in err
+    assert ("foreign stop", "reset confirmed") in [a[:2] for a in audit_actions(audit)]
+
+
 def test_a_complete_sooner_than_the_press_can_move_is_refused(job_path, sim, tmp_path, capsys):
     audit = tmp_path / "a.sqlite"
     assert main(["press", str(job_path), "--plc", sim.url, "--yes", "--audit", str(audit)]) == 4
