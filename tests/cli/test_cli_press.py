@@ -299,3 +299,27 @@ def test_a_job_for_another_press_file_or_another_matrix_exits_2(job_path, tmp_pa
     assert main(["press", str(wide), "--plc", sim.url, "--yes", "--press", str(wide_toml)]) == 2  # and the PLC's
     assert "drives 4 x 6 punches" in " ".join(capsys.readouterr().err.split())
     assert sim.server.master_writes == 0
+
+
+@pytest.mark.parametrize("quirk, code, said", [
+    ("literal-complete", 4, "the PLC reported COMPLETE after"),
+    ("late-status:3", 0, "2 step(s) pressed"),
+    ("borrow-ids", 0, "2 step(s) pressed"),
+    ("none-after-go", 0, "2 step(s) pressed"),
+    ("foreign-stop@1.0", 4, "was stopped by a STOP request of master 0xF0E1D2C3"),
+])
+def test_mppf_press_against_each_misbehaving_plc_ends_at_rest(job_path, press, tmp_path, capsys, quirk, code, said):
+    """The scenarios of docs/simulator.md ("Quirks"), as the operator runs them: exit code, message, press at rest."""
+    sim = start_simulated_plc(press, time_scale=20.0, watchdog_s=2.0, quirks=[quirk])
+    try:
+        result = main(["press", str(job_path), "--plc", sim.url, "--yes", "--time-scale", "20",
+                       "--audit", str(tmp_path / "a.sqlite")])
+        out, err = capsys.readouterr()
+        assert result == code, err
+        assert said in " ".join((out + err).split())
+        assert "Traceback" not in err
+        bits = sim.status_bits()
+        assert not bits["busy"] and not sim._call(lambda: sim.plc.hydraulics.moving)  # at rest when mppf exits
+        assert sim._call(lambda: sim.plc.owner) == 0  # and the lease given back (after rest)
+    finally:
+        sim.stop()
