@@ -102,7 +102,9 @@ def _polygon_distance(a, b) -> float:
         return np.sqrt(((points[:, None, :] - nearest) ** 2).sum(axis=2)).min(axis=1)
 
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    return float(max(to_outline(a, b).max(), to_outline(b, a).max()))
+    with np.errstate(all="ignore"):  # absurd coordinates (1e300 mm) give inf or nan: not the same outline
+        off = float(max(to_outline(a, b).max(), to_outline(b, a).max()))
+    return off if np.isfinite(off) else np.inf
 
 
 def _check_sections(job, counted: bool = True) -> list[str]:

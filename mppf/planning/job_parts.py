@@ -146,7 +146,7 @@ class PlateLayout:
             # (older jobs stored the net outline's corner) is not read
             layout = cls(outline_mm=outline, net_outline_mm=net, margin_mm=margin,
                          design_mid_mm=grid_from_json(mid), material=None if not material else Material(**material))
-        except (KeyError, TypeError, ValueError) as exc:
+        except (KeyError, TypeError, ValueError, OverflowError) as exc:
             raise ConfigError(f"{source}: the plate layout is malformed ({type(exc).__name__}: {exc})",
                               hint="re-plan the plate with 'mppf plan'") from None
         for name, poly in (("outline_mm", layout.outline_mm), ("net_outline_mm", layout.net_outline_mm)):

@@ -124,7 +124,7 @@ def section_from_dict(doc, press: PressConfig, source: str) -> Section:
             extra={k: v for k, v in doc.items() if k not in SECTION_KEYS})
     except InputError as exc:
         raise ConfigError(f"{source}: {exc.message}", hint="re-plan the plate with 'mppf plan'") from None
-    except (KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:
         raise ConfigError(f"{source}: the section is malformed ({type(exc).__name__}: {exc})",
                           hint="re-plan the plate with 'mppf plan'") from None
     if section.own_weight is None or section.own_weight.shape != press.shape:
