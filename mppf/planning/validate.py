@@ -149,7 +149,8 @@ def _parks(doc: dict) -> dict:
 
 
 def _labeller(doc: dict):
-    matrix = doc.get("press", {}).get("matrix", {}) if isinstance(doc.get("press"), dict) else {}
+    matrix = doc["press"].get("matrix") if isinstance(doc.get("press"), dict) else None
+    matrix = matrix if isinstance(matrix, dict) else {}
     base = matrix.get("label_base", 1) if matrix.get("label_base", 1) in (0, 1) else 1
     return lambda r, c: f"row {r + base}, col {c + base}"
 
@@ -157,13 +158,10 @@ def _labeller(doc: dict):
 def load_checked_job(path, *, require_seal: bool = True) -> Job:
     """Read a job file through the one strict loader, :func:`mppf.planning.job.load_job`.
 
-    Numbers where numbers belong (:func:`check_job_document`), then the seal, then the format.
-
     Raises
     ------
     InputError
-        Missing or unreadable file, invalid JSON, values that are not numbers, a seal that does
-        not match, an invalid job.
+        Missing or unreadable file, invalid JSON, non-numbers, a seal that does not match, an invalid job.
     """
     return load_job(path, require_seal=require_seal)
 
