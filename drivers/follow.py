@@ -148,7 +148,7 @@ class Follow:
         raise PressFault(
             f"job {seq}: the PLC reported COMPLETE after {duration:.2f} s, but a move of {longest:.1f} mm takes "
             f"at least {fastest_s:.2f} s on this press: the PLC's COMPLETE cannot be believed; "
-            + ("STOP was sent and the press came to rest" if stopped else "the press was read at rest"),
+            + self._rest_words(stopped),
             hint="check the PLC program against docs/register-map.md (section 3, 'at rest') before the next step")
 
     def _check_motion(self, seq: int, raw: dict, ours: bool, last_hb: int, targets_mm, reporter) -> None:
@@ -187,8 +187,7 @@ class Follow:
             self.audit.record(str(self.url), "complete", "out of tolerance", job_sha256=self.job_sha256, sequence=seq,
                               detail=f"{len(off)} punches; PLC in_position {raw['flags']['in_position']}")
             named = listed(off) if off else "the PLC does not report the punches in position (in_position clear)"
-            rest = ("the punches were still moving: STOP was sent and the press came to rest" if stopped
-                    else "the press was read at rest")
+            rest = ("the punches were still moving: " if stopped else "") + self._rest_words(stopped)
             raise PressFault(
                 f"job {seq}: the PLC reported COMPLETE with {len(off)} punch(es) not in position within "
                 f"{self.press.position_tolerance_mm} mm: {named}; {rest}",
@@ -200,6 +199,14 @@ class Follow:
         return StepResult(sequence=seq, target_upper_mm=targets_mm["upper"], target_lower_mm=targets_mm["lower"],
                           actual_upper_mm=actual["upper"], actual_lower_mm=actual["lower"], max_error_mm=max_error,
                           duration_s=duration)
+
+    def _rest_words(self, stopped: bool) -> str:
+        """What the message says of the press after :meth:`_stop_if_moving` (only what was read)."""
+        if not stopped:
+            return "the press was read at rest"
+        if self._not_at_rest:
+            return "STOP was sent, but the press did not read at rest in time: check it at the machine"
+        return "STOP was sent and the press came to rest"
 
     def _await_in_position(self, raw: dict) -> dict:
         """Every punch in its band by the driver's reading but ``in_position`` still clear: status bits may come
