@@ -24,7 +24,7 @@ COMMAND_MODULES = {
     "press": "press_cmd", "status": "press_cmd", "stop": "press_cmd", "reset": "press_cmd",
     "compare": "compare_cmd", "loop": "loop_cmd", "history": "history_cmd", "demo": "demo_cmd",
     "panel": "panel_cmd", "extract": "extract_cmd",
-    "batch": "batch_cmd", "reseal": "reseal_cmd",
+    "batch": "batch_cmd", "reseal": "reseal_cmd", "tryout": "tryout_cmd",
 }
 """Every command of ``mppf`` and the module of :mod:`mppf.cli` that defines it (in its ``COMMANDS``)."""
 

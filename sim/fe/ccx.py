@@ -2,8 +2,8 @@
 
 :func:`run_ccx` writes the deck (and the restart file of the run before, ``<job>.rin``) into a
 temporary folder, runs ``ccx -i <job>`` there with one thread, reports the step and increment
-it is at every :data:`PROGRESS_S` seconds (from ``<job>.sta``), and returns the .frd text and
-the new restart file. When ccx fails (exit status, ``*ERROR`` in its log, no result) the folder
+it is at every :data:`PROGRESS_S` seconds (from ``<job>.sta``), and returns the .frd text (and the
+restart file when the deck writes one). When ccx fails (exit status, ``*ERROR`` in its log, no result) the folder
 is kept (``mppf-ccx-failed-*`` in the temporary directory) and :class:`FESolveError` names it.
 """
 
@@ -46,7 +46,7 @@ class CcxRun:
     frd : str
         The .frd result file (nodal displacements).
     restart : bytes
-        The restart file written (``<job>.rout``), for the next run's ``.rin``.
+        The restart file written (``<job>.rout``; empty without ``*RESTART, WRITE``), for a next run's ``.rin``.
     seconds : float
         Wall time of the run, s.
     log_tail : str
@@ -123,10 +123,11 @@ def run_ccx(deck: str, *, restart_in: bytes | None = None, progress=None,
     seconds = time.monotonic() - start
     text = (folder / "ccx.log").read_text(errors="replace")
     frd, rout = folder / f"{JOB}.frd", folder / f"{JOB}.rout"
-    if proc.returncode != 0 or "*ERROR" in text or not frd.exists() or not rout.exists():
+    if proc.returncode != 0 or "*ERROR" in text or not frd.exists():
         reason = next((line.strip() for line in text.splitlines() if "*ERROR" in line), "")
         _fail(folder, f"ccx failed (exit status {proc.returncode}{': ' + reason if reason else ''})")
-    result = CcxRun(frd.read_text(errors="replace"), rout.read_bytes(), seconds, text[-2000:])
+    result = CcxRun(frd.read_text(errors="replace"), rout.read_bytes() if rout.exists() else b"", seconds,
+                    text[-2000:])
     shutil.rmtree(folder, ignore_errors=True)
     return result
 

@@ -1,6 +1,6 @@
-"""CalculiX input decks of the FE plate: the model and the steps of one press step.
+"""CalculiX input decks of the FE plate: the model and the steps of its press steps.
 
-The model (written once, in the first run; later runs continue from its restart file):
+The model:
 
 - the plate's C3D8I hexahedra (:mod:`mppf.sim.fe.mesh`), one ``*MATERIAL`` per yield-scatter bin
   (elastic, ``*PLASTIC, HARDENING=KINEMATIC`` on the steel's flow curve scaled by the bin's yield
@@ -14,15 +14,16 @@ The model (written once, in the first run; later runs continue from its restart 
 A press step is three ``*STEP, NLGEOM`` (large deflection: bending and membrane coupled):
 
 1. ``APPROACH`` (not before the first press step, where the flat stroke set touches the flat plate):
-   the tips move to touch the plate as it lies, while three mid-thickness nodes still hold it;
+   the tips move to touch the plate as it lies, while three mid-thickness nodes still hold it where
+   the step before left them (their displacements written out);
 2. ``LOAD``: those holds are released and the tips travel to the step's tip heights (parked pairs
    to their park heights) while the gaps close and open;
 3. ``RELEASE``: three mid-thickness nodes on punch axes far apart are frozen where they are
    (``*BOUNDARY, FIXED``: statically determinate, they carry no force once the tips are gone)
    and the tips retract :data:`RETRACT_MM`; the gaps open one by one as the plate springs back.
 
-Displacements are written to the .frd file at the end of each step, the tips' reactions (the
-contact forces) to the .dat file, the state to the restart file (``*RESTART, WRITE``).
+A run replays every press step of the plate from the flat plate (:func:`history_deck`); the
+displacements of the last one's load and release are written to the .frd file.
 """
 
 from __future__ import annotations
@@ -143,8 +144,8 @@ def release_holds(mesh) -> np.ndarray:
     return np.array([a, b, int(np.argmax(cross))])
 
 
-def step_lines(mesh, name: str, tips_z_mm: np.ndarray, *, new: bool, frozen: bool,
-               initial_increment: float = 0.25) -> list[str]:
+def step_lines(mesh, name: str, tips_z_mm: np.ndarray, *, new: bool, frozen: bool, held_u_mm=None,
+               initial_increment: float = 0.25, output: bool = True) -> list[str]:
     """One static step: tips to heights, optionally the three release holds frozen.
 
     Parameters
@@ -158,8 +159,13 @@ def step_lines(mesh, name: str, tips_z_mm: np.ndarray, *, new: bool, frozen: boo
         Replace every earlier boundary condition (``OP=NEW``): the holds of the step before are gone.
     frozen : bool
         Freeze the three release holds where the step before left them.
+    held_u_mm : (3,) float, optional
+        Hold the three release holds at these z displacements, mm (a restarted run does not keep
+        the values ``FIXED`` froze in the run before).
     initial_increment : float
         First increment, share of the step.
+    output : bool
+        Write the plate's displacements (.frd) at the step's increments.
     """
     lower, upper = tip_nodes(mesh)
     start = np.concatenate([mesh.xyz_mm[mesh.bottom - 1, 2], mesh.xyz_mm[mesh.top - 1, 2]])
@@ -174,41 +180,68 @@ def step_lines(mesh, name: str, tips_z_mm: np.ndarray, *, new: bool, frozen: boo
     out += ["*CONTROLS, PARAMETERS=TIME INCREMENTATION", "8,10,9,200,10,4,0,5"]
     out += ["*BOUNDARY, OP=NEW" if new else "*BOUNDARY"] + planar_holds(mesh)
     out += [f"{int(node)},3,3,{dz:.6f}" for node, dz in zip(np.concatenate([lower, upper]), move)]
+    if held_u_mm is not None:
+        out += [f"{int(mesh.middle[i])},3,3,{u:.6f}" for i, u in zip(release_holds(mesh), held_u_mm)]
     if frozen:
         out += ["*BOUNDARY, FIXED"] + [f"{int(mesh.middle[i])},3,3" for i in release_holds(mesh)]
-    out += ["*NODE FILE, NSET=PLATEN", "U", "*NODE PRINT, NSET=TIPS, TOTALS=NO", "RF", "*RESTART, WRITE",
-            "*END STEP"]
+    if output:
+        out += ["*NODE FILE, NSET=PLATEN, FREQUENCY=1000", "U"]
+    out += ["*END STEP"]
     return out
 
 
-def press_step_deck(mesh, model: list[str] | None, restart_step: int, touch_z_mm, tips_z_mm) -> str:
-    """The deck of one press step.
+def press_step_lines(mesh, tips_z_mm, touch_z_mm=None, held_u_mm=None, *, output: bool = True) -> list[str]:
+    """The steps of one press step: approach (unless the first), load, release.
 
     Parameters
     ----------
     mesh : PlateMesh
-    model : list of str or None
-        The model lines (the first press step), or None to continue from the restart file
-        (``*RESTART, READ, STEP=restart_step``).
-    restart_step : int
-        Steps run so far.
-    touch_z_mm : (2 m,) float or None
-        Tip heights touching the plate as it lies (the approach step); None: no approach
-        (the first press step).
     tips_z_mm : (2 m,) float
         The step's tip heights (absolute, lower then upper), mm.
+    touch_z_mm : (2 m,) float, optional
+        Tip heights touching the plate as the step before left it (the approach); None for the
+        first press step (the flat stroke set touches the flat plate).
+    held_u_mm : (3,) float, optional
+        z displacements of the release holds as the step before left them, mm (with ``touch_z_mm``).
+    output : bool
+        Write the displacements at the end of the load and the release.
+    """
+    out = []
+    if touch_z_mm is not None:
+        out += step_lines(mesh, "APPROACH", touch_z_mm, new=True, frozen=False, held_u_mm=held_u_mm,
+                          initial_increment=1.0, output=False)
+    out += step_lines(mesh, "LOAD", tips_z_mm, new=True, frozen=False, output=output)
+    tips = np.asarray(tips_z_mm, dtype=float).copy()
+    m = len(mesh.bottom)
+    tips[:m] -= RETRACT_MM
+    tips[m:] += RETRACT_MM
+    out += step_lines(mesh, "RELEASE", tips, new=True, frozen=True, initial_increment=0.05, output=output)
+    return out
+
+
+def history_deck(mesh, model: list[str], history: list[tuple]) -> str:
+    """The deck replaying a plate's press steps from the flat plate: the model, then every step.
+
+    Parameters
+    ----------
+    mesh : PlateMesh
+    model : list of str
+        :func:`model_lines`.
+    history : list of (tips_z_mm, touch_z_mm, held_u_mm)
+        Every press step so far and the new one, in order (:func:`press_step_lines`); the first
+        has no touch / held values. Only the last writes displacements.
 
     Returns
     -------
     str
     """
-    out = list(model) if model is not None else [f"*RESTART, READ, STEP={restart_step}"]
-    if touch_z_mm is not None:
-        out += step_lines(mesh, "APPROACH", touch_z_mm, new=False, frozen=False, initial_increment=1.0)
-    out += step_lines(mesh, "LOAD", tips_z_mm, new=True, frozen=False)
-    tips = np.asarray(tips_z_mm, dtype=float).copy()
-    m = len(mesh.bottom)
-    tips[:m] -= RETRACT_MM
-    tips[m:] += RETRACT_MM
-    out += step_lines(mesh, "RELEASE", tips, new=True, frozen=True, initial_increment=0.05)
+    out = list(model)
+    for k, (tips, touch, held) in enumerate(history):
+        out += press_step_lines(mesh, tips, None if k == 0 else touch, None if k == 0 else held,
+                                output=k == len(history) - 1)
     return "\n".join(out) + "\n"
+
+
+def step_count(press_steps: int) -> int:
+    """Analysis steps of a deck of ``press_steps`` press steps (2 for the first, 3 for each later one)."""
+    return 0 if press_steps == 0 else 2 + STEPS_PER_PRESS * (press_steps - 1)

@@ -3,9 +3,11 @@
 :class:`FEPlate` has the interface of :class:`mppf.sim.plate.plate.SteelPlate` (``place``,
 ``press_step``, ``formed``, ``state_dict`` / ``from_state``), so the dry run's scanner presses and
 scans it like the finite-difference plate. Each :meth:`FEPlate.press_step` is one ccx run of the
-deck of :func:`mppf.sim.fe.deck.press_step_deck` (approach, load, release); the first run writes
-the model, every later one continues from the restart file of the run before, so the plastic
-state (stresses, back stresses, plastic strains) carries from step to step and cycle to cycle.
+deck of :func:`mppf.sim.fe.deck.history_deck`: the model, then every press step the plate has had
+(approach, load, release) replayed from the flat plate, then the new one, so the plastic state
+(stresses, back stresses, plastic strains) carries from step to step and cycle to cycle. (A ccx
+restart file would save the replay, but CalculiX 2.20 does not restore the incompatible modes of
+C3D8I elements from it: the restarted plate is out of equilibrium by 1e5 N.)
 See docs/simulator-fe.md.
 """
 
@@ -16,7 +18,7 @@ from dataclasses import asdict
 
 import numpy as np
 from mppf.sim.fe.ccx import FESolveError, run_ccx
-from mppf.sim.fe.deck import STEPS_PER_PRESS, model_lines, press_step_deck
+from mppf.sim.fe.deck import history_deck, model_lines, release_holds, step_count
 from mppf.sim.fe.formed import FormedFEPlate
 from mppf.sim.fe.mesh import build_mesh
 from mppf.sim.fe.results import last_of_steps, read_frd
@@ -114,8 +116,7 @@ class FEPlate:
         self.tips_lower_mm = np.zeros(m)
         self.tips_upper_mm = self.mesh.thickness_mm.copy()
         self.tips_enabled = np.ones(m, dtype=bool)
-        self.restart = b""
-        self.ccx_steps = 0
+        self.history: list[tuple] = []  # (tips (2 m,), touch (2 m,), held (3,)) of every press step
         self.steps = 0
         self.last_seconds = 0.0
 
@@ -174,21 +175,19 @@ class FEPlate:
         if share < 1.0:
             lower = np.where(enabled, start_lower + share * (lower - start_lower), lower)
             upper = np.where(enabled, start_upper + share * (upper - start_upper), upper)
-        first = self.ccx_steps == 0
-        model = None if not first else model_lines(self.mesh, self.plate.steel, self._yield_factor(),
-                                                    self.punch_stiffness_n_mm)
-        touch = None if first else np.concatenate(self._skins())
-        deck = press_step_deck(self.mesh, model, self.ccx_steps, touch, np.concatenate([lower, upper]))
-        run = run_ccx(deck, restart_in=None if first else self.restart, progress=self.progress)
+        entry = (np.concatenate([lower, upper]), np.concatenate(self._skins()),
+                 self.u_mm[self.mesh.middle[release_holds(self.mesh)] - 1, 2])
+        model = model_lines(self.mesh, self.plate.steel, self._yield_factor(), self.punch_stiffness_n_mm)
+        run = run_ccx(history_deck(self.mesh, model, self.history + [entry]), progress=self.progress)
         steps = last_of_steps(read_frd(run.frd))
-        n_steps = STEPS_PER_PRESS - (1 if first else 0)
-        loaded_step, free_step = self.ccx_steps + n_steps - 1, self.ccx_steps + n_steps
-        if loaded_step not in steps or free_step not in steps:
-            raise FESolveError(f"ccx wrote no displacements for steps {loaded_step} and {free_step}",
+        free_step = step_count(len(self.history) + 1)
+        if free_step - 1 not in steps or free_step not in steps:
+            raise FESolveError(f"ccx wrote no displacements for steps {free_step - 1} and {free_step}",
                                hint="see the kept log")
-        self.loaded_u_mm, self.u_mm = self._displacements(steps[loaded_step]), self._displacements(steps[free_step])
+        self.loaded_u_mm, self.u_mm = self._displacements(steps[free_step - 1]), self._displacements(steps[free_step])
         self.force_n = self._contact_forces(lower, upper)
-        self.restart, self.ccx_steps, self.last_seconds = run.restart, free_step, run.seconds
+        self.history.append(entry)
+        self.last_seconds = run.seconds
         self.tips_lower_mm, self.tips_upper_mm, self.tips_enabled = lower, upper, enabled
         self.steps += 1
         return self.formed
@@ -274,7 +273,7 @@ class FEPlate:
 
     # --- save / restore ------------------------------------------------------------
     def state_dict(self) -> dict:
-        """Everything to rebuild this plate as it is now: settings (JSON) + arrays + the restart file.
+        """Everything to rebuild this plate as it is now: settings (JSON), arrays and the press steps to replay.
 
         Returns
         -------
@@ -283,11 +282,13 @@ class FEPlate:
         """
         config = {"press": self.press.to_dict(), "outline_xy_mm": self.outline_xy_mm.tolist(),
                   "plate": self.plate.to_dict(), "options": self.options, "compliance": asdict(self.compliance)}
+        m2 = 2 * len(self.mesh.bottom)
+        history = [np.array([h[i] for h in self.history]).reshape(-1, m2 if i < 2 else 3) for i in range(3)]
         return {"config": json.dumps(config), "model": "fe", "steps": np.array(self.steps),
-                "ccx_steps": np.array(self.ccx_steps), "u_mm": self.u_mm.copy(), "loaded_u_mm": self.loaded_u_mm.copy(),
+                "u_mm": self.u_mm.copy(), "loaded_u_mm": self.loaded_u_mm.copy(),
                 "force_n": self.force_n.copy(), "tips_lower_mm": self.tips_lower_mm.copy(),
                 "tips_upper_mm": self.tips_upper_mm.copy(), "tips_enabled": self.tips_enabled.copy(),
-                "restart": np.frombuffer(self.restart, dtype=np.uint8).copy()}
+                "history_tips_mm": history[0], "history_touch_mm": history[1], "history_held_mm": history[2]}
 
     @classmethod
     def from_state(cls, state, progress=None) -> FEPlate:
@@ -299,7 +300,8 @@ class FEPlate:
             Something is missing or does not fit the mesh the settings describe.
         """
         names = ("u_mm", "loaded_u_mm", "force_n", "tips_lower_mm", "tips_upper_mm", "tips_enabled")
-        missing = {"config", "steps", "ccx_steps", "restart", *names} - set(state)
+        history = ("history_tips_mm", "history_touch_mm", "history_held_mm")
+        missing = {"config", "steps", *history, *names} - set(state)
         if missing:
             raise InputError(f"saved FE plate state lacks {', '.join(sorted(missing))}",
                              hint="save it with FEPlate.state_dict()")
@@ -314,6 +316,11 @@ class FEPlate:
             if value.shape != like.shape:
                 raise InputError(f"saved FE plate state: {name} has shape {value.shape}, the plate needs {like.shape}")
             setattr(self, name, value)
-        self.steps, self.ccx_steps = int(np.asarray(state["steps"])), int(np.asarray(state["ccx_steps"]))
-        self.restart = np.asarray(state["restart"], dtype=np.uint8).tobytes()
+        self.steps = int(np.asarray(state["steps"]))
+        tips, touch, held = (np.asarray(state[name], dtype=float) for name in history)
+        m2 = 2 * len(self.mesh.bottom)
+        if tips.shape != (self.steps, m2) or touch.shape != tips.shape or held.shape != (self.steps, 3):
+            raise InputError(f"saved FE plate state: a history of {tips.shape} tips for {self.steps} steps and "
+                             f"{m2} tips", hint="save it with FEPlate.state_dict()")
+        self.history = list(zip(tips, touch, held))
         return self

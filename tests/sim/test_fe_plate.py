@@ -5,7 +5,7 @@
    ``kappa_r = kappa - M(kappa) / (E' I)`` within 2 % (docs/simulator-fe.md derives it).
 2. Flat strokes (lower tips 0, upper tips at the thickness) leave the plate flat.
 3. Strokes to a cylinder beyond the elastic radius ``R_e = E' t / (2 sy')`` spring back flat.
-4. The plate's state (restart file included) saved and restored presses on like the original.
+4. The plate's state (the press steps it had) saved and restored presses on like the original.
 """
 
 from __future__ import annotations
@@ -70,7 +70,7 @@ def test_elastic_strokes_spring_back_flat_and_the_state_presses_on(press):
     sag = loaded.max() - loaded.min()
     assert sag == pytest.approx(450.0 ** 2 / (2 * radius), rel=0.1)  # it was bent
     assert free.max() - free.min() < 0.02 * sag  # and sprang back flat
-    # the saved state (with the restart file) presses the next step like the plate itself
+    # the saved state (the press steps to replay) presses the next step like the plate itself
     again = FEPlate.from_state(plate.state_dict())
     assert np.allclose(again.formed.height_mm(x, 0 * x), free)
     flat = np.full(press.shape, T_MM), np.zeros(press.shape), np.ones(press.shape, dtype=bool)

@@ -63,7 +63,7 @@ def test_fe_plate_is_pressed_once_per_step_scanned_and_resumed_in_another_proces
     assert scan.exists() and scanner.pressed == [[1, 1], [1, 2]] and (tmp_path / STATE_FILE).exists()
     bend_1 = _bend(scanner)
     assert 0.0 < bend_1 < 40.0 * (525.0 / 600.0) ** 2  # bent, and sprang back part of the way
-    # another process (a resumed dry run) takes the plate, restart file and all, from the work folder
+    # another process (a resumed dry run) takes the plate and its press steps from the work folder
     other = _scanner(press)
     other.acquire(2, _context(tmp_path, _steps(press, 2, [60.0])))
     assert other.pressed == [[1, 1], [1, 2], [2, 1]]
