@@ -205,7 +205,8 @@ OWNERSHIP = """\
   first, in address order: registers {mailbox_first}-{crc_last} and {command_sequence} for the mailbox (`command_auth`
   itself left out), {hb_first}-{hb_last_but_auth} for the heartbeat. A command is the owner's only if
   its `command_master` is the owner, its auth is right and its `command_counter` is newer than
-  that of the owner's last command (`(new - last) mod 65536` from 1 to 32767); otherwise
+  that of the owner's last command, its accepted CLAIM included (`(new - last) mod 65536`
+  from 1 to 32767); otherwise
   the owner commands are refused BAD_AUTH (NOT_OWNER when the id is not the owner's at all).
   The counters' rule stops a replay of a recorded request.
 - **Why:** master ids, `owner_master` and the validated token are readable by every master;
