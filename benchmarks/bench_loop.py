@@ -14,8 +14,9 @@ Plate physics (``--physics``, each a name or ``effect:factor``):
 - ``yield:F``, ``hardening:F``, ``compliance:F``, ``anisotropy:F``, ``edge:F``,
   ``response:F``: the same plate with one effect off by the factor F
   (:class:`mppf.sim.plate.mismatch.Mismatch`; ``response`` scales the whole plate's answer);
-- ``fe``: the finite-element plate (``plate_model="fe"`` of :mod:`mppf.sim.shop`), when
-  ``mppf.sim.fe`` exists (``--mode loop`` only).
+- ``fe``: the finite-element plate (:class:`mppf.sim.fe.plate.FEPlate`, CalculiX; in
+  ``--mode loop`` ``plate_model="fe"`` of :mod:`mppf.sim.shop`), when ``mppf.sim.fe`` exists,
+  with the true yield stress and its own seeded scatter.
 
 Two ways to run a plate:
 
@@ -98,6 +99,20 @@ def physics_parts(physics: str, true_yield_mpa: float, first_steps: int):
         mismatch = Mismatch.named(name, float(factor), response_after_steps=first_steps)
     steel, compliance, options = mismatched_parts(steel, Compliance(), mismatch)
     return steel, {"scatter": Scatter(), "compliance": compliance, **options}
+
+
+def direct_plate(press, planned, physics: str, seed: int, true_yield_mpa: float):
+    """The simulated plate of a direct-mode run: the finite-difference steel plate, or the FE plate ("fe")."""
+    if physics == "fe":
+        from mppf.sim.fe.plate import FEPlate
+        from mppf.sim.plate.material import PlateSteel
+
+        steel = PlateSteel.from_material(replace(NOMINAL, yield_stress_mpa=true_yield_mpa))
+        return FEPlate(press, planned.job.layout.outline_mm, THICKNESS_MM, steel, seed=seed)
+    from mppf.sim.plate.plate import SteelPlate
+
+    steel, parts = physics_parts(physics, true_yield_mpa, len(planned.job.steps))
+    return SteelPlate(press, planned.job.layout.outline_mm, THICKNESS_MM, steel, seed=seed, **parts)
 
 
 class Planned:
@@ -280,10 +295,7 @@ def run_part(args, results: dict, path: Path) -> bool:
                 if args.mode == "loop":
                     row = run_loop_mode(press, p, seed, args.max_cycles, args.true_yield, work, physics)
                 else:
-                    from mppf.sim.plate.plate import SteelPlate
-
-                    steel, parts = physics_parts(physics, args.true_yield, len(p.job.steps))
-                    plate = SteelPlate(press, p.job.layout.outline_mm, THICKNESS_MM, steel, seed=seed, **parts)
+                    plate = direct_plate(press, p, physics, seed, args.true_yield)
                     row = run_direct(press, p, plate, args.max_cycles, not args.no_policy)
             except MppfError as exc:  # a failed run counts as not in tolerance
                 row = {"max": [], "rms": [], "decisions": ["error"], "ok_at": None,

@@ -144,5 +144,5 @@ def step_plan(outcomes, ring, tolerance_mm: float, rms_tolerance_mm: float,
                      f"{rho_edge:.2f} x at them" + ("; it made the plate worse" if worse else ""))
     base = int(np.argmin(sizes)) if backtrack else len(outcomes) - 1
     if backtrack:
-        notes.append(f"the next strokes start from cycle {base + 1}'s (the best so far), {share:.0%} of the way")
+        notes.append(f"the next strokes start from cycle {base + 1}'s, {share:.0%} of the way")
     return StepPlan(share, base, ratios, edge_ratios, backtrack, notes)

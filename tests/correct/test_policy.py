@@ -53,7 +53,7 @@ def test_a_correction_that_made_the_plate_worse_is_followed_by_a_half_step_from_
     outcomes = _cycles([e0, e1, e2], [None, promised1, promised2], [20.0, 2.8, 6.0])
     plan = step_plan(outcomes, RING, 2.5, 1.0)
     assert plan.backtrack and plan.base == 1 and plan.share == 0.5
-    assert "start from cycle 2's (the best so far), 50% of the way" in plan.notes[-1]
+    assert "start from cycle 2's, 50% of the way" in plan.notes[-1]
 
 
 def test_the_first_correction_is_full_size_and_a_plate_moved_against_the_promise_backtracks():
