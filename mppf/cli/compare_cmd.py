@@ -48,8 +48,8 @@ MARK_REACH_MM = 500.0
 """How far outside the scan's bounding box a --mark may lie (a mark on the plate's very corner, a scan with holes)."""
 
 
-def check_mark_on_scan(mark_mm, scan_points, scan_path) -> None:
-    """Refuse a ``--mark`` far from every point of the scan (a typo, another unit, another scan's coordinates).
+def check_mark_on_scan(mark_mm, scan_points, scan_path, what: str = "--mark") -> None:
+    """Refuse a reference mark far from every point of the scan (a typo, another unit, another scan's coordinates).
 
     Raises
     ------
@@ -60,7 +60,7 @@ def check_mark_on_scan(mark_mm, scan_points, scan_path) -> None:
     outside = float(np.linalg.norm(np.maximum(0.0, np.maximum(lo - mark_mm, mark_mm - hi))))
     if outside > MARK_REACH_MM:
         span = ", ".join(f"{a:.0f}..{b:.0f}" for a, b in zip(lo, hi))
-        raise InputError(f"--mark {','.join(f'{v:g}' for v in mark_mm)} lies {outside:.0f} mm outside the scan "
+        raise InputError(f"{what} {','.join(f'{v:g}' for v in mark_mm)} lies {outside:.0f} mm outside the scan "
                          f"{scan_path} (its points span x, y, z {span} mm)",
                          hint="give where the reference-corner mark is in the scan's own coordinates (mm, or the "
                               "scan's units with --scan-units)")
@@ -159,9 +159,10 @@ def compare_command(design: str, measured: str, tolerance: float, rms_tolerance:
 
         raise GeometryError(f"the scan {measured} has {measured_cloud.n_points} point(s), a comparison needs at least "
                             f"{MIN_POINTS}", hint="check the scan export (the whole plate, not a selection)")
-    if mark_mm is not None:
-        check_mark_on_scan(mark_mm, measured_cloud.points, measured)
     options = _options(job_path, design_cloud.points, measured, skin, thickness, margin, mark_mm)
+    if options.get("reference_mark") is not None:  # --mark, the mark file or the scan's header
+        what = "--mark" if mark_mm is not None else "the reference mark of the scan (its mark file or header)"
+        check_mark_on_scan(options["reference_mark"][0], measured_cloud.points, measured, what)
     # 3. compare and decide
     result = compare(design_cloud.points, measured_cloud.points, tolerance_mm=tolerance,
                      rms_tolerance_mm=rms_tolerance, design_faces=design_cloud.faces, gap_mm=gaps[0],

@@ -178,6 +178,9 @@ FILES38.update({
     "metres_csv": ("metres.csv", _metres),
     "step_nul": ("nul.step", _STEP_NUL),
     "job_deep": ("deep.job.json", "[" * 100_000),
+    "scan_far_mark": ("farmark.csv", lambda path, good: (
+        path.write_text(Path(good["design"]).read_text()),
+        path.with_name("farmark.csv.mark.json").write_text('{"reference_mark_mm": [10000000, 0, 0]}'))),
     "job_big_int": ("bigint.job.json", lambda path, good: path.write_text(
         Path(good["job"]).read_text().replace('"thickness_mm": 20.0', '"thickness_mm": ' + "9" * 400, 1))),
     "press_big_int": ("bigint.toml", _PRESS.read_text().replace("rows = 16", "rows = " + "9" * 400)),
@@ -250,6 +253,9 @@ def _cases() -> list[dict]:
         {"id": "issue 38: compare --mark 10 km away", "kind": "option",
          "args": ["compare", "{design}", "{design}", "--mark", "10000000,0,0"],
          "expect": ["--mark 1e+07,0,0 lies", "mm outside the scan", "design.csv"]},
+        {"id": "issue 38: a mark file 10 km away -> compare", "kind": "points", "files": ["scan_far_mark"],
+         "args": ["compare", "{design}", "{scan_far_mark}"],
+         "expect": ["the reference mark of the scan (its mark file or header) 1e+07,0,0 lies", "farmark.csv"]},
         {"id": "issue 38: a path longer than the system allows", "kind": "option",
          "args": ["fit", "{tmp}/" + "p" * 300 + ".csv"], "expect": ["characters) is too long for this system"]},
         {"id": "issue 38: a space in the PLC host -> press", "kind": "plc",
