@@ -322,10 +322,10 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
     """Plan, press, measure, compare, correct, press again, until the plate is in tolerance.
 
     Stops when the largest absolute form deviation is within --tolerance and the RMS within
-    --rms-tolerance, after --max-cycles, or when the error diverges (the RMS grows by
-    more than 1.5 times, or by more than 0.1 mm two cycles in a row). Every cycle is recorded in the history; after a
-    crash or power cut, 'mppf loop --resume' continues at the right cycle and never
-    presses a cycle twice.
+    --rms-tolerance, after --max-cycles, or when the error diverges (the RMS more than
+    1.5 times the best in two cycles running, or growing by more than 0.1 mm two cycles in
+    a row). Every cycle is recorded in the history; after a crash or power cut,
+    'mppf loop --resume' continues at the right cycle and never presses a cycle twice.
 
     Without --plc this is a dry run: the simulated PLC (real Modbus over loopback), a
     simulated plate and a simulated scanner. With --plc a real press asks for confirmation

@@ -45,10 +45,12 @@ def decide(rms_history_mm: list[float], max_abs_mm: float, cycle: int, settings:
         plate is never declared in tolerance over them)
         (the one decision rule's measured part:
         :func:`mppf.measure.decision.within_limits`, as ``mppf compare`` decides); DIVERGED when the RMS (the robust measure: the largest deviation of
-        a scan is one noisy point) grew by more than ``divergence_factor`` since the last
-        cycle, or grew two cycles in a row, each time by more than
-        :data:`GROWTH_MARGIN_MM` (the scan's noise floor); MAX_CYCLES when no cycles are
-        left; else CONTINUE.
+        a scan is one noisy point) is more than ``divergence_factor`` times the best one
+        before it in two cycles running (one such cycle is followed by half a step from
+        the best cycle's strokes, :mod:`mppf.correct.policy`: only when that does not
+        recover either has the loop diverged), or grew two cycles in a row, each time by
+        more than :data:`GROWTH_MARGIN_MM` (the scan's noise floor); MAX_CYCLES when no
+        cycles are left; else CONTINUE.
     """
     e = [float(v) for v in rms_history_mm]
     if verdict is not None and verdict.badly_formed:
@@ -56,7 +58,8 @@ def decide(rms_history_mm: list[float], max_abs_mm: float, cycle: int, settings:
     if within_limits(float(max_abs_mm), e[-1], Limits(settings.tolerance_mm, settings.rms_tolerance_mm)):
         review = set_aside_beyond or (verdict is not None and verdict.kind == NEEDS_REVIEW)
         return Decision.NEEDS_REVIEW if review else Decision.IN_TOLERANCE
-    if len(e) >= 2 and e[-1] > settings.divergence_factor * e[-2] and e[-1] > settings.rms_tolerance_mm:
+    factor = settings.divergence_factor
+    if len(e) >= 3 and e[-1] > settings.rms_tolerance_mm and all(e[k] > factor * min(e[:k]) for k in (-1, -2)):
         return Decision.DIVERGED
     if len(e) >= 3 and e[-1] > e[-2] + GROWTH_MARGIN_MM and e[-2] > e[-3] + GROWTH_MARGIN_MM:
         return Decision.DIVERGED

@@ -134,8 +134,8 @@ def _why(decision: Decision, measured, settings: LoopSettings) -> str:
         return f"{_figures(last)} within {limits}, but " + ("; ".join(reasons) or "the inspection needs a person")
     if decision == Decision.DIVERGED:
         rms = " -> ".join(f"{c.rms_mm:.2f}" for c in measured[-3:])
-        return (f"{_figures(last)}: the RMS deviation grew ({rms} mm; stop at {settings.divergence_factor:g} x in one cycle or growth in "
-                f"two cycles running){best_text}")
+        return (f"{_figures(last)}: the RMS deviation grew ({rms} mm; stop at {settings.divergence_factor:g} x "
+                f"the best in two cycles running, or growth in two cycles running){best_text}")
     if decision == Decision.MAX_CYCLES:
         return f"{settings.max_cycles} cycles pressed, {_figures(last)} {limits}{best_text}"
     if decision == Decision.BADLY_FORMED:

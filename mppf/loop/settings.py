@@ -37,9 +37,9 @@ class LoopSettings:
         component). Off: the secant gains of the displacement adjustment (gain ``gain`` in
         the first correction); see :func:`mppf.correct.compensate.compensate`.
     divergence_factor : float
-        The loop stops as diverged when the RMS deviation grows by more than this
-        factor (> 1) from one cycle to the next, or grows two cycles in a row (see
-        :func:`mppf.loop.decide.decide`).
+        The loop stops as diverged when the RMS deviation is more than this factor (> 1)
+        times the best one before it in two cycles running, or grows two cycles in a row
+        (see :func:`mppf.loop.decide.decide`).
     springback : bool
         Plan the first cycle with springback pre-compensation (over-bend).
     offset_mm : float or None

@@ -16,7 +16,9 @@ def test_decide_in_tolerance_needs_both_limits():
 
 def test_decide_divergence_and_max_cycles():
     s = LoopSettings(max_cycles=4, divergence_factor=1.5)
-    assert decide([2.0, 3.1], 9.0, 2, s) == "diverged"  # grew by more than 1.5x
+    assert decide([2.0, 3.1], 9.0, 2, s) == "continue"  # grew by more than 1.5x: a half step from the best follows
+    assert decide([2.0, 3.1, 3.05], 9.0, 3, s) == "diverged"  # ... and did not recover
+    assert decide([2.0, 3.1, 2.9], 9.0, 3, s) == "continue"  # it recovered below 1.5x the best
     assert decide([2.0, 2.9], 9.0, 2, s) == "continue"
     assert decide([1.5, 1.7, 1.9], 9.0, 3, s) == "diverged"  # grew twice in a row
     assert decide([1.5, 1.55, 1.6], 9.0, 3, s) == "continue"  # within the noise margin
