@@ -186,7 +186,7 @@ MIN_SIZED_POINTS = 10
 """Fewest points of a plate's file whose size :func:`read_input` judges (fewer: the later steps say "too few")."""
 
 
-def read_input(path, units: str = "mm", scale: float = 1.0):
+def read_input(path, units: str = "mm", scale: float = 1.0, units_option: str = "--units"):
     """:func:`mppf.geometry.read.read_points` of a plate's file, its warnings printed on stderr.
 
     A plate smaller than :data:`mppf.geometry.read.PLATE_MIN_MM` across is refused (a file in
@@ -207,9 +207,9 @@ def read_input(path, units: str = "mm", scale: float = 1.0):
     # too few points, or all at one spot: the fit's and unfolding's own messages say so
     extent = float(np.ptp(cloud.points, axis=0).max()) if cloud.n_points >= MIN_SIZED_POINTS else 0.0
     if 0.0 < extent < PLATE_MIN_MM:
-        hint = ("is the file in metres? then give --units m" if units == "mm" else
+        hint = (f"is the file in metres? then give {units_option} m" if units == "mm" else
                 "check the file's unit and --scale")
-        raise GeometryError(f"{path}: the plate is only {extent:.3g} mm across (--units {units}"
+        raise GeometryError(f"{path}: the plate is only {extent:.3g} mm across ({units_option} {units}"
                             f"{f', --scale {scale:g}' if scale != 1.0 else ''}); a plate is at least "
                             f"{PLATE_MIN_MM:g} mm", hint=hint)
     for warning in cloud.warnings:

@@ -129,7 +129,7 @@ def compare_command(design: str, measured: str, tolerance: float, rms_tolerance:
     match the design; 4 when a nearly symmetric plate fits two ways round and no
     reference mark says which (both candidates shown).
     """
-    from mppf.geometry.read import read_points
+    from mppf.cli._common import read_input
     from mppf.measure.compare import compare
 
     # 1. options and output paths checked before the work
@@ -150,8 +150,8 @@ def compare_command(design: str, measured: str, tolerance: float, rms_tolerance:
         if path:
             check_output_path(path, what, suffixes, kind=kind)
     # 2. the files: design, scan (its own units), job
-    design_cloud = read_points(design, units=units)
-    measured_cloud = read_points(measured, units=scan_units or units)
+    design_cloud = read_input(design, units=units)  # a plate smaller than 50 mm across: a unit mistake, refused
+    measured_cloud = read_input(measured, units=scan_units or units, units_option="--scan-units")
     from mppf.measure.checks import MIN_POINTS
 
     if measured_cloud.n_points < MIN_POINTS:
