@@ -103,11 +103,18 @@ def reseal_command(job_path, reason, press_path, output, audit_path):
     except (ConfigError, LimitError) as exc:
         raise type(exc)(f"job {job_path}: {exc.message}; it was not resealed", hint=exc.hint) from None
     old_sha, user = job.sha256(), _user()
+    out = Path(output or job_path)
     with open_audit(audit_path) as audit:
-        out = save_job(job, output or job_path, sealed_by=f"mppf reseal by {user}", reason=reason)
+        # sealed beside its place, recorded in the audit log, and only then put in place: no reseal unrecorded
+        staged = save_job(job, out.with_name(out.name + ".reseal"), sealed_by=f"mppf reseal by {user}", reason=reason)
         audit.record("-", "reseal", "ok", job_sha256=job.sha256(),
                      detail=(f"{out}: {reason} | was {before}, sha256 {old_sha[:16]} | changed: "
                              f"{', '.join(changed) or 'nothing the old seal can tell'} | press {press_source}")[:2000])
+        if audit.unwritten:
+            staged.unlink(missing_ok=True)
+            raise InputError(f"cannot write the audit log {audit.path}: {out} was not resealed",
+                             hint="free space for the audit log (or give a writable --audit), then run again")
+        staged.replace(out)
     click.echo(f"resealed {out} for {press_source} by {user}: {reason}")
     click.echo(f"  was {before}; changed since: {', '.join(changed) or 'nothing the old seal can tell'}")
     click.echo(f"  sha256 {job.sha256()}")

@@ -94,5 +94,17 @@ def test_an_older_unsealed_job_is_resealed_after_the_checks(setup, tmp_path, cap
 def test_without_an_installed_press_reseal_needs_press(setup, tmp_path, capsys):
     job, audit = setup
     (tmp_path / "home" / "press.toml").unlink()
-    assert main(["reseal", str(job), "--reason", "x", "--audit", str(audit)]) == 2
+    assert main(["reseal", str(job), "--reason", "r" * 480, "--audit", str(audit)]) == 2  # a row that cannot fit
     assert "no press description for this machine" in capsys.readouterr().err
+
+
+def test_a_reseal_the_audit_log_cannot_record_is_not_made(setup, tmp_path, monkeypatch, capsys):
+    from driver_helpers import fill_up_audit
+
+    job, audit = setup
+    _edit(job, lambda d: d["steps"][1]["upper_mm"][2].__setitem__(3, d["steps"][1]["upper_mm"][2][3] + 0.5))
+    edited = job.read_text()
+    fill_up_audit(audit, monkeypatch)
+    assert main(["reseal", str(job), "--reason", "r" * 480, "--audit", str(audit)]) == 2  # a row that cannot fit
+    assert "was not resealed" in " ".join(capsys.readouterr().err.split())
+    assert job.read_text() == edited and not list(tmp_path.glob("*.reseal*"))
