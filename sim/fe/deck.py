@@ -11,16 +11,18 @@ The model:
 - the plate's in-plane rigid motion held at two mid-thickness nodes (x, y at one, y at another),
   the tips free only along z.
 
-A press step is three ``*STEP, NLGEOM`` (large deflection: bending and membrane coupled):
+A press step is three ``*STEP, NLGEOM`` (large deflection: bending and membrane coupled), each
+giving every tip its height (``*BOUNDARY, OP=NEW``):
 
 1. ``APPROACH`` (not before the first press step, where the flat stroke set touches the flat plate):
-   the tips move to touch the plate as it lies, while three mid-thickness nodes still hold it where
-   the step before left them (their displacements written out);
-2. ``LOAD``: those holds are released and the tips travel to the step's tip heights (parked pairs
-   to their park heights) while the gaps close and open;
-3. ``RELEASE``: three mid-thickness nodes on punch axes far apart are frozen where they are
-   (``*BOUNDARY, FIXED``: statically determinate, they carry no force once the tips are gone)
-   and the tips retract :data:`RETRACT_MM`; the gaps open one by one as the plate springs back.
+   the tips move to touch the plate as it lies, while the three clamp pairs of the step before
+   still hold it (next to no force);
+2. ``LOAD``: the tips travel to the step's tip heights (parked pairs to their park heights) while
+   the gaps close and open;
+3. ``RELEASE``: three pairs far apart (:func:`clamp_pairs`) keep their tips where the load left
+   them, a statically determinate support (three points along z; they carry no force once the
+   others are gone), and every other tip retracts :data:`RETRACT_MM`; the gaps open one by one as
+   the plate springs back.
 
 A run replays every press step of the plate from the flat plate (:func:`history_deck`); the
 displacements of the last one's load and release are written to the .frd file.
@@ -130,23 +132,30 @@ def planar_holds(mesh) -> list[str]:
     return ["TIPS,1,2,0.", f"{int(mesh.middle[a])},1,2,0.", f"{int(mesh.middle[b])},{dof},0."]
 
 
-def release_holds(mesh) -> np.ndarray:
-    """Indices (3,) of the punch pairs whose mid-thickness nodes hold the plate statically determinate.
+def clamp_pairs(mesh, enabled) -> np.ndarray:
+    """Indices (3,) of the punch pairs that hold the plate statically determinate while the others retract.
 
-    The first two are the pairs farthest apart, the third the one farthest from the line
-    through them (the largest triangle of supports).
+    Among the pairs in use, the two farthest apart and the one farthest from the line through
+    them (the largest triangle of supports).
+
+    Parameters
+    ----------
+    mesh : PlateMesh
+    enabled : (m,) bool
+        Pairs in use in the step.
     """
-    xy = mesh.punch_xy_mm
+    idx = np.nonzero(np.asarray(enabled, dtype=bool))[0]
+    xy = mesh.punch_xy_mm[idx]
     d = np.linalg.norm(xy[:, None, :] - xy[None, :, :], axis=2)
     a, b = np.unravel_index(np.argmax(d), d.shape)
     ab = xy[b] - xy[a]
     cross = np.abs(ab[0] * (xy[:, 1] - xy[a, 1]) - ab[1] * (xy[:, 0] - xy[a, 0]))
-    return np.array([a, b, int(np.argmax(cross))])
+    return idx[np.array([a, b, int(np.argmax(cross))])]
 
 
-def step_lines(mesh, name: str, tips_z_mm: np.ndarray, *, new: bool, frozen: bool, held_u_mm=None,
-               initial_increment: float = 0.25, output: bool = True) -> list[str]:
-    """One static step: tips to heights, optionally the three release holds frozen.
+def step_lines(mesh, name: str, tips_z_mm: np.ndarray, *, initial_increment: float = 0.25,
+               output: bool = True) -> list[str]:
+    """One static step: every tip to its height (``*BOUNDARY, OP=NEW``, the in-plane supports repeated).
 
     Parameters
     ----------
@@ -155,17 +164,10 @@ def step_lines(mesh, name: str, tips_z_mm: np.ndarray, *, new: bool, frozen: boo
         A comment naming the step.
     tips_z_mm : (2 m,) float
         Absolute heights of the lower tips, then the upper tips, mm (their nodes' z).
-    new : bool
-        Replace every earlier boundary condition (``OP=NEW``): the holds of the step before are gone.
-    frozen : bool
-        Freeze the three release holds where the step before left them.
-    held_u_mm : (3,) float, optional
-        Hold the three release holds at these z displacements, mm (a restarted run does not keep
-        the values ``FIXED`` froze in the run before).
     initial_increment : float
         First increment, share of the step.
     output : bool
-        Write the plate's displacements (.frd) at the step's increments.
+        Write the plate's displacements (.frd) at the end of the step.
     """
     lower, upper = tip_nodes(mesh)
     start = np.concatenate([mesh.xyz_mm[mesh.bottom - 1, 2], mesh.xyz_mm[mesh.top - 1, 2]])
@@ -178,19 +180,24 @@ def step_lines(mesh, name: str, tips_z_mm: np.ndarray, *, new: bool, frozen: boo
     out += ["0.005,0.01,,1."] if name == "APPROACH" else ["0.005,0.01,1000.,,0.02,1e-5,1e-3,1e-8"]
     # more iterations before an increment is cut back: contacts opening and closing need a few
     out += ["*CONTROLS, PARAMETERS=TIME INCREMENTATION", "8,10,9,200,10,4,0,5"]
-    out += ["*BOUNDARY, OP=NEW" if new else "*BOUNDARY"] + planar_holds(mesh)
+    out += ["*BOUNDARY, OP=NEW"] + planar_holds(mesh)
     out += [f"{int(node)},3,3,{dz:.6f}" for node, dz in zip(np.concatenate([lower, upper]), move)]
-    if held_u_mm is not None:
-        out += [f"{int(mesh.middle[i])},3,3,{u:.6f}" for i, u in zip(release_holds(mesh), held_u_mm)]
-    if frozen:
-        out += ["*BOUNDARY, FIXED"] + [f"{int(mesh.middle[i])},3,3" for i in release_holds(mesh)]
     if output:
         out += ["*NODE FILE, NSET=PLATEN, FREQUENCY=1000", "U"]
     out += ["*END STEP"]
     return out
 
 
-def press_step_lines(mesh, tips_z_mm, touch_z_mm=None, held_u_mm=None, *, output: bool = True) -> list[str]:
+def _keep(tips_z_mm, pairs, kept_z_mm) -> np.ndarray:
+    """Tips (2 m,) with both tips of ``pairs`` at their heights in ``kept_z_mm``."""
+    tips = np.asarray(tips_z_mm, dtype=float).copy()
+    m = len(tips) // 2
+    for i in np.asarray(pairs, dtype=int):
+        tips[i], tips[m + i] = kept_z_mm[i], kept_z_mm[m + i]
+    return tips
+
+
+def press_step_lines(mesh, tips_z_mm, clamp, before=None, *, output: bool = True) -> list[str]:
     """The steps of one press step: approach (unless the first), load, release.
 
     Parameters
@@ -198,24 +205,24 @@ def press_step_lines(mesh, tips_z_mm, touch_z_mm=None, held_u_mm=None, *, output
     mesh : PlateMesh
     tips_z_mm : (2 m,) float
         The step's tip heights (absolute, lower then upper), mm.
-    touch_z_mm : (2 m,) float, optional
-        Tip heights touching the plate as the step before left it (the approach); None for the
-        first press step (the flat stroke set touches the flat plate).
-    held_u_mm : (3,) float, optional
-        z displacements of the release holds as the step before left them, mm (with ``touch_z_mm``).
+    clamp : (3,) int
+        Pairs (:func:`clamp_pairs`) whose tips stay where the load left them in the release.
+    before : tuple, optional
+        ``(touch_z_mm, tips_z_mm, clamp)`` of the approach: the tip heights touching the plate as
+        the step before left it, that step's tips and clamp pairs (still holding the plate). None
+        for the first press step (the flat stroke set touches the flat plate).
     output : bool
         Write the displacements at the end of the load and the release.
     """
     out = []
-    if touch_z_mm is not None:
-        out += step_lines(mesh, "APPROACH", touch_z_mm, new=True, frozen=False, held_u_mm=held_u_mm,
-                          initial_increment=1.0, output=False)
-    out += step_lines(mesh, "LOAD", tips_z_mm, new=True, frozen=False, output=output)
-    tips = np.asarray(tips_z_mm, dtype=float).copy()
+    if before is not None:
+        touch, last_tips, last_clamp = before
+        out += step_lines(mesh, "APPROACH", _keep(touch, last_clamp, last_tips), initial_increment=1.0,
+                          output=False)
+    out += step_lines(mesh, "LOAD", tips_z_mm, output=output)
     m = len(mesh.bottom)
-    tips[:m] -= RETRACT_MM
-    tips[m:] += RETRACT_MM
-    out += step_lines(mesh, "RELEASE", tips, new=True, frozen=True, initial_increment=0.05, output=output)
+    retracted = np.asarray(tips_z_mm, dtype=float) + np.concatenate([np.full(m, -RETRACT_MM), np.full(m, RETRACT_MM)])
+    out += step_lines(mesh, "RELEASE", _keep(retracted, clamp, tips_z_mm), initial_increment=0.05, output=output)
     return out
 
 
@@ -227,18 +234,19 @@ def history_deck(mesh, model: list[str], history: list[tuple]) -> str:
     mesh : PlateMesh
     model : list of str
         :func:`model_lines`.
-    history : list of (tips_z_mm, touch_z_mm, held_u_mm)
-        Every press step so far and the new one, in order (:func:`press_step_lines`); the first
-        has no touch / held values. Only the last writes displacements.
+    history : list of (tips_z_mm, touch_z_mm, clamp)
+        Every press step so far and the new one, in order: its tips (2 m,), the tips touching the
+        plate before it (2 m,; ignored for the first) and its clamp pairs (3,). Only the last
+        writes displacements.
 
     Returns
     -------
     str
     """
     out = list(model)
-    for k, (tips, touch, held) in enumerate(history):
-        out += press_step_lines(mesh, tips, None if k == 0 else touch, None if k == 0 else held,
-                                output=k == len(history) - 1)
+    for k, (tips, touch, clamp) in enumerate(history):
+        before = None if k == 0 else (touch, history[k - 1][0], history[k - 1][2])
+        out += press_step_lines(mesh, tips, clamp, before, output=k == len(history) - 1)
     return "\n".join(out) + "\n"
 
 
