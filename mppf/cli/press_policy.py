@@ -150,11 +150,25 @@ def confirm_motion(link, what: str, yes: bool) -> None:
         return
     if not sys.stdin.isatty():
         raise PressRefused(
-            f"refusing to move the press without confirmation ({what}): stdin is not a terminal",
+            f"refusing to move the press without confirmation ({what}): stdin is not a terminal"
+            + _stopped_by_someone(link),
             hint="run it at a terminal to confirm, or add --yes when the press is clear",
         )
     if not click.confirm(f"Move {what}? Check that the press is clear", default=False, err=True):
         raise PressRefused("the operator declined: nothing was sent to the press")
+
+
+def _stopped_by_someone(link) -> str:
+    """``; the press is STOPPED by ...`` when a STOP of someone else would also need confirming (else "")."""
+    try:
+        report = link.status_report()
+    except Exception:  # noqa: BLE001 - only the extra detail of a refusal is lost
+        return ""
+    stops = report["stops"]
+    if report["state"] != "STOPPED" or stops["cause"] != "STOP_REQUEST":
+        return ""
+    return (f"; the press is also STOPPED by a STOP request of master 0x{stops['last_master']:08X} "
+            f"({stops['count']} since the PLC started), whose reset would need confirming too")
 
 
 def press_description(link) -> str:

@@ -138,6 +138,16 @@ def test_a_press_stopped_by_someone_else_is_named_before_its_reset(job_path, sim
     assert ("foreign stop", "reset confirmed") in [a[:2] for a in audit_actions(audit)]
 
 
+def test_without_a_terminal_a_foreign_stop_is_named_in_the_refusal(job_path, sim, tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr("sys.stdin", io.StringIO(""))  # no terminal
+    assert main(["stop", "--plc", sim.url]) == 0
+    capsys.readouterr()
+    assert main(["press", str(job_path), "--plc", sim.url, "--audit", str(tmp_path / "a.sqlite")]) == 4
+    err = " ".join(capsys.readouterr().err.split())
+    assert "stdin is not a terminal" in err and "also STOPPED by a STOP request of master 0x" in err
+    assert sim.state() == "STOPPED"  # nothing written, nothing reset
+
+
 def test_a_complete_sooner_than_the_press_can_move_is_refused(job_path, sim, tmp_path, capsys):
     audit = tmp_path / "a.sqlite"
     assert main(["press", str(job_path), "--plc", sim.url, "--yes", "--audit", str(audit)]) == 4
