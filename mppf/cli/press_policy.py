@@ -35,7 +35,7 @@ import click
 
 from mppf.cli.plc_ops import connect_session  # noqa: F401 - the light session, here with the other connectors
 from mppf.core.defaults import DRY_RUN_REPLY_TIMEOUT_S, DRY_RUN_TIME_SCALE
-from mppf.core.errors import Cancelled, PressRefused
+from mppf.core.errors import Cancelled, LinkError, PlcError, PressRefused
 from mppf.core.progress import NULL_REPORTER, Reporter
 
 DRY_RUN_WATCHDOG_S = 2.0
@@ -162,7 +162,7 @@ def _stopped_by_someone(link) -> str:
     """``; the press is STOPPED by ...`` when a STOP of someone else would also need confirming (else "")."""
     try:
         report = link.status_report()
-    except Exception:  # noqa: BLE001 - only the extra detail of a refusal is lost
+    except (LinkError, PlcError):  # only the extra detail of a refusal is lost
         return ""
     stops = report["stops"]
     if report["state"] != "STOPPED" or stops["cause"] != "STOP_REQUEST":
