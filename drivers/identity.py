@@ -56,6 +56,24 @@ class PlcIdentity:
     tip_gap_min_mm: float = 0.0
 
 
+def _identity(get, rmap: RegisterMap, order: str, version: int) -> PlcIdentity:
+    """The :class:`PlcIdentity` of the identity registers (``get(name)`` gives a field's words)."""
+    mm = rmap.count_mm
+
+    def i32_mm(name: str) -> float:
+        return round(codec.words_to_i32(get(name), order) * mm, 6)
+
+    (rows,), (cols,) = get("rows"), get("cols")
+    limits = {side: (i32_mm(f"{side}_min"), i32_mm(f"{side}_max")) for side in SIDES}
+    (scan_ms,), (watchdog_ms,), (tolerance,) = get("scan_time_max_ms"), get("watchdog_ms"), get("position_tolerance")
+    (timeout_ms,), (rest_speed,), (rest_ms,) = get("positioning_timeout_ms"), get("rest_speed"), get("rest_time_ms")
+    return PlcIdentity(order, version, rows, cols, limits, scan_time_s=max(scan_ms, 1) / 1000.0,
+                       watchdog_s=watchdog_ms / 1000.0 or None, position_tolerance_mm=tolerance * mm,
+                       positioning_timeout_s=timeout_ms / 1000.0, rest_time_s=rest_ms / 1000.0,
+                       rest_speed_mm_s=rest_speed * mm, dimpling_limit_mm=i32_mm("dimpling_limit"),
+                       tip_gap_min_mm=i32_mm("tip_gap_min"))
+
+
 def identify(io, rmap: RegisterMap, url, unit: int, word_order: str, press=None) -> PlcIdentity:
     """Read and check magic, map version, size and limits.
 
@@ -118,17 +136,8 @@ def identify(io, rmap: RegisterMap, url, unit: int, word_order: str, press=None)
             hint=f"update the PLC program to register map version {rmap.version} (docs/register-map.md), "
                  "or use the mppf release made for its version",
         )
-    (rows,), (cols,) = get("rows"), get("cols")
-    limits = {side: tuple(round(codec.words_to_i32(get(f"{side}_{end}"), detected) * rmap.count_mm, 6)
-                          for end in ("min", "max")) for side in SIDES}
-    (scan_ms,), (watchdog_ms,), (tolerance,) = get("scan_time_max_ms"), get("watchdog_ms"), get("position_tolerance")
-    (timeout_ms,), (rest_speed,), (rest_ms,) = get("positioning_timeout_ms"), get("rest_speed"), get("rest_time_ms")
-    ident = PlcIdentity(detected, version, rows, cols, limits, scan_time_s=max(scan_ms, 1) / 1000.0,
-                        watchdog_s=watchdog_ms / 1000.0 or None, position_tolerance_mm=tolerance * rmap.count_mm,
-                        positioning_timeout_s=timeout_ms / 1000.0, rest_time_s=rest_ms / 1000.0,
-                        rest_speed_mm_s=rest_speed * rmap.count_mm,
-                        dimpling_limit_mm=codec.words_to_i32(get("dimpling_limit"), detected) * rmap.count_mm,
-                        tip_gap_min_mm=codec.words_to_i32(get("tip_gap_min"), detected) * rmap.count_mm)
+    ident = _identity(get, rmap, detected, version)
+    rows, cols = ident.rows, ident.cols
     if press is not None and (rows, cols) != press.shape:
         raise ConfigError(
             f"the PLC at {url} drives {rows} x {cols} punches, the press description "
