@@ -56,6 +56,26 @@ class PlcIdentity:
     tip_gap_min_mm: float = 0.0
 
 
+def _word_order(magic: list[int], rmap: RegisterMap, url, word_order: str) -> str:
+    """The PLC's word order from its magic (LinkError: not an mppf PLC, or not the order asked for)."""
+    try:
+        detected = codec.detect_word_order(magic, rmap.magic)
+    except InputError:
+        raise LinkError(
+            f"the device at {url} is not an mppf press PLC: registers "
+            f"{rmap['magic'].address}-{rmap['magic'].end - 1} hold "
+            f"0x{magic[0]:04X} 0x{magic[1]:04X}, expected the magic 0x{rmap.magic:08X} "
+            "in ABCD or CDAB word order",
+            hint="check the URL (host, port, unit id): another Modbus device answered",
+        ) from None
+    if word_order != "auto" and word_order != detected:
+        raise LinkError(
+            f"the PLC at {url} uses word order {detected}, but {word_order} was requested",
+            hint="use --word-order auto or fix the PLC's word-order setting",
+        )
+    return detected
+
+
 def _identity(get, rmap: RegisterMap, order: str, version: int) -> PlcIdentity:
     """The :class:`PlcIdentity` of the identity registers (``get(name)`` gives a field's words)."""
     mm = rmap.count_mm
@@ -112,22 +132,7 @@ def identify(io, rmap: RegisterMap, url, unit: int, word_order: str, press=None)
         f = rmap[name]
         return words[f.address - first : f.end - first]
 
-    try:
-        detected = codec.detect_word_order(get("magic"), rmap.magic)
-    except InputError:
-        magic = get("magic")
-        raise LinkError(
-            f"the device at {url} is not an mppf press PLC: registers "
-            f"{rmap['magic'].address}-{rmap['magic'].end - 1} hold "
-            f"0x{magic[0]:04X} 0x{magic[1]:04X}, expected the magic 0x{rmap.magic:08X} "
-            "in ABCD or CDAB word order",
-            hint="check the URL (host, port, unit id): another Modbus device answered",
-        ) from None
-    if word_order != "auto" and word_order != detected:
-        raise LinkError(
-            f"the PLC at {url} uses word order {detected}, but {word_order} was requested",
-            hint="use --word-order auto or fix the PLC's word-order setting",
-        )
+    detected = _word_order(get("magic"), rmap, url, word_order)
     (version,) = get("map_version")
     if version != rmap.version:
         raise LinkError(
