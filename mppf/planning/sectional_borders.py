@@ -108,13 +108,19 @@ def border_steps(press, planned, thickness_mm: float) -> list[float]:
         for j in range(k):
             uv_j, height_j = _height_above(p["fitted"], points[j])
             near = np.all((uv_j >= lo) & (uv_j <= hi), axis=1)
-            if near.sum() < 3:
-                continue
+            if near.sum() < 3 or _collinear(uv_j[near]):
+                continue  # no overlap area to interpolate over (e.g. one line of punches)
             there = LinearNDInterpolator(uv_j[near], height_j[near])(uv[border])
             last = np.where(np.isfinite(there), there, last)
         diff = np.abs(height[border] - last)
         steps.append(float(np.nanmax(diff)) if np.isfinite(diff).any() else 0.0)
     return steps
+
+
+def _collinear(uv, tol_mm: float = 1e-6) -> bool:
+    """True when the points (m, 2) mm lie on one line (or one point): no triangle spans them."""
+    centred = uv - uv.mean(axis=0)
+    return bool(np.linalg.svd(centred, compute_uv=False)[-1] <= tol_mm)
 
 
 BORDER_STEP_LIMIT_MM = 1.0
