@@ -8,12 +8,20 @@ about half fit the example press's bed (3.45 x 2.25 m) and the rest are planned 
 and the extrapolated wall time of 1000 plates. A second run over the same folder shows the resume
 (every plate skipped).
 
+With ``--real N`` it plans N real hull plates instead (:mod:`real_plates`: cut from the KCS hull IGES
+and the bundled hull data, cached in ``benchmarks/.real-plates/``) in resumable parts: each run plans
+parts of ``--part`` plates until ``--budget-min`` minutes are spent, keeps every row, the parts' wall
+and CPU times and the machine's load in ``.real-plates/<tag>.json``, and prints the table over all
+plates planned so far; run it again to go on.
+
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_batch.py [--plates 60] [--workers 2] [--spacing 100]
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_batch.py --real 1000 [--part 100] [--budget-min 9] [--tag after]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import statistics
 import tempfile
@@ -67,8 +75,8 @@ def write_batch(folder: Path, n: int, spacing_mm: float, seed: int = 18) -> tupl
 
 def table(rows: list[dict], kinds: dict, wall_s: float, workers: int) -> str:
     """The benchmark table (text)."""
-    out = [f"{'group':<14} {'plates':>6} {'failed':>6} {'sections':>8} {'wall s/plate med':>16} {'max':>6} "
-           f"{'CPU s/plate med':>15} {'max':>6} {'peak RSS MB':>11}"]
+    out = [(f"{'group':<14} {'plates':>6} {'failed':>6} {'sections':>8} {'wall s/plate med':>16} {'max':>6} "
+            f"{'CPU s/plate med':>15} {'max':>6} {'peak RSS MB':>11}")]
     groups = {"all": rows, "one piece": [r for r in rows if r.get("sections") == 1],
               "in sections": [r for r in rows if (r.get("sections") or 0) > 1]}
     for kind in sorted(set(kinds.values())):
@@ -92,12 +100,70 @@ def table(rows: list[dict], kinds: dict, wall_s: float, workers: int) -> str:
     return "\n".join(out)
 
 
+REAL_CACHE = Path(__file__).resolve().parent / ".real-plates"
+
+
+def run_real(n: int, workers: int, part: int, budget_min: float, tag: str) -> None:
+    """Plan n real hull plates in parts until the budget is spent; rows and parts kept in <tag>.json."""
+    from real_plates import write_real_batch
+
+    manifest, kinds = write_real_batch(REAL_CACHE, n)
+    plates = read_manifest(manifest)
+    state_path = REAL_CACHE / f"{tag}.json"
+    state = json.loads(state_path.read_text()) if state_path.exists() else {"rows": {}, "parts": []}
+    options = BatchOptions(press_path=str(example_press_path()), out_dir=str(REAL_CACHE / f"jobs-{tag}"),
+                           workers=workers)
+    todo = [p for p in plates if p.name not in state["rows"]]
+    started = time.perf_counter()
+    while todo and time.perf_counter() - started < budget_min * 60.0:
+        chunk, todo = todo[:part], todo[part:]
+        load_before, cpu_before = os.getloadavg()[0], _children_cpu_s()
+        t0 = time.perf_counter()
+        rows = run_batch(chunk, options)
+        wall = time.perf_counter() - t0
+        state["parts"].append({"plates": len(chunk), "wall_s": round(wall, 2),
+                               "cpu_s": round(_children_cpu_s() - cpu_before, 2), "workers": workers,
+                               "load_before": round(load_before, 2), "load_after": round(os.getloadavg()[0], 2)})
+        state["rows"].update({r["plate"]: r for r in rows})
+        state_path.write_text(json.dumps(state, indent=1))
+        print(f"part {len(state['parts'])}: {len(chunk)} plates in {wall:.1f} s, load {load_before:.1f} -> "
+              f"{os.getloadavg()[0]:.1f}; {len(state['rows'])} of {n} done", flush=True)
+    real_report(state, kinds, workers, n)
+
+
+def _children_cpu_s() -> float:
+    """CPU seconds of this process's finished children (the pool's workers) and of itself."""
+    t = os.times()
+    return t.user + t.system + t.children_user + t.children_system
+
+
+def real_report(state: dict, kinds: dict, workers: int, n: int) -> None:
+    """The table over every real plate planned so far, the parts' rate and load."""
+    rows = [r for name, r in state["rows"].items() if name in kinds]
+    wall = sum(p["wall_s"] for p in state["parts"])
+    print(table(rows, kinds, wall, workers))
+    for row in rows:
+        if row["status"] == "failed":
+            print(f"  failed {row['plate']} ({kinds[row['plate']]}): {row['reason'][:150]}")
+    loads = [x for p in state["parts"] for x in (p["load_before"], p["load_after"])]
+    if state["parts"]:
+        print(f"{len(rows)} of {n} plates in {len(state['parts'])} part(s): {len(rows) / max(wall, 1e-9):.2f} plates/s "
+              f"wall; machine load (1-min average) {min(loads):.1f}-{max(loads):.1f} during the parts")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--plates", type=int, default=60)
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     parser.add_argument("--spacing", type=float, default=100.0, help="point spacing of the generated designs (mm)")
+    parser.add_argument("--real", type=int, default=0, help="plan this many real hull plates instead (resumable)")
+    parser.add_argument("--part", type=int, default=100, help="plates per part of --real")
+    parser.add_argument("--budget-min", type=float, default=9.0, help="stop starting parts after this (min)")
+    parser.add_argument("--tag", default="after", help="name of the --real results file and jobs folder")
     args = parser.parse_args()
+    if args.real:
+        run_real(args.real, args.workers, args.part, args.budget_min, args.tag)
+        return
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         manifest, kinds = write_batch(folder, args.plates, args.spacing)
