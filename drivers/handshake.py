@@ -286,7 +286,7 @@ class Handshake:
         deadline = self._clock.now() + self.ack_timeout_s
         while True:
             ours = (raw["motion_sequence"], raw["motion_crc"]) == (seq, crc)
-            if ours and raw["state_name"] in ("EXECUTING", "COMPLETE"):
+            if ours and raw["state_name"] in ("EXECUTING", "COMPLETE", "STOPPING", "STOPPED"):  # stopped: followed
                 return raw
             if raw["state_name"] != "VALIDATED" or self._clock.now() >= deadline:
                 break

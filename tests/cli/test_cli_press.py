@@ -316,7 +316,7 @@ def test_a_job_for_another_press_file_or_another_matrix_exits_2(job_path, tmp_pa
     ("late-status:3", 0, "2 step(s) pressed"),
     ("borrow-ids", 0, "2 step(s) pressed"),
     ("none-after-go", 0, "2 step(s) pressed"),
-    ("foreign-stop@1.0", 4, "was stopped by a STOP request of master 0xF0E1D2C3"),
+    ("foreign-stop@2.0", 4, "was stopped by a STOP request of master 0xF0E1D2C3"),
 ])
 def test_mppf_press_against_each_misbehaving_plc_ends_at_rest(job_path, press, tmp_path, capsys, quirk, code, said):
     """The scenarios of docs/simulator.md ("Quirks"), as the operator runs them: exit code, message, press at rest."""

@@ -209,3 +209,13 @@ def test_the_plc_refuses_a_job_beyond_its_own_limits_whatever_the_master_believe
     assert "dimpling limit 30 mm" in info.value.hint
     assert ("validate", "refused") in actions(audit) and ("go", "ok") not in actions(audit)
     assert at_rest(sim) and sim.state() == "IDLE"  # released: the refused job dropped
+
+
+def test_a_foreign_stop_right_after_go_is_named_whenever_the_driver_first_sees_it(start_sim, press, audit):
+    """The STOP may land before the driver's first status read after GO: STOPPING with our token is our job, stopped."""
+    sim = start_sim("foreign-stop@0", scan_s=0.005)
+    upper, lower = step_setpoints(press)
+    with ModbusPress(sim.url, press, audit=audit) as plc, \
+            pytest.raises(PressFault, match=f"stopped by a STOP request of master 0x{FOREIGN_MASTER:08X}"):
+        plc.run_step(upper, lower)
+    assert at_rest(sim)
