@@ -14,7 +14,14 @@ import numpy as np
 from scipy.interpolate import LSQBivariateSpline, SmoothBivariateSpline
 
 from mppf.core.errors import GeometryError, InputError
-from mppf.geometry.surface_math import Bounds, bounds_of, check_uvz, powers, residual_stats, unit_normals, uv_arrays
+from mppf.geometry.surface_math import (
+    Bounds,
+    bounds_of,
+    check_uvz,
+    residual_stats,
+    unit_normals,
+    uv_arrays,
+)
 
 SPLINE_MIN_POINTS_PER_CELL = 16
 """Default knot spacing of the least-squares spline: about this many points per knot cell."""
@@ -51,6 +58,7 @@ class SplineSurface:
     kind: str = field(default="spline", init=False)
     _breaks: tuple = field(default=(), init=False, repr=False)
     _patches: np.ndarray | None = field(default=None, init=False, repr=False)
+    _coefficients: np.ndarray | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self):
         tx, ty = self.spline.get_knots()
@@ -65,6 +73,7 @@ class SplineSurface:
         patches = np.einsum("pk,ikjl,ql->ijpq", inv, values, inv)  # (cells u, cells v, 4, 4)
         object.__setattr__(self, "_breaks", (bu, bv))
         object.__setattr__(self, "_patches", patches)
+        object.__setattr__(self, "_coefficients", np.ascontiguousarray(patches.reshape(-1, 16).T))  # (16, cells)
 
     @property
     def knots(self) -> tuple[np.ndarray, np.ndarray]:
@@ -79,22 +88,24 @@ class SplineSurface:
         return u_arr.shape, cu, cv, uu - cu, vv - cv
 
     def _pieces(self, cu, cv, orders) -> list[np.ndarray]:
-        """Partial derivatives d^(a+b) S / du^a dv^b at points inside the bounds, per (a, b)."""
+        """Partial derivatives d^(a+b) S / du^a dv^b at points inside the bounds, per (a, b).
+
+        Each point's bicubic piece is summed by Horner's rule, first along v (one row per power of
+        u, per order b), then along u: about 30 array operations for the heights and slopes.
+        """
         bu, bv = self._breaks
         i = np.clip(np.searchsorted(bu, cu, side="right") - 1, 0, len(bu) - 2)
         j = np.clip(np.searchsorted(bv, cv, side="right") - 1, 0, len(bv) - 2)
         hu, hv = bu[i + 1] - bu[i], bv[j + 1] - bv[j]
-        top = max(max(a for a, _ in orders), max(b for _, b in orders))
-        pa = powers((cu - bu[i]) / hu, 3, order=top)
-        pb = powers((cv - bv[j]) / hv, 3, order=top)
-        # coefficients c_pq of each point's cell as (4, 4, n): contiguous rows, fast sums
-        coef = self._patches.reshape(-1, 16).T[:, i * (len(bv) - 1) + j].reshape(4, 4, -1)
-        cache: dict[int, np.ndarray] = {}
+        x, y = (cu - bu[i]) / hu, (cv - bv[j]) / hv
+        # coefficients c_pq of each point's cell: row 4 p + q of a (16, n) array, rows contiguous
+        coef = np.take(self._coefficients, i * (len(bv) - 1) + j, axis=1)
+        rows: dict[int, list[np.ndarray]] = {}
         out = []
         for a, b in orders:
-            if b not in cache:  # sum over q of c_pq d^b(beta^q), (4, n)
-                cache[b] = np.einsum("pqn,qn->pn", coef, pb[b])
-            out.append(np.einsum("pn,pn->n", cache[b], pa[a]) / (hu**a * hv**b))
+            if b not in rows:  # sum over q of c_pq d^b(y^q), one array per p
+                rows[b] = [_horner_derivative(coef[4 * p:4 * p + 4], b, y) for p in range(4)]
+            out.append(_horner_derivative(rows[b], a, x) / (hu**a * hv**b))
         return out
 
     def evaluate(self, u, v) -> np.ndarray:
@@ -125,6 +136,33 @@ class SplineSurface:
         """Unit normals (..., 3) toward +w."""
         _, zu, zv, *_ = self.derivatives(u, v)
         return unit_normals(zu, zv)
+
+
+_FALLING = ((1.0, 1.0, 1.0, 1.0), (0.0, 1.0, 2.0, 3.0), (0.0, 0.0, 2.0, 6.0))
+"""k! / (k - order)!: the factor of c_k x^(k - order) in the order-th derivative of c_k x^k."""
+
+
+def _horner_derivative(coefficients, order: int, x: np.ndarray) -> np.ndarray:
+    """d^order/dx^order of the cubic sum_k c_k x^k at x, by Horner's rule.
+
+    Parameters
+    ----------
+    coefficients : sequence of 4 (n,) float
+        c_0 .. c_3 per point.
+    order : int
+        0, 1 or 2.
+    x : (n,) float
+
+    Returns
+    -------
+    (n,) float
+    """
+    factor = _FALLING[order]
+    out = coefficients[3] * factor[3]
+    for k in range(2, order - 1, -1):
+        out *= x
+        out += coefficients[k] * factor[k] if order else coefficients[k]
+    return out
 
 
 def _uniform_knots(lo: float, hi: float, intervals: int) -> np.ndarray:
