@@ -1,4 +1,4 @@
-"""The demo as a library function: its inputs and its default press (the whole run: tests/cli/test_cli_demo.py)."""
+"""The demo as a library function: its inputs and its default press (the whole run: tests/cli/test_demo_cmd.py)."""
 
 from __future__ import annotations
 
