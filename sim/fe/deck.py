@@ -15,14 +15,14 @@ A press step is three ``*STEP, NLGEOM`` (large deflection: bending and membrane 
 giving every tip its height (``*BOUNDARY, OP=NEW``):
 
 1. ``APPROACH`` (not before the first press step, where the flat stroke set touches the flat plate):
-   the tips move to touch the plate as it lies, while the three clamp pairs of the step before
+   the tips move to touch the plate as it lies, while the three nodes of the step before's release
    still hold it (next to no force);
 2. ``LOAD``: the tips travel to the step's tip heights (parked pairs to their park heights) while
    the gaps close and open;
-3. ``RELEASE``: three pairs far apart (:func:`clamp_pairs`) keep their tips where the load left
-   them, a statically determinate support (three points along z; they carry no force once the
-   others are gone), and every other tip retracts :data:`RETRACT_MM`; the gaps open one by one as
-   the plate springs back.
+3. ``RELEASE``: three mid-thickness nodes far apart (:func:`hold_nodes`, fresh ones in every press
+   step) are frozen where the load left them (``*BOUNDARY, FIXED``: statically determinate, they
+   carry no force once the tips are gone) and every tip retracts :data:`RETRACT_MM`; the gaps open
+   one by one as the plate springs back.
 
 A run replays every press step of the plate from the flat plate (:func:`history_deck`); the
 displacements of the last one's load and release are written to the .frd file.
@@ -132,28 +132,35 @@ def planar_holds(mesh) -> list[str]:
     return ["TIPS,1,2,0.", f"{int(mesh.middle[a])},1,2,0.", f"{int(mesh.middle[b])},{dof},0."]
 
 
-def clamp_pairs(mesh, enabled) -> np.ndarray:
-    """Indices (3,) of the punch pairs that hold the plate statically determinate while the others retract.
+def hold_nodes(mesh, press_step: int) -> np.ndarray:
+    """Mid-thickness node ids (3,) that hold the plate statically determinate in a press step's release.
 
-    Among the pairs in use, the two farthest apart and the one farthest from the line through
-    them (the largest triangle of supports).
+    Near the corners of the largest triangle of punch axes over the plate; each press step takes
+    the next-nearest node column to each corner, so no node is held in two releases (a
+    ``*BOUNDARY, FIXED`` on a node held before froze a stale value in ccx 2.20).
 
     Parameters
     ----------
     mesh : PlateMesh
-    enabled : (m,) bool
-        Pairs in use in the step.
+    press_step : int
+        0 for the plate's first press step, 1 for the next...
     """
-    idx = np.nonzero(np.asarray(enabled, dtype=bool))[0]
-    xy = mesh.punch_xy_mm[idx]
+    xy = mesh.punch_xy_mm
     d = np.linalg.norm(xy[:, None, :] - xy[None, :, :], axis=2)
     a, b = np.unravel_index(np.argmax(d), d.shape)
     ab = xy[b] - xy[a]
-    cross = np.abs(ab[0] * (xy[:, 1] - xy[a, 1]) - ab[1] * (xy[:, 0] - xy[a, 0]))
-    return idx[np.array([a, b, int(np.argmax(cross))])]
+    c = int(np.argmax(np.abs(ab[0] * (xy[:, 1] - xy[a, 1]) - ab[1] * (xy[:, 0] - xy[a, 0]))))
+    mid = mesh.column[..., mesh.layers // 2]
+    jj, ii = np.nonzero(mid > 0)
+    columns = np.column_stack([mesh.x_mm[ii], mesh.y_mm[jj]])
+    nodes = []
+    for corner in xy[[a, b, c]]:
+        order = np.argsort(np.linalg.norm(columns - corner, axis=1), kind="stable")
+        nodes.append(int(mid[jj[order[press_step % len(order)]], ii[order[press_step % len(order)]]]))
+    return np.array(nodes)
 
 
-def step_lines(mesh, name: str, tips_z_mm: np.ndarray, *, initial_increment: float = 0.25,
+def step_lines(mesh, name: str, tips_z_mm: np.ndarray, *, holds=None, initial_increment: float = 0.25,
                output: bool = True) -> list[str]:
     """One static step: every tip to its height (``*BOUNDARY, OP=NEW``, the in-plane supports repeated).
 
@@ -164,6 +171,8 @@ def step_lines(mesh, name: str, tips_z_mm: np.ndarray, *, initial_increment: flo
         A comment naming the step.
     tips_z_mm : (2 m,) float
         Absolute heights of the lower tips, then the upper tips, mm (their nodes' z).
+    holds : (3,) int, optional
+        Nodes frozen in z where the step before left them (``*BOUNDARY, FIXED``).
     initial_increment : float
         First increment, share of the step.
     output : bool
@@ -182,22 +191,15 @@ def step_lines(mesh, name: str, tips_z_mm: np.ndarray, *, initial_increment: flo
     out += ["*CONTROLS, PARAMETERS=TIME INCREMENTATION", "8,10,9,200,10,4,0,5"]
     out += ["*BOUNDARY, OP=NEW"] + planar_holds(mesh)
     out += [f"{int(node)},3,3,{dz:.6f}" for node, dz in zip(np.concatenate([lower, upper]), move)]
+    if holds is not None:
+        out += ["*BOUNDARY, FIXED"] + [f"{int(node)},3,3" for node in holds]
     if output:
         out += ["*NODE FILE, NSET=PLATEN, FREQUENCY=1000", "U"]
     out += ["*END STEP"]
     return out
 
 
-def _keep(tips_z_mm, pairs, kept_z_mm) -> np.ndarray:
-    """Tips (2 m,) with both tips of ``pairs`` at their heights in ``kept_z_mm``."""
-    tips = np.asarray(tips_z_mm, dtype=float).copy()
-    m = len(tips) // 2
-    for i in np.asarray(pairs, dtype=int):
-        tips[i], tips[m + i] = kept_z_mm[i], kept_z_mm[m + i]
-    return tips
-
-
-def press_step_lines(mesh, tips_z_mm, clamp, before=None, *, output: bool = True) -> list[str]:
+def press_step_lines(mesh, tips_z_mm, index: int, touch_z_mm=None, *, output: bool = True) -> list[str]:
     """The steps of one press step: approach (unless the first), load, release.
 
     Parameters
@@ -205,24 +207,24 @@ def press_step_lines(mesh, tips_z_mm, clamp, before=None, *, output: bool = True
     mesh : PlateMesh
     tips_z_mm : (2 m,) float
         The step's tip heights (absolute, lower then upper), mm.
-    clamp : (3,) int
-        Pairs (:func:`clamp_pairs`) whose tips stay where the load left them in the release.
-    before : tuple, optional
-        ``(touch_z_mm, tips_z_mm, clamp)`` of the approach: the tip heights touching the plate as
-        the step before left it, that step's tips and clamp pairs (still holding the plate). None
-        for the first press step (the flat stroke set touches the flat plate).
+    index : int
+        Which press step of the plate this is (0: the first): picks its release holds (:func:`hold_nodes`).
+    touch_z_mm : (2 m,) float, optional
+        Tip heights touching the plate as the step before left it (the approach, the plate still
+        held by that step's release holds); None for the first press step (the flat stroke set
+        touches the flat plate).
     output : bool
         Write the displacements at the end of the load and the release.
     """
     out = []
-    if before is not None:
-        touch, last_tips, last_clamp = before
-        out += step_lines(mesh, "APPROACH", _keep(touch, last_clamp, last_tips), initial_increment=1.0,
+    if touch_z_mm is not None:
+        out += step_lines(mesh, "APPROACH", touch_z_mm, holds=hold_nodes(mesh, index - 1), initial_increment=1.0,
                           output=False)
     out += step_lines(mesh, "LOAD", tips_z_mm, output=output)
     m = len(mesh.bottom)
     retracted = np.asarray(tips_z_mm, dtype=float) + np.concatenate([np.full(m, -RETRACT_MM), np.full(m, RETRACT_MM)])
-    out += step_lines(mesh, "RELEASE", _keep(retracted, clamp, tips_z_mm), initial_increment=0.05, output=output)
+    out += step_lines(mesh, "RELEASE", retracted, holds=hold_nodes(mesh, index), initial_increment=0.05,
+                      output=output)
     return out
 
 
@@ -234,19 +236,17 @@ def history_deck(mesh, model: list[str], history: list[tuple]) -> str:
     mesh : PlateMesh
     model : list of str
         :func:`model_lines`.
-    history : list of (tips_z_mm, touch_z_mm, clamp)
-        Every press step so far and the new one, in order: its tips (2 m,), the tips touching the
-        plate before it (2 m,; ignored for the first) and its clamp pairs (3,). Only the last
-        writes displacements.
+    history : list of (tips_z_mm, touch_z_mm)
+        Every press step so far and the new one, in order: its tips (2 m,) and the tips touching
+        the plate before it (2 m,; ignored for the first). Only the last writes displacements.
 
     Returns
     -------
     str
     """
     out = list(model)
-    for k, (tips, touch, clamp) in enumerate(history):
-        before = None if k == 0 else (touch, history[k - 1][0], history[k - 1][2])
-        out += press_step_lines(mesh, tips, clamp, before, output=k == len(history) - 1)
+    for k, (tips, touch) in enumerate(history):
+        out += press_step_lines(mesh, tips, k, None if k == 0 else touch, output=k == len(history) - 1)
     return "\n".join(out) + "\n"
 
 

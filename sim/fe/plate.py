@@ -18,7 +18,7 @@ from dataclasses import asdict
 
 import numpy as np
 from mppf.sim.fe.ccx import FESolveError, run_ccx
-from mppf.sim.fe.deck import clamp_pairs, history_deck, model_lines, step_count
+from mppf.sim.fe.deck import history_deck, model_lines, step_count
 from mppf.sim.fe.formed import FormedFEPlate
 from mppf.sim.fe.mesh import build_mesh
 from mppf.sim.fe.results import last_of_steps, read_frd
@@ -116,7 +116,7 @@ class FEPlate:
         self.tips_lower_mm = np.zeros(m)
         self.tips_upper_mm = self.mesh.thickness_mm.copy()
         self.tips_enabled = np.ones(m, dtype=bool)
-        self.history: list[tuple] = []  # (tips (2 m,), touch (2 m,), clamp pairs (3,)) of every press step
+        self.history: list[tuple] = []  # (tips (2 m,), touch (2 m,)) of every press step
         self.steps = 0
         self.last_seconds = 0.0
 
@@ -175,7 +175,7 @@ class FEPlate:
         if share < 1.0:
             lower = np.where(enabled, start_lower + share * (lower - start_lower), lower)
             upper = np.where(enabled, start_upper + share * (upper - start_upper), upper)
-        entry = (np.concatenate([lower, upper]), np.concatenate(self._skins()), clamp_pairs(self.mesh, enabled))
+        entry = (np.concatenate([lower, upper]), np.concatenate(self._skins()))
         model = model_lines(self.mesh, self.plate.steel, self._yield_factor(), self.punch_stiffness_n_mm)
         run = run_ccx(history_deck(self.mesh, model, self.history + [entry]), progress=self.progress)
         steps = last_of_steps(read_frd(run.frd))
@@ -282,12 +282,12 @@ class FEPlate:
         config = {"press": self.press.to_dict(), "outline_xy_mm": self.outline_xy_mm.tolist(),
                   "plate": self.plate.to_dict(), "options": self.options, "compliance": asdict(self.compliance)}
         m2 = 2 * len(self.mesh.bottom)
-        history = [np.array([h[i] for h in self.history]).reshape(-1, m2 if i < 2 else 3) for i in range(3)]
+        history = [np.array([h[i] for h in self.history]).reshape(-1, m2) for i in range(2)]
         return {"config": json.dumps(config), "model": "fe", "steps": np.array(self.steps),
                 "u_mm": self.u_mm.copy(), "loaded_u_mm": self.loaded_u_mm.copy(),
                 "force_n": self.force_n.copy(), "tips_lower_mm": self.tips_lower_mm.copy(),
                 "tips_upper_mm": self.tips_upper_mm.copy(), "tips_enabled": self.tips_enabled.copy(),
-                "history_tips_mm": history[0], "history_touch_mm": history[1], "history_clamp": history[2]}
+                "history_tips_mm": history[0], "history_touch_mm": history[1]}
 
     @classmethod
     def from_state(cls, state, progress=None) -> FEPlate:
@@ -299,7 +299,7 @@ class FEPlate:
             Something is missing or does not fit the mesh the settings describe.
         """
         names = ("u_mm", "loaded_u_mm", "force_n", "tips_lower_mm", "tips_upper_mm", "tips_enabled")
-        history = ("history_tips_mm", "history_touch_mm", "history_clamp")
+        history = ("history_tips_mm", "history_touch_mm")
         missing = {"config", "steps", *history, *names} - set(state)
         if missing:
             raise InputError(f"saved FE plate state lacks {', '.join(sorted(missing))}",
@@ -316,11 +316,10 @@ class FEPlate:
                 raise InputError(f"saved FE plate state: {name} has shape {value.shape}, the plate needs {like.shape}")
             setattr(self, name, value)
         self.steps = int(np.asarray(state["steps"]))
-        tips, touch = (np.asarray(state[name], dtype=float) for name in history[:2])
-        clamp = np.asarray(state["history_clamp"], dtype=int)
+        tips, touch = (np.asarray(state[name], dtype=float) for name in history)
         m2 = 2 * len(self.mesh.bottom)
-        if tips.shape != (self.steps, m2) or touch.shape != tips.shape or clamp.shape != (self.steps, 3):
+        if tips.shape != (self.steps, m2) or touch.shape != tips.shape:
             raise InputError(f"saved FE plate state: a history of {tips.shape} tips for {self.steps} steps and "
                              f"{m2} tips", hint="save it with FEPlate.state_dict()")
-        self.history = list(zip(tips, touch, clamp))
+        self.history = list(zip(tips, touch))
         return self

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from mppf.sim.fe import ccx
-from mppf.sim.fe.deck import RETRACT_MM, clamp_pairs, flow_curve, history_deck, model_lines, step_count
+from mppf.sim.fe.deck import RETRACT_MM, flow_curve, history_deck, hold_nodes, model_lines, step_count
 from mppf.sim.fe.mesh import build_mesh
 from mppf.sim.fe.results import last_of_steps, read_dat_forces, read_frd
 from mppf.sim.plate.material import PlateSteel
@@ -64,28 +64,29 @@ def test_model_has_hexahedra_gaps_and_kinematic_hardening_per_yield_bin(press):
     assert np.all(np.diff(curve[:, 0]) > 0)
 
 
-def test_history_deck_replays_every_press_step_and_clamps_the_plate_for_the_release(press):
+def test_history_deck_replays_every_press_step_and_holds_each_release_by_fresh_nodes(press):
     mesh = build_mesh(press, OUTLINE, thickness, cells_per_pitch=1, layers=2)
     m = len(mesh.bottom)
-    enabled = np.ones(m, dtype=bool)
-    enabled[0] = False  # a parked pair never clamps
-    clamp = clamp_pairs(mesh, enabled)
-    assert len(set(clamp.tolist())) == 3 and 0 not in clamp
-    a, b, c = mesh.punch_xy_mm[clamp]
+    holds = [hold_nodes(mesh, k) for k in range(6)]
+    assert len({int(n) for h in holds for n in h}) == 18  # no node held in two releases
+    mid = mesh.column[..., 1]
+    assert all(np.isin(h, mid[mid > 0]).all() for h in holds)  # mid-thickness nodes
+    a, b, c = (mesh.xyz_mm[n - 1, :2] for n in holds[0])
     ab, ac = b - a, c - a
     assert abs(ab[0] * ac[1] - ab[1] * ac[0]) > 1e5  # a real triangle, not a line
     tips = np.concatenate([np.zeros(m), mesh.thickness_mm])
-    first = history_deck(mesh, ["*NODE"], [(tips, None, clamp)])
+    first = history_deck(mesh, ["*NODE"], [(tips, None)])
     assert first.count("*STEP") == 2 == step_count(1) and first.count("*NODE FILE") == 2
-    later = history_deck(mesh, ["*NODE"], [(tips, None, clamp), (tips - 10.0, tips + 5.0, clamp)])
+    later = history_deck(mesh, ["*NODE"], [(tips, None), (tips - 10.0, tips + 5.0)])
     assert later.count("*STEP") == 5 == step_count(2) and later.count("*NODE FILE") == 2
     lower = mesh.node_count + 1 + np.arange(m)  # the lower tips' nodes (flat at z = 0)
-    release = later[later.rindex("** RELEASE"):]
     approach = later[later.index("** APPROACH"):later.index("** LOAD", later.index("** APPROACH"))]
-    for i in range(m):
-        held = i in clamp
-        assert f"{lower[i]},3,3,{-10.0 if held else -10.0 - RETRACT_MM:.6f}" in release  # the others retract
-        assert f"{lower[i]},3,3,{0.0 if held else 5.0:.6f}" in approach  # the clamps hold, the others touch
+    release = later[later.rindex("** RELEASE"):]
+    assert all(f"{lower[i]},3,3,{-10.0 - RETRACT_MM:.6f}" in release for i in range(m))  # every tip retracts
+    assert all(f"{lower[i]},3,3,5.000000" in approach for i in range(m))  # and touches again
+    frozen = release[release.index("*BOUNDARY, FIXED"):].split("\n")[1:4]
+    assert frozen == [f"{int(n)},3,3" for n in holds[1]]
+    assert approach[approach.index("*BOUNDARY, FIXED"):].split("\n")[1:4] == [f"{int(n)},3,3" for n in holds[0]]
 
 
 FRD = """    1C
