@@ -38,6 +38,8 @@ PATCH_HALF_WIDTH = 1.5
 
 NEWTON_ITERATIONS = 20
 NEWTON_TOL_MM = 1e-9
+AXIS_FOOT_TOL_MM = 1e-10
+"""The axis-foot iteration stops when no point moves more than this along its axis (mm)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,17 +67,12 @@ class PlacedSurface:
         """
         u = np.asarray(u, dtype=float)
         v = np.asarray(v, dtype=float)
-        z, zu, zv, zuu, zuv, zvv = (np.broadcast_to(np.asarray(a, dtype=float), u.shape)
+        z, zu, zv, zuu, zuv, zvv = (np.broadcast_to(np.asarray(a, dtype=float), u.shape)[..., None]
                                     for a in self.surface.derivatives(u, v))
-        rot = np.asarray(self.tf_press_local, dtype=float)[:3, :3]
-        zero, one = np.zeros_like(u), np.ones_like(u)
-        p = np.stack([u, v, z], axis=-1) @ rot.T + self.tf_press_local[:3, 3]
-        pu = np.stack([one, zero, zu], axis=-1) @ rot.T
-        pv = np.stack([zero, one, zv], axis=-1) @ rot.T
-        puu = np.stack([zero, zero, zuu], axis=-1) @ rot.T
-        puv = np.stack([zero, zero, zuv], axis=-1) @ rot.T
-        pvv = np.stack([zero, zero, zvv], axis=-1) @ rot.T
-        return p, pu, pv, puu, puv, pvv
+        tf = np.asarray(self.tf_press_local, dtype=float)
+        eu, ev, ew = tf[:3, 0], tf[:3, 1], tf[:3, 2]  # the local axes in press coordinates
+        p = u[..., None] * eu + v[..., None] * ev + z * ew + tf[:3, 3]
+        return p, eu + zu * ew, ev + zv * ew, zuu * ew, zuv * ew, zvv * ew
 
     def points(self, u, v) -> np.ndarray:
         """(m, 3) press points of the surface at local (u, v)."""
@@ -101,7 +98,9 @@ class PlacedSurface:
             u = line0[:, 0] + s * direction[0]
             v = line0[:, 1] + s * direction[1]
             z = np.asarray(self.surface.evaluate(u, v), dtype=float)
-            s = (z - line0[:, 2]) / direction[2]
+            s, previous = (z - line0[:, 2]) / direction[2], s
+            if np.all(np.abs(s - previous) < AXIS_FOOT_TOL_MM):
+                break
         return line0[:, 0] + s * direction[0], line0[:, 1] + s * direction[1]
 
 
@@ -124,11 +123,20 @@ class Contact:
     exact: np.ndarray
 
 
+def _cross(a, b):
+    """Row-wise cross product of (m, 3) arrays (np.cross without its per-call overhead)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
+
+
 def _normal_and_derivatives(pu, pv, puu, puv, pvv):
     """Unit normal (oriented up) and its u, v derivatives, all (m, 3)."""
-    big_n = np.cross(pu, pv)
-    big_nu = np.cross(puu, pv) + np.cross(pu, puv)
-    big_nv = np.cross(puv, pv) + np.cross(pu, pvv)
+    big_n = _cross(pu, pv)
+    big_nu = _cross(puu, pv) + _cross(pu, puv)
+    big_nv = _cross(puv, pv) + _cross(pu, pvv)
     sign = np.where(big_n[:, 2] >= 0, 1.0, -1.0)[:, None]
     big_n, big_nu, big_nv = big_n * sign, big_nu * sign, big_nv * sign
     norm = np.linalg.norm(big_n, axis=1, keepdims=True)
@@ -178,26 +186,48 @@ def tip_heights(placed: PlacedSurface, x_mm, y_mm, *, tip_radius_mm: float,
         raise GeometryError("no surface point within reach of a punch ball",
                             hint="the surface is too steep for the press; check the registration")
     rise = np.sqrt(np.where(reach, big_r**2 - d2, 0.0))
-    return tuple(_solve_side(placed, s, axis, us, vs, pts, rise, reach, big_r, tip_radius_mm)
-                 for s in (1.0, -1.0))
+    return _solve_sides(placed, axis, us, vs, pts, rise, reach, big_r, tip_radius_mm)
 
 
-def _solve_side(placed, s, axis, us, vs, pts, rise, reach, big_r, tip_radius_mm) -> Contact:
-    """Best sample, then Newton on (p + s R n)_xy = axis (s = +1 upper, -1 lower)."""
+def _solve_sides(placed, axis, us, vs, pts, rise, reach, big_r, tip_radius_mm) -> tuple[Contact, Contact]:
+    """Best sample, then Newton on (p + s R n)_xy = axis, the upper (s = +1) and lower (s = -1) side at once.
+
+    The sides' rows are stacked (upper rows first) so each iteration evaluates the surface once.
+    """
     m = len(axis)
-    value = np.where(reach, s * pts[:, :, 2] + rise, -np.inf)  # maximise s * zc
+    s = np.repeat([1.0, -1.0], m)
+    axis2, pts2 = np.vstack([axis, axis]), np.concatenate([pts, pts])
+    us2, vs2 = np.concatenate([us, us]), np.concatenate([vs, vs])
+    value = np.where(np.concatenate([reach, reach]), s[:, None] * pts2[:, :, 2] + np.concatenate([rise, rise]),
+                     -np.inf)  # maximise s * zc
     best = np.argmax(value, axis=1)
-    rows = np.arange(m)
+    rows = np.arange(2 * m)
     sampled = s * value[rows, best]
-    u, v = us[rows, best], vs[rows, best]
+    u, v = _newton(placed, s[:, None] * big_r, axis2, us2[rows, best], vs2[rows, best], big_r)
+    p, pu, pv, puu, puv, pvv = placed.geometry(u, v)
+    n, _, _ = _normal_and_derivatives(pu, pv, puu, puv, pvv)
+    centre = p + s[:, None] * big_r * n
+    converged = np.all(np.abs(centre[:, :2] - axis2) < 1e-6, axis=1)
+    # The Newton point is a genuine touching position, so it is kept when it is at
+    # least as far as the sampled value (always, unless it found another local contact).
+    exact = converged & (s * centre[:, 2] >= s * sampled - 1e-9)
+    zc = np.where(exact, centre[:, 2], sampled)
+    contact = np.where(exact[:, None], p, pts2[rows, best])
+    tip = zc - s * tip_radius_mm
+    return (Contact(tip_mm=tip[:m], contact_mm=contact[:m], exact=exact[:m]),
+            Contact(tip_mm=tip[m:], contact_mm=contact[m:], exact=exact[m:]))
+
+
+def _newton(placed, signed_r, axis, u, v, big_r):
+    """Newton iterations on (p + s R n)_xy = axis from (u, v); ``signed_r`` (k, 1) is s R. The last (u, v)."""
     for _ in range(NEWTON_ITERATIONS):
         p, pu, pv, puu, puv, pvv = placed.geometry(u, v)
         n, nu, nv = _normal_and_derivatives(pu, pv, puu, puv, pvv)
-        resid = (p + s * big_r * n)[:, :2] - axis
+        resid = (p + signed_r * n)[:, :2] - axis
         if np.all(np.abs(resid) < NEWTON_TOL_MM):
             break
-        ju = (pu + s * big_r * nu)[:, :2]
-        jv = (pv + s * big_r * nv)[:, :2]
+        ju = (pu + signed_r * nu)[:, :2]
+        jv = (pv + signed_r * nv)[:, :2]
         det = ju[:, 0] * jv[:, 1] - jv[:, 0] * ju[:, 1]
         det = np.where(np.abs(det) < 1e-12, 1e-12, det)
         step_u = (jv[:, 1] * resid[:, 0] - jv[:, 0] * resid[:, 1]) / det
@@ -206,13 +236,4 @@ def _solve_side(placed, s, axis, us, vs, pts, rise, reach, big_r, tip_radius_mm)
         scale = np.minimum(1.0, 0.5 * big_r / np.maximum(length, 1e-300))
         u = u - scale * step_u
         v = v - scale * step_v
-    p, pu, pv, puu, puv, pvv = placed.geometry(u, v)
-    n, _, _ = _normal_and_derivatives(pu, pv, puu, puv, pvv)
-    centre = p + s * big_r * n
-    converged = np.all(np.abs(centre[:, :2] - axis) < 1e-6, axis=1)
-    # The Newton point is a genuine touching position, so it is kept when it is at
-    # least as far as the sampled value (always, unless it found another local contact).
-    exact = converged & (s * centre[:, 2] >= s * sampled - 1e-9)
-    zc = np.where(exact, centre[:, 2], sampled)
-    contact = np.where(exact[:, None], p, pts[rows, best])
-    return Contact(tip_mm=zc - s * tip_radius_mm, contact_mm=contact, exact=exact)
+    return u, v
