@@ -22,6 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
+from mppf.core.errors import MppfError
+
 HULL = Path(__file__).resolve().parents[1] / "mppf" / "examples" / "hull"
 PLATES = ("K1_midbody_bilge", "K2_fwd_bilge_convex", "K3_stern_saddle", "P1_midbody_bilge", "P2_bow_flare",
           "P3_stern_saddle")
@@ -45,8 +47,9 @@ def planned(name: str, out: Path) -> tuple[Path, Path, Path]:
     return design, flat, job
 
 
-def first_cycle(job_path: Path, flat_path: Path, physics: str, folder: Path, seed: int) -> tuple[Path, float]:
-    """The scan of the plate pressed with the job's first cycle, and the seconds it took."""
+def first_cycle(job_path: Path, flat_path: Path, physics: str, folder: Path, seed: int,
+                last_only: bool = False) -> tuple[Path, float]:
+    """The scan of the plate pressed with the job's first cycle (or its last step only), and the seconds it took."""
     from mppf.core.progress import NULL_REPORTER
     from mppf.core.scanner import PressedStep, ScanContext
     from mppf.geometry.read import read_points
@@ -60,6 +63,8 @@ def first_cycle(job_path: Path, flat_path: Path, physics: str, folder: Path, see
                                             outlier_fraction=0.0)
     steps = tuple(PressedStep(1, k, *step.setpoints_mm(job.press), np.asarray(step.active, dtype=bool))
                   for k, step in enumerate(job.steps, start=1))
+    if last_only:
+        steps = steps[-1:]
     folder.mkdir(parents=True, exist_ok=True)
     context = ScanContext(plate_id=physics, work_dir=folder, since_s=0.0, upper_mm=steps[-1].upper_mm,
                           lower_mm=steps[-1].lower_mm, active=steps[-1].active, steps=steps, reporter=NULL_REPORTER)
@@ -84,19 +89,28 @@ def main() -> None:
     parser.add_argument("--physics", nargs="+", default=["fd", "fe"], choices=["fd", "fe"])
     parser.add_argument("--out", type=Path, default=Path("/tmp/bench-fe"))
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--steps", choices=["all", "last"], default="all",
+                        help="every step of the first cycle, or only its last one from the flat plate")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
-    print("| plate | steps | strokes lower..upper (mm) | physics | form max (mm) | RMS (mm) | time (s) |")
-    print("|---|---|---|---|---|---|---|")
+    print("| plate | steps | strokes lower..upper (mm) | physics | pressed | form max (mm) | RMS (mm) | time (s) |")
+    print("|---|---|---|---|---|---|---|---|")
     for name in args.plates:
         design, flat, job = planned(name, args.out)
         steps, low, high = stroke_range(job)
         for physics in args.physics:
-            scan, seconds = first_cycle(job, flat, physics, args.out / f"{name}-{physics}", args.seed)
+            folder = args.out / f"{name}-{physics}-{args.steps}"
+            try:
+                scan, seconds = first_cycle(job, flat, physics, folder, args.seed, args.steps == "last")
+            except MppfError as exc:  # a run that does not converge is a result of the table too
+                print(f"| {name} | {steps} | {low:.0f} .. {high:.0f} | {physics} | {args.steps} | failed: "
+                      f"{str(exc).split(';')[0]} | | |", flush=True)
+                continue
             result = mppf("compare", str(design), str(scan), "--job", str(job), "--json")
             doc = json.loads(result.stdout) if result.stdout.strip().startswith("{") else {}
-            print(f"| {name} | {steps} | {low:.0f} .. {high:.0f} | {physics} | {doc.get('form_max_abs_mm', float('nan')):.1f} "
-                  f"| {doc.get('form_rms_mm', float('nan')):.1f} | {seconds:.0f} |", flush=True)
+            print(f"| {name} | {steps} | {low:.0f} .. {high:.0f} | {physics} | {args.steps} | "
+                  f"{doc.get('form_max_abs_mm', float('nan')):.1f} | {doc.get('form_rms_mm', float('nan')):.1f} | "
+                  f"{seconds:.0f} |", flush=True)
 
 
 if __name__ == "__main__":

@@ -31,8 +31,12 @@ from mppf.core.errors import InputError
 @click.option("--cells-per-pitch", type=int, default=None,
               help="Element edges between neighbouring punch axes [default: the FE plate's, 1].")
 @click.option("--layers", type=int, default=None, help="Elements through the thickness [default: 4].")
+@click.option("--steps", "which_steps", type=click.Choice(["all", "last"]), default="all", show_default=True,
+              help="Press every step of the first cycle in order, or only its last step straight from the flat "
+                   "plate (one ccx run; the fallback when a later step of a strongly bent plate does not converge, "
+                   "docs/simulator-fe.md).")
 @units_option
-def tryout(job_path, design_path, flat_path, out_dir, seed, cells_per_pitch, layers, units):
+def tryout(job_path, design_path, flat_path, out_dir, seed, cells_per_pitch, layers, which_steps, units):
     """Predict with the FE plate (CalculiX) the shape JOB's first cycle presses, and compare it with the design.
 
     Prints the form max and RMS of the predicted plate against the design and writes the deviation
@@ -50,9 +54,10 @@ def tryout(job_path, design_path, flat_path, out_dir, seed, cells_per_pitch, lay
         options["layers"] = check_number("--layers", layers, low=1, high=8, integer=True)
     find_ccx()
     started = time.monotonic()
-    scan, job = _predicted_scan(job_path, flat_path, out_dir, seed, options, units)
-    console.print(f"FE plate: the first cycle's {len(job.steps)} step(s) pressed in "
-                  f"{time.monotonic() - started:.0f} s; compared with the design:")
+    scan, job = _predicted_scan(job_path, flat_path, out_dir, seed, options, units, which_steps == "last")
+    what = f"{len(job.steps)} step(s)" if which_steps == "all" else f"last of {len(job.steps)} step(s)"
+    console.print(f"FE plate: the first cycle's {what} pressed in {time.monotonic() - started:.0f} s; "
+                  "compared with the design:")
     from mppf.cli import main
 
     code = main(["compare", str(design_path), str(scan), "--job", str(job_path), "--units", units,
@@ -62,7 +67,8 @@ def tryout(job_path, design_path, flat_path, out_dir, seed, cells_per_pitch, lay
         raise SystemExit(code)
 
 
-def _predicted_scan(job_path: Path, flat_path: Path, out_dir: Path, seed: int, options: dict, units: str):
+def _predicted_scan(job_path: Path, flat_path: Path, out_dir: Path, seed: int, options: dict, units: str,
+                    last_only: bool = False):
     """Press the job's first cycle on the FE plate and write its top skin as a scan (with its mark file)."""
     import numpy as np
 
@@ -85,6 +91,8 @@ def _predicted_scan(job_path: Path, flat_path: Path, out_dir: Path, seed: int, o
                                             occlusion_fraction=0.0, outlier_fraction=0.0)
     steps = tuple(PressedStep(1, k, *step.setpoints_mm(job.press), np.asarray(step.active, dtype=bool))
                   for k, step in enumerate(job.steps, start=1))
+    if last_only:
+        steps = steps[-1:]
     context = ScanContext(plate_id="tryout", work_dir=out_dir, since_s=0.0, upper_mm=steps[-1].upper_mm,
                           lower_mm=steps[-1].lower_mm, active=steps[-1].active, steps=steps, reporter=_Progress())
     return scanner.acquire(1, context), job
