@@ -22,6 +22,15 @@ MAX_TILT_DEG = 3.0
 MIN_TILT_GAIN_MM = 1.0
 """A tilt is used only when it lowers the largest punch travel by at least this much."""
 
+ACTIVE_SET_START = 8
+"""Rows the tilt's linear programme starts from, per extreme (highest, lowest, closest to a limit)."""
+ACTIVE_SET_ADD = 64
+"""Most violated rows added to the programme per round."""
+ACTIVE_SET_ROUNDS = 20
+"""Rounds of the active set before the programme is solved on every row."""
+ACTIVE_SET_TOL_MM = 1e-9
+"""A row is violated when the programme's plane misses it by more than this (mm)."""
+
 
 @dataclass(frozen=True)
 class Pose:
@@ -199,52 +208,58 @@ def minimax_offset(dev_mm, x_mm, y_mm, low_mm, high_mm, *, max_slope: float):
             return None
         c = float(np.clip(-(dev_mm.max() + dev_mm.min()) / 2.0, lo, hi))
         return 0.0, 0.0, c, float(np.abs(dev_mm + c).max())
+    # An active set: the programme on a few rows (the tips extreme for a level plane and for the
+    # steepest tilts), then on those plus every row its answer violates, until it violates none. A
+    # relaxation's optimum that meets every row is the full programme's; an infeasible relaxation
+    # means an infeasible programme.
+    scale = max(float(np.abs(np.concatenate([x_mm, y_mm])).max()), 1.0)  # x, y of order 1: well conditioned
+    cols = np.column_stack([x_mm / scale, y_mm / scale])
+    bound = max_slope * scale
+    keep = _start_rows(dev_mm, cols, low_mm, high_mm, bound)
+    for _ in range(ACTIVE_SET_ROUNDS):
+        res = _solve_rows(dev_mm, cols, low_mm, high_mm, bound, keep)
+        if res is None:
+            return None
+        a, b, c, s = res
+        travel = dev_mm + cols @ np.array([a, b]) + c
+        excess = np.max([travel - s, -travel - s, travel - high_mm, low_mm - travel], axis=0)
+        bad = np.flatnonzero(excess > ACTIVE_SET_TOL_MM)
+        if bad.size == 0:
+            return a / scale, b / scale, c, s
+        keep = np.union1d(keep, bad[np.argsort(-excess[bad])[:ACTIVE_SET_ADD]])
+    res = _solve_rows(dev_mm, cols, low_mm, high_mm, bound, np.arange(len(dev_mm)))  # every row
+    return None if res is None else (res[0] / scale, res[1] / scale, res[2], res[3])
+
+
+def _start_rows(dev_mm, cols, low_mm, high_mm, bound: float) -> np.ndarray:
+    """The rows the active set starts from: the highest and lowest tips under a level plane and the four
+    steepest tilts, and the tips closest to their limits."""
+    k = ACTIVE_SET_START
+    keep = [np.argsort(high_mm - dev_mm)[:k], np.argsort(dev_mm - low_mm)[:k]]
+    for sa, sb in ((0, 0), (1, 1), (1, -1), (-1, 1), (-1, -1)):
+        order = np.argsort(dev_mm + bound * (sa * cols[:, 0] + sb * cols[:, 1]))
+        keep += [order[:k], order[-k:]]
+    return np.unique(np.concatenate(keep))
+
+
+def _solve_rows(dev_mm, cols, low_mm, high_mm, bound: float, rows):
+    """The linear programme of :func:`minimax_offset` on some rows (scaled x, y); (a', b', c, s) or None."""
     from scipy.optimize import linprog
 
-    # A plane's extremes over a point set are taken at its convex hull's vertices:
-    # only those rows are needed (same limits within a group of rows).
-    keep = _hull_rows(dev_mm, x_mm, y_mm, low_mm, high_mm)
-    dev_mm, x_mm, y_mm, low_mm, high_mm = dev_mm[keep], x_mm[keep], y_mm[keep], low_mm[keep], high_mm[keep]
-    ones = np.ones_like(dev_mm)
-    zero = np.zeros_like(dev_mm)
-    # x, y scaled to order 1 so the programme is well conditioned
-    scale = max(float(np.abs(np.concatenate([x_mm, y_mm])).max()), 1.0)
-    cols = np.column_stack([x_mm / scale, y_mm / scale, ones])
+    dev, low, high = dev_mm[rows], low_mm[rows], high_mm[rows]
+    plane = np.column_stack([cols[rows], np.ones(len(rows))])
+    ones, zero = np.ones(len(rows)), np.zeros(len(rows))
     # variables (a', b', c, s); rows: A z <= b_ub
     a_ub = np.vstack([
-        np.column_stack([cols, -ones]),    # dev + plane <= s
-        np.column_stack([-cols, -ones]),   # -(dev + plane) <= s
-        np.column_stack([cols, zero]),     # dev + plane <= high
-        np.column_stack([-cols, zero]),    # dev + plane >= low
+        np.column_stack([plane, -ones]),    # dev + plane <= s
+        np.column_stack([-plane, -ones]),   # -(dev + plane) <= s
+        np.column_stack([plane, zero]),     # dev + plane <= high
+        np.column_stack([-plane, zero]),    # dev + plane >= low
     ])
-    b_ub = np.concatenate([-dev_mm, dev_mm, high_mm - dev_mm, dev_mm - low_mm])
-    bound = max_slope * scale
+    b_ub = np.concatenate([-dev, dev, high - dev, dev - low])
     bounds = [(-bound, bound), (-bound, bound), (None, None), (0, None)]
     res = linprog([0, 0, 0, 1], A_ub=a_ub, b_ub=b_ub, bounds=bounds, method="highs")
-    if res.status != 0:
-        return None
-    a, b, c, s = res.x
-    return a / scale, b / scale, c, s
-
-
-def _hull_rows(dev_mm, x_mm, y_mm, low_mm, high_mm) -> np.ndarray:
-    """Indices of the rows on the convex hull of (x, y, dev), per group of equal limits.
-
-    A 3-D hull that thins out the linear programme's rows, not a plate outline (that is
-    :func:`mppf.core.polygon.convex_outline`).
-    """
-    from scipy.spatial import ConvexHull, QhullError
-
-    keep = []
-    groups = np.unique(np.column_stack([low_mm, high_mm]), axis=0, return_inverse=True)[1].reshape(-1)
-    for g in np.unique(groups):
-        rows = np.flatnonzero(groups == g)
-        try:
-            hull = ConvexHull(np.column_stack([x_mm[rows], y_mm[rows], dev_mm[rows]]), qhull_options="QJ")
-            keep.append(rows[hull.vertices])
-        except (QhullError, ValueError):  # too few or degenerate points: keep them all
-            keep.append(rows)
-    return np.concatenate(keep)
+    return tuple(float(x) for x in res.x) if res.status == 0 else None
 
 
 def limit_violations(values_mm, low_mm, high_mm, labels) -> list[str]:
