@@ -1,4 +1,4 @@
-"""The panel's drawings: colour scales, heat maps with punch names, charts."""
+"""The panel's drawings: colour scales, heat maps with punch names, legends."""
 
 from __future__ import annotations
 
@@ -8,7 +8,6 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from mppf.panel.charts import convergence_svg
 from mppf.panel.svg import (DIVERGING, NO_DATA, VIRIDIS, colour, heat_map, ink, legend, punch_name, scale_of,
                             value_text)
 
@@ -65,23 +64,6 @@ def test_legend_names_its_ends():
     root = ET.fromstring(svg)
     texts = {t.get("id"): t.text for t in root.iter(f"{SVG}text") if t.get("id")}
     assert texts == {"dev-lo": "-2.5", "dev-hi": "2.5"}
-
-
-def test_convergence_chart_plots_measured_cycles_and_tolerances():
-    svg = convergence_svg([1, 2, 3], [8.0, 3.0, None], [3.0, 1.2, None], tolerance_mm=2.5, rms_tolerance_mm=1.0)
-    root = ET.fromstring(svg)
-    lines = [p.get("points") for p in root.iter(f"{SVG}polyline")]
-    assert len(lines) == 2 and all(len(p.split()) == 2 for p in lines)  # cycle 3 is not measured yet
-    assert len(list(root.iter(f"{SVG}circle"))) == 4
-    assert "tolerance 2.5" in svg and "RMS tolerance 1" in svg
-    # the largest deviation of cycle 1 is drawn higher than its RMS
-    (x1, y1), (x2, y2) = (tuple(map(float, p.split()[0].split(","))) for p in lines)
-    assert x1 == x2 and y1 < y2
-
-
-@pytest.mark.parametrize("values", [[None, None], [float("nan"), None]])
-def test_convergence_chart_without_measurements_says_so(values):
-    assert "no cycle measured yet" in convergence_svg([1, 2], values, values)
 
 
 def test_heat_map_escapes_its_title():
