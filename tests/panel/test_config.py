@@ -8,8 +8,15 @@ from pathlib import Path
 import pytest
 
 from mppf.core.errors import InputError
-from mppf.panel.config import (DEFAULT_HOST, DEFAULT_PORT, MIN_TOKEN_CHARS, PanelConfig, check_bind,
-                               default_audit_path, is_loopback)
+from mppf.panel.config import (
+    DEFAULT_HOST,
+    DEFAULT_PORT,
+    MIN_TOKEN_CHARS,
+    PanelConfig,
+    check_bind,
+    default_audit_path,
+    is_loopback,
+)
 
 
 def test_the_token_is_never_in_the_settings_repr(tmp_path):

@@ -6,10 +6,19 @@ import re
 import xml.etree.ElementTree as ET
 
 import numpy as np
-import pytest
 
-from mppf.panel.svg import (DIVERGING, NO_DATA, VIRIDIS, colour, heat_map, ink, legend, punch_name, scale_of,
-                            value_text)
+from mppf.panel.svg import (
+    DIVERGING,
+    NO_DATA,
+    VIRIDIS,
+    colour,
+    heat_map,
+    ink,
+    legend,
+    punch_name,
+    scale_of,
+    value_text,
+)
 
 SVG = "{http://www.w3.org/2000/svg}"
 
