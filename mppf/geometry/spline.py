@@ -94,8 +94,7 @@ class SplineSurface:
         u, per order b), then along u: about 30 array operations for the heights and slopes.
         """
         bu, bv = self._breaks
-        i = np.clip(np.searchsorted(bu, cu, side="right") - 1, 0, len(bu) - 2)
-        j = np.clip(np.searchsorted(bv, cv, side="right") - 1, 0, len(bv) - 2)
+        i, j = _cell(bu, cu), _cell(bv, cv)
         hu, hv = bu[i + 1] - bu[i], bv[j + 1] - bv[j]
         x, y = (cu - bu[i]) / hu, (cv - bv[j]) / hv
         # coefficients c_pq of each point's cell: row 4 p + q of a (16, n) array, rows contiguous
@@ -136,6 +135,24 @@ class SplineSurface:
         """Unit normals (..., 3) toward +w."""
         _, zu, zv, *_ = self.derivatives(u, v)
         return unit_normals(zu, zv)
+
+
+def _cell(breaks: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Index k of the knot cell [breaks[k], breaks[k + 1]) holding each c (the first or last cell beyond them).
+
+    The same as ``searchsorted(breaks, c, side="right") - 1`` clipped to the cells; on evenly spaced
+    breaks (the least-squares spline's) computed from the spacing and corrected by one cell where
+    rounding put a point next to its cell, several times faster on large arrays.
+    """
+    cells = len(breaks) - 1
+    step = (breaks[-1] - breaks[0]) / cells
+    if not np.allclose(np.diff(breaks), step, rtol=1e-9, atol=0.0):
+        return np.clip(np.searchsorted(breaks, c, side="right") - 1, 0, cells - 1)
+    k = np.clip(((c - breaks[0]) / step).astype(np.intp), 0, cells - 1)
+    k -= breaks[k] > c
+    k = np.maximum(k, 0)
+    k += (k < cells - 1) & (breaks[np.minimum(k + 1, cells)] <= c)
+    return k
 
 
 _FALLING = ((1.0, 1.0, 1.0, 1.0), (0.0, 1.0, 2.0, 3.0), (0.0, 0.0, 2.0, 6.0))

@@ -79,3 +79,21 @@ def test_spline_smoothing_must_be_positive():
     u, v, z = knuckle_plate(100)
     with pytest.raises(InputError, match="smoothing"):
         fit_spline(u, v, z, smoothing=-1.0)
+
+
+@pytest.mark.parametrize("even", [True, False])
+def test_knot_cell_of_every_point_is_the_binary_search_one(even):
+    """The cell index from the knot spacing equals searchsorted's, on the knots, beside them and beyond."""
+    from mppf.geometry.spline import _cell
+
+    rng = np.random.default_rng(7)
+    for _ in range(50):
+        n = int(rng.integers(2, 14))
+        lo, hi = rng.uniform(-5000.0, 0.0), rng.uniform(100.0, 9000.0)
+        breaks = np.linspace(lo, hi, n) if even else np.unique(rng.uniform(lo, hi, n))
+        if len(breaks) < 2:
+            continue
+        c = np.concatenate([rng.uniform(lo - 100.0, hi + 100.0, 2000), breaks,
+                            np.nextafter(breaks, -np.inf), np.nextafter(breaks, np.inf)])
+        expected = np.clip(np.searchsorted(breaks, c, side="right") - 1, 0, len(breaks) - 2)
+        assert np.array_equal(_cell(breaks, c), expected)
