@@ -124,7 +124,9 @@ def run_real(n: int, workers: int, part: int, budget_min: float, tag: str) -> No
         state["parts"].append({"plates": len(chunk), "wall_s": round(wall, 2),
                                "cpu_s": round(_children_cpu_s() - cpu_before, 2), "workers": workers,
                                "load_before": round(load_before, 2), "load_after": round(os.getloadavg()[0], 2)})
-        state["rows"].update({r["plate"]: r for r in rows})
+        # a plate whose job an interrupted part finished is skipped by the batch: kept as planned, marked
+        state["rows"].update({r["plate"]: ({**r, "status": "planned", "resumed": True} if r["status"] == "skipped"
+                                           else r) for r in rows})
         state_path.write_text(json.dumps(state, indent=1))
         print(f"part {len(state['parts'])}: {len(chunk)} plates in {wall:.1f} s, load {load_before:.1f} -> "
               f"{os.getloadavg()[0]:.1f}; {len(state['rows'])} of {n} done", flush=True)
@@ -146,6 +148,9 @@ def real_report(state: dict, kinds: dict, workers: int, n: int) -> None:
         if row["status"] == "failed":
             print(f"  failed {row['plate']} ({kinds[row['plate']]}): {row['reason'][:150]}")
     loads = [x for p in state["parts"] for x in (p["load_before"], p["load_after"])]
+    resumed = sum(bool(r.get("resumed")) for r in rows)
+    if resumed:
+        print(f"{resumed} plate(s) planned in an interrupted part (their CPU counted, their wall time not)")
     if state["parts"]:
         print(f"{len(rows)} of {n} plates in {len(state['parts'])} part(s): {len(rows) / max(wall, 1e-9):.2f} plates/s "
               f"wall; machine load (1-min average) {min(loads):.1f}-{max(loads):.1f} during the parts")
