@@ -41,6 +41,9 @@ FLOW_STRAINS = (0.0, 0.001, 0.002, 0.005, 0.01, 0.02, 0.04, 0.08, 0.15, 0.3, 1.0
 YIELD_BIN = 0.005
 """Width of the yield-factor bins (one material each)."""
 
+RELEASE_YIELD_FACTOR = 20.0
+"""Factor on the flow curves while the plate is released (the release is elastic, see :func:`plastic_change`)."""
+
 STEPS_PER_PRESS = 3
 """Steps of one press step after the first (approach, load, release); the first has two."""
 
@@ -62,6 +65,28 @@ def flow_curve(steel, yield_factor: float) -> np.ndarray:
     alpha = np.array(FLOW_STRAINS)
     stress = np.asarray(steel.flow_stress_mpa(alpha, np.full(len(alpha), yield_factor))[0], dtype=float)
     return np.column_stack([stress, alpha])
+
+
+def materials(steel, yield_factor) -> list[tuple[str, np.ndarray]]:
+    """The plate's materials: (name, flow curve (k, 2)) of each yield-factor bin, in the order of :func:`model_lines`."""
+    bins = np.round((np.asarray(yield_factor) - 1.0) / YIELD_BIN).astype(int)
+    return [(f"STEEL{b - bins.min()}", flow_curve(steel, 1.0 + YIELD_BIN * b)) for b in np.unique(bins)]
+
+
+def plastic_change(table, factor: float) -> list[str]:
+    """``*CHANGE MATERIAL`` / ``*CHANGE PLASTIC`` lines setting every flow curve to ``factor`` times its own.
+
+    The release step raises the curves :data:`RELEASE_YIELD_FACTOR` times: its stresses stay inside
+    the yield surface, so it is elastic from its first iteration (with the elastic-plastic tangent of
+    the loaded plate the first Newton step of a strongly bent plate overshoots by 100 mm and ccx
+    gives up); the next step restores them (back stresses and plastic strains kept). Reverse
+    yielding during springback is therefore not modelled; in the next press step it is.
+    """
+    out = []
+    for name, curve in table:
+        out += [f"*CHANGE MATERIAL, NAME={name}", "*CHANGE PLASTIC, HARDENING=KINEMATIC"]
+        out += [f"{factor * stress:.6f},{strain:.6g}" for stress, strain in curve]
+    return out
 
 
 def model_lines(mesh, steel, yield_factor, punch_stiffness_n_mm: float) -> list[str]:
@@ -99,11 +124,10 @@ def model_lines(mesh, steel, yield_factor, punch_stiffness_n_mm: float) -> list[
     out += ["*GAP, ELSET=GAPS", f"0.,0.,0.,1.,,{punch_stiffness_n_mm:.6g}"]
     out += ["*NSET, NSET=TIPS"] + [str(int(v)) for v in np.concatenate([lower, upper])]
     out += ["*NSET, NSET=PLATEN, GENERATE", f"1,{n},1"]
-    for b in np.unique(bins):
-        name = f"STEEL{b - bins.min()}"
+    for (name, curve), b in zip(materials(steel, yield_factor), np.unique(bins)):
         out += [f"*MATERIAL, NAME={name}", "*ELASTIC", f"{steel.youngs_modulus_mpa:.6g},{steel.poisson:.6g}",
                 "*PLASTIC, HARDENING=KINEMATIC"]
-        out += [f"{s:.6f},{a:.6g}" for s, a in flow_curve(steel, 1.0 + YIELD_BIN * b)]
+        out += [f"{stress:.6f},{strain:.6g}" for stress, strain in curve]
         out += [f"*SOLID SECTION, ELSET=PLATE{b - bins.min()}, MATERIAL={name}"]
     return out
 
@@ -161,7 +185,7 @@ def hold_nodes(mesh, press_step: int) -> np.ndarray:
 
 
 def step_lines(mesh, name: str, tips_z_mm: np.ndarray, *, holds=None, initial_increment: float = 0.25,
-               output: bool = True) -> list[str]:
+               output: bool = True, plastic: list[str] = ()) -> list[str]:
     """One static step: every tip to its height (``*BOUNDARY, OP=NEW``, the in-plane supports repeated).
 
     Parameters
@@ -177,11 +201,13 @@ def step_lines(mesh, name: str, tips_z_mm: np.ndarray, *, holds=None, initial_in
         First increment, share of the step.
     output : bool
         Write the plate's displacements (.frd) at the end of the step.
+    plastic : list of str
+        :func:`plastic_change` lines of the step.
     """
     lower, upper = tip_nodes(mesh)
     start = np.concatenate([mesh.xyz_mm[mesh.bottom - 1, 2], mesh.xyz_mm[mesh.top - 1, 2]])
     move = np.asarray(tips_z_mm, dtype=float) - start
-    out = [f"** {name}", "*STEP, NLGEOM, INC=1000", "*STATIC", f"{initial_increment:.6g},1.,1e-6,0.5"]
+    out = [f"** {name}", "*STEP, NLGEOM, INC=1000", "*STATIC", f"{initial_increment:.6g},1.,1e-6,0.5", *plastic]
     # the approach carries next to no force: its residuals are judged against 1 N, not their own mean;
     # the other steps start their time-average force at 1 kN, so that a step with next to no force
     # (flat strokes on a flat plate) converges by the zero-force criterion (1e-5 of it)
@@ -199,7 +225,8 @@ def step_lines(mesh, name: str, tips_z_mm: np.ndarray, *, holds=None, initial_in
     return out
 
 
-def press_step_lines(mesh, tips_z_mm, index: int, touch_z_mm=None, *, output: bool = True) -> list[str]:
+def press_step_lines(mesh, tips_z_mm, index: int, touch_z_mm=None, *, output: bool = True,
+                     table=()) -> list[str]:
     """The steps of one press step: approach (unless the first), load, release.
 
     Parameters
@@ -215,20 +242,25 @@ def press_step_lines(mesh, tips_z_mm, index: int, touch_z_mm=None, *, output: bo
         touches the flat plate).
     output : bool
         Write the displacements at the end of the load and the release.
+    table : list of (name, flow curve)
+        The plate's materials (:func:`materials`): the release raises their curves, the next step
+        restores them (:func:`plastic_change`).
     """
     out = []
+    restore = plastic_change(table, 1.0)
     if touch_z_mm is not None:
         out += step_lines(mesh, "APPROACH", touch_z_mm, holds=hold_nodes(mesh, index - 1), initial_increment=1.0,
-                          output=False)
-    out += step_lines(mesh, "LOAD", tips_z_mm, output=output)
+                          output=False, plastic=restore)
+        restore = []
+    out += step_lines(mesh, "LOAD", tips_z_mm, output=output, plastic=restore if index > 0 else [])
     m = len(mesh.bottom)
     retracted = np.asarray(tips_z_mm, dtype=float) + np.concatenate([np.full(m, -RETRACT_MM), np.full(m, RETRACT_MM)])
     out += step_lines(mesh, "RELEASE", retracted, holds=hold_nodes(mesh, index), initial_increment=0.05,
-                      output=output)
+                      output=output, plastic=plastic_change(table, RELEASE_YIELD_FACTOR))
     return out
 
 
-def history_deck(mesh, model: list[str], history: list[tuple]) -> str:
+def history_deck(mesh, model: list[str], history: list[tuple], table=()) -> str:
     """The deck replaying a plate's press steps from the flat plate: the model, then every step.
 
     Parameters
@@ -239,6 +271,8 @@ def history_deck(mesh, model: list[str], history: list[tuple]) -> str:
     history : list of (tips_z_mm, touch_z_mm)
         Every press step so far and the new one, in order: its tips (2 m,) and the tips touching
         the plate before it (2 m,; ignored for the first). Only the last writes displacements.
+    table : list of (name, flow curve)
+        The plate's materials (:func:`materials`).
 
     Returns
     -------
@@ -246,7 +280,8 @@ def history_deck(mesh, model: list[str], history: list[tuple]) -> str:
     """
     out = list(model)
     for k, (tips, touch) in enumerate(history):
-        out += press_step_lines(mesh, tips, k, None if k == 0 else touch, output=k == len(history) - 1)
+        out += press_step_lines(mesh, tips, k, None if k == 0 else touch, output=k == len(history) - 1,
+                                table=table)
     return "\n".join(out) + "\n"
 
 

@@ -18,7 +18,7 @@ from dataclasses import asdict
 
 import numpy as np
 from mppf.sim.fe.ccx import FESolveError, run_ccx
-from mppf.sim.fe.deck import history_deck, model_lines, step_count
+from mppf.sim.fe.deck import history_deck, materials, model_lines, step_count
 from mppf.sim.fe.formed import FormedFEPlate
 from mppf.sim.fe.mesh import build_mesh
 from mppf.sim.fe.results import last_of_steps, read_frd
@@ -176,8 +176,10 @@ class FEPlate:
             lower = np.where(enabled, start_lower + share * (lower - start_lower), lower)
             upper = np.where(enabled, start_upper + share * (upper - start_upper), upper)
         entry = (np.concatenate([lower, upper]), np.concatenate(self._skins()))
-        model = model_lines(self.mesh, self.plate.steel, self._yield_factor(), self.punch_stiffness_n_mm)
-        run = run_ccx(history_deck(self.mesh, model, self.history + [entry]), progress=self.progress)
+        factor = self._yield_factor()
+        model = model_lines(self.mesh, self.plate.steel, factor, self.punch_stiffness_n_mm)
+        deck = history_deck(self.mesh, model, self.history + [entry], materials(self.plate.steel, factor))
+        run = run_ccx(deck, progress=self.progress)
         steps = last_of_steps(read_frd(run.frd))
         free_step = step_count(len(self.history) + 1)
         if free_step - 1 not in steps or free_step not in steps:
