@@ -87,10 +87,11 @@ def test_kill_while_pressing_then_resume_loses_nothing_and_presses_nothing_twice
     # resume: fast motion now; it must measure cycle 1, not press it again
     done = subprocess.run(_mppf("loop", "--resume", "--time-scale", "200", "--json"), env=env,
                           capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0, done.stderr
     doc = json.loads(done.stdout)
     assert doc["plate_id"] == "K2-crash" and doc["resumed_state"] == "pressing"
     assert doc["status"] in ("in_tolerance", "max_cycles", "diverged")  # the loop ran to its end
+    # the documented exit code of its ending: 0 in tolerance, 5 ended out of tolerance
+    assert done.returncode == (0 if doc["status"] == "in_tolerance" else 5), done.stderr
 
     with History(db) as history:
         cycles = history.cycles("K2-crash")
