@@ -68,12 +68,15 @@ EDITS = {
 }
 
 
-@pytest.mark.parametrize("resealed", [False, True], ids=["as edited", "sealed again"])
-@pytest.mark.parametrize("name", sorted(EDITS))
+# Every edit as it was made, and sealed again by someone who has the key: then the checks against the machine's press
+# and the plan must refuse it (an edit within every limit is left out there: only the seal can tell it).
+CASES = [pytest.param(name, resealed, id=f"{name}-{'sealed again' if resealed else 'as edited'}")
+         for name in sorted(EDITS) for resealed in (False, True) if not (resealed and EDITS[name][2] is None)]
+
+
+@pytest.mark.parametrize(("name", "resealed"), CASES)
 def test_an_edited_job_writes_nothing_to_the_plc(name, resealed, tmp_path, press, sim, capsys):
     edit, sealed_words, resealed_words = EDITS[name]
-    if resealed and resealed_words is None:
-        pytest.skip("within every limit: only the seal can tell (a reseal is the deliberate way)")
     doc = json.loads(save_job(small_job(press, n_steps=2), tmp_path / "job.json").read_text())
     edit(doc)
     if resealed:
