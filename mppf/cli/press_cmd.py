@@ -144,8 +144,8 @@ def press_command(job_path, plc_url, step, section, yes, press_path, audit_path,
     token and started; the actual positions are checked against the targets.
 
     Exit codes: 0 done, 2 bad input (job, URL, strokes beyond limits, tampered job), 3 link
-    failure, 4 press fault or refusal (also: no confirmation), 130 cancelled by Ctrl-C or
-    SIGTERM (STOP was sent).
+    failure, 4 press fault or refusal (also: no confirmation), 129 the terminal or session
+    was lost (SIGHUP; STOP was sent), 130 cancelled by Ctrl-C or SIGTERM (STOP was sent).
     """
     from mppf.cli._common import RichReporter, check_db_path, console
     from mppf.cli._placement import placement_lines
