@@ -54,7 +54,7 @@ def first_cycle(job_path: Path, flat_path: Path, physics: str, folder: Path, see
     from mppf.core.scanner import PressedStep, ScanContext
     from mppf.geometry.read import read_points
     from mppf.planning.job import load_job
-    from mppf.sim.shop import PHYSICS, SimulatedPlateScanner
+    from mppf.sim.shop import PHYSICS, STATE_FILE, SimulatedPlateScanner
 
     job = load_job(job_path)
     flat = read_points(flat_path)
@@ -66,6 +66,7 @@ def first_cycle(job_path: Path, flat_path: Path, physics: str, folder: Path, see
     if last_only:
         steps = steps[-1:]
     folder.mkdir(parents=True, exist_ok=True)
+    (folder / STATE_FILE).unlink(missing_ok=True)  # a plate pressed by an earlier run is not pressed again
     context = ScanContext(plate_id=physics, work_dir=folder, since_s=0.0, upper_mm=steps[-1].upper_mm,
                           lower_mm=steps[-1].lower_mm, active=steps[-1].active, steps=steps, reporter=NULL_REPORTER)
     start = time.monotonic()
