@@ -114,9 +114,9 @@ class Follow:
         duration = self._clock.now() - t0
         actual = self.read_actuals_mm()
         reporter.update(total_mm - sum(float(np.abs(targets_mm[s] - actual[s]).sum()) for s in SIDES))
+        self._check_duration(seq, travel, duration, reporter)
         reporter.finish()
         self._report_undone_writes(seq, reporter)
-        self._check_duration(seq, travel, duration)
         return self._check_arrival(seq, raw, targets_mm, actual, duration)
 
     def _report_undone_writes(self, seq: int, reporter) -> None:
@@ -133,8 +133,9 @@ class Follow:
                               detail=text)
             reporter.info(f"WARNING: {text}; find out which master did it")
 
-    def _check_duration(self, seq: int, travel: dict, duration: float) -> None:
-        """A motion that ended far sooner than the press can move is an error: read the press, STOP if it moves."""
+    def _check_duration(self, seq: int, travel: dict, duration: float, reporter) -> None:
+        """A motion that ended far sooner than the press can move is an error: read the press, STOP if it moves
+        (the reporter's task is abandoned, never called done)."""
         scale = getattr(self, "motion_time_scale", None)
         if scale is None or self.press is None:
             return
@@ -142,6 +143,7 @@ class Follow:
         fastest_s = motion_time_s(longest, self.press.speed_mm_s, self.press.accel_mm_s2) / scale
         if duration >= TOO_SOON_FRACTION * fastest_s:
             return
+        abandon(reporter, "COMPLETE reported too soon, not believed")
         stopped = self._stop_if_moving(f"COMPLETE after {duration:.2f} s for a move of at least {fastest_s:.2f} s")
         self.audit.record(str(self.url), "complete", "too soon", job_sha256=self.job_sha256, sequence=seq,
                           detail=f"{duration:.2f} s for {longest:.1f} mm (at least {fastest_s:.2f} s)")
