@@ -59,6 +59,7 @@ class SplineSurface:
     _breaks: tuple = field(default=(), init=False, repr=False)
     _patches: np.ndarray | None = field(default=None, init=False, repr=False)
     _coefficients: np.ndarray | None = field(default=None, init=False, repr=False)
+    _steps: tuple = field(default=(None, None), init=False, repr=False)
 
     def __post_init__(self):
         tx, ty = self.spline.get_knots()
@@ -72,6 +73,7 @@ class SplineSurface:
         inv = np.linalg.inv(np.vander(nodes, 4, increasing=True))
         patches = np.einsum("pk,ikjl,ql->ijpq", inv, values, inv)  # (cells u, cells v, 4, 4)
         object.__setattr__(self, "_breaks", (bu, bv))
+        object.__setattr__(self, "_steps", (_even_step(bu), _even_step(bv)))
         object.__setattr__(self, "_patches", patches)
         object.__setattr__(self, "_coefficients", np.ascontiguousarray(patches.reshape(-1, 16).T))  # (16, cells)
 
@@ -94,7 +96,7 @@ class SplineSurface:
         u, per order b), then along u: about 30 array operations for the heights and slopes.
         """
         bu, bv = self._breaks
-        i, j = _cell(bu, cu), _cell(bv, cv)
+        i, j = _cell(bu, cu, self._steps[0]), _cell(bv, cv, self._steps[1])
         hu, hv = bu[i + 1] - bu[i], bv[j + 1] - bv[j]
         x, y = (cu - bu[i]) / hu, (cv - bv[j]) / hv
         # coefficients c_pq of each point's cell: row 4 p + q of a (16, n) array, rows contiguous
@@ -137,16 +139,22 @@ class SplineSurface:
         return unit_normals(zu, zv)
 
 
-def _cell(breaks: np.ndarray, c: np.ndarray) -> np.ndarray:
+def _even_step(breaks: np.ndarray) -> float | None:
+    """The spacing of evenly spaced breaks (to 1e-9 relative), None when uneven."""
+    step = (breaks[-1] - breaks[0]) / (len(breaks) - 1)
+    return float(step) if np.allclose(np.diff(breaks), step, rtol=1e-9, atol=0.0) else None
+
+
+def _cell(breaks: np.ndarray, c: np.ndarray, step: float | None = None) -> np.ndarray:
     """Index k of the knot cell [breaks[k], breaks[k + 1]) holding each c (the first or last cell beyond them).
 
     The same as ``searchsorted(breaks, c, side="right") - 1`` clipped to the cells; on evenly spaced
-    breaks (the least-squares spline's) computed from the spacing and corrected by one cell where
-    rounding put a point next to its cell, several times faster on large arrays.
+    breaks (the least-squares spline's; ``step`` their spacing from :func:`_even_step`) computed from
+    the spacing and corrected by one cell where rounding put a point next to its cell, several times
+    faster on large arrays.
     """
     cells = len(breaks) - 1
-    step = (breaks[-1] - breaks[0]) / cells
-    if not np.allclose(np.diff(breaks), step, rtol=1e-9, atol=0.0):
+    if step is None:
         return np.clip(np.searchsorted(breaks, c, side="right") - 1, 0, cells - 1)
     k = np.clip(((c - breaks[0]) / step).astype(np.intp), 0, cells - 1)
     k -= breaks[k] > c

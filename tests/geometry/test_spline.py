@@ -84,7 +84,7 @@ def test_spline_smoothing_must_be_positive():
 @pytest.mark.parametrize("even", [True, False])
 def test_knot_cell_of_every_point_is_the_binary_search_one(even):
     """The cell index from the knot spacing equals searchsorted's, on the knots, beside them and beyond."""
-    from mppf.geometry.spline import _cell
+    from mppf.geometry.spline import _cell, _even_step
 
     rng = np.random.default_rng(7)
     for _ in range(50):
@@ -96,4 +96,6 @@ def test_knot_cell_of_every_point_is_the_binary_search_one(even):
         c = np.concatenate([rng.uniform(lo - 100.0, hi + 100.0, 2000), breaks,
                             np.nextafter(breaks, -np.inf), np.nextafter(breaks, np.inf)])
         expected = np.clip(np.searchsorted(breaks, c, side="right") - 1, 0, len(breaks) - 2)
+        assert (_even_step(breaks) is not None) == even or len(breaks) == 2
+        assert np.array_equal(_cell(breaks, c, _even_step(breaks)), expected)
         assert np.array_equal(_cell(breaks, c), expected)
