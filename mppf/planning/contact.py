@@ -203,9 +203,7 @@ def _solve_sides(placed, axis, us, vs, pts, rise, reach, big_r, tip_radius_mm) -
     best = np.argmax(value, axis=1)
     rows = np.arange(2 * m)
     sampled = s * value[rows, best]
-    u, v = _newton(placed, s[:, None] * big_r, axis2, us2[rows, best], vs2[rows, best], big_r)
-    p, pu, pv, puu, puv, pvv = placed.geometry(u, v)
-    n, _, _ = _normal_and_derivatives(pu, pv, puu, puv, pvv)
+    p, n = _newton(placed, s[:, None] * big_r, axis2, us2[rows, best], vs2[rows, best], big_r)
     centre = p + s[:, None] * big_r * n
     converged = np.all(np.abs(centre[:, :2] - axis2) < 1e-6, axis=1)
     # The Newton point is a genuine touching position, so it is kept when it is at
@@ -219,13 +217,19 @@ def _solve_sides(placed, axis, us, vs, pts, rise, reach, big_r, tip_radius_mm) -
 
 
 def _newton(placed, signed_r, axis, u, v, big_r):
-    """Newton iterations on (p + s R n)_xy = axis from (u, v); ``signed_r`` (k, 1) is s R. The last (u, v)."""
+    """Newton iterations on (p + s R n)_xy = axis from (u, v); ``signed_r`` (k, 1) is s R.
+
+    Returns
+    -------
+    p, n : (k, 3) float
+        The surface point and unit normal at the last (u, v), press coordinates.
+    """
     for _ in range(NEWTON_ITERATIONS):
         p, pu, pv, puu, puv, pvv = placed.geometry(u, v)
         n, nu, nv = _normal_and_derivatives(pu, pv, puu, puv, pvv)
         resid = (p + signed_r * n)[:, :2] - axis
         if np.all(np.abs(resid) < NEWTON_TOL_MM):
-            break
+            return p, n
         ju = (pu + signed_r * nu)[:, :2]
         jv = (pv + signed_r * nv)[:, :2]
         det = ju[:, 0] * jv[:, 1] - jv[:, 0] * ju[:, 1]
@@ -236,4 +240,5 @@ def _newton(placed, signed_r, axis, u, v, big_r):
         scale = np.minimum(1.0, 0.5 * big_r / np.maximum(length, 1e-300))
         u = u - scale * step_u
         v = v - scale * step_v
-    return u, v
+    p, pu, pv, puu, puv, pvv = placed.geometry(u, v)
+    return p, _normal_and_derivatives(pu, pv, puu, puv, pvv)[0]
