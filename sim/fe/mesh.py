@@ -112,9 +112,8 @@ def build_mesh(press, outline_xy_mm, thickness_at, cells_per_pitch: int, layers:
     """
     outline = np.asarray(outline_xy_mm, dtype=float)
     lo, hi = outline.min(axis=0), outline.max(axis=0)
-    px, py = press.punch_x_mm, press.punch_y_mm
-    x = _lines(px, press.pitch_x_mm, cells_per_pitch, lo[0], hi[0])
-    y = _lines(py, press.pitch_y_mm, cells_per_pitch, lo[1], hi[1])
+    x = _lines(press.punch_x_mm, press.pitch_x_mm, cells_per_pitch, lo[0], hi[0])
+    y = _lines(press.punch_y_mm, press.pitch_y_mm, cells_per_pitch, lo[1], hi[1])
     cx, cy = np.meshgrid(0.5 * (x[1:] + x[:-1]), 0.5 * (y[1:] + y[:-1]))
     kept = contains(outline, np.column_stack([cx.ravel(), cy.ravel()]), tolerance_mm=1e-6).reshape(cx.shape)
     used = np.zeros((len(y), len(x)), dtype=bool)
@@ -138,10 +137,33 @@ def build_mesh(press, outline_xy_mm, thickness_at, cells_per_pitch: int, layers:
         hexes.append(np.column_stack(base + top))
     hexes = np.concatenate(hexes)
     centres = np.tile(np.column_stack([cx[kept], cy[kept]]), (layers, 1))
-    # punch pairs whose axis is a node of the mesh
+    index, axes, (gj, gi) = _punch_columns(press, x, y, column)
+    return PlateMesh(xyz_mm=xyz, hexes=hexes, hex_centre_xy_mm=centres, column=column, x_mm=x, y_mm=y,
+                     punch_index=index, punch_xy_mm=axes, bottom=column[gj, gi, 0],
+                     top=column[gj, gi, layers], middle=column[gj, gi, layers // 2],
+                     thickness_mm=np.asarray(thickness_at(axes), dtype=float), layers=layers)
+
+
+def _punch_columns(press, x: np.ndarray, y: np.ndarray, column: np.ndarray):
+    """The punch pairs whose axis is a node column of the mesh.
+
+    Returns
+    -------
+    index : (m, 2) int
+        Row, column of each pair on the press.
+    axes : (m, 2) float
+        Their axes, mm.
+    grid : tuple of (m,) int
+        Their grid row and column in the mesh.
+
+    Raises
+    ------
+    GeometryError
+        Fewer than 3 such pairs.
+    """
     rows, cols = np.meshgrid(np.arange(press.rows), np.arange(press.cols), indexing="ij")
     index = np.column_stack([rows.ravel(), cols.ravel()])
-    axes = np.column_stack([px[index[:, 1]], py[index[:, 0]]])
+    axes = np.column_stack([press.punch_x_mm[index[:, 1]], press.punch_y_mm[index[:, 0]]])
     gi = np.searchsorted(x, axes[:, 0]).clip(0, len(x) - 1)
     gj = np.searchsorted(y, axes[:, 1]).clip(0, len(y) - 1)
     on = (np.abs(x[gi] - axes[:, 0]) < 1e-6) & (np.abs(y[gj] - axes[:, 1]) < 1e-6)
@@ -149,8 +171,4 @@ def build_mesh(press, outline_xy_mm, thickness_at, cells_per_pitch: int, layers:
     if on.sum() < 3:
         raise GeometryError(f"the plate covers {int(on.sum())} punch pair(s) of the press, at least 3 are needed",
                             hint="give the plate's outline in press x, y (mm)")
-    gi, gj = gi[on], gj[on]
-    return PlateMesh(xyz_mm=xyz, hexes=hexes, hex_centre_xy_mm=centres, column=column, x_mm=x, y_mm=y,
-                     punch_index=index[on], punch_xy_mm=axes[on], bottom=column[gj, gi, 0],
-                     top=column[gj, gi, layers], middle=column[gj, gi, layers // 2],
-                     thickness_mm=np.asarray(thickness_at(axes[on]), dtype=float), layers=layers)
+    return index[on], axes[on], (gj[on], gi[on])
