@@ -176,10 +176,7 @@ class FEPlate:
             lower = np.where(enabled, start_lower + share * (lower - start_lower), lower)
             upper = np.where(enabled, start_upper + share * (upper - start_upper), upper)
         entry = (np.concatenate([lower, upper]), np.concatenate(self._skins()))
-        factor = self._yield_factor()
-        model = model_lines(self.mesh, self.plate.steel, factor, self.punch_stiffness_n_mm)
-        deck = history_deck(self.mesh, model, self.history + [entry], materials(self.plate.steel, factor))
-        run = run_ccx(deck, progress=self.progress)
+        run = run_ccx(self.deck([entry]), progress=self.progress)
         steps = last_of_steps(read_frd(run.frd))
         free_step = step_count(len(self.history) + 1)
         if free_step - 1 not in steps or free_step not in steps:
@@ -192,6 +189,20 @@ class FEPlate:
         self.tips_lower_mm, self.tips_upper_mm, self.tips_enabled = lower, upper, enabled
         self.steps += 1
         return self.formed
+
+    def deck(self, more: list[tuple] = ()) -> str:
+        """The CalculiX deck replaying the plate's press steps from the flat plate (and ``more`` after them).
+
+        ``ccx -i`` on it gives the plate as it is now (docs/simulator-fe.md, "Running CalculiX by hand").
+
+        Parameters
+        ----------
+        more : list of (tips (2 m,), touch (2 m,))
+            Press steps to add (:func:`mppf.sim.fe.deck.history_deck`).
+        """
+        factor = self._yield_factor()
+        model = model_lines(self.mesh, self.plate.steel, factor, self.punch_stiffness_n_mm)
+        return history_deck(self.mesh, model, list(self.history) + list(more), materials(self.plate.steel, factor))
 
     def _yield_factor(self) -> np.ndarray:
         """Yield factor (e,) of each element (the plate's field at its centre)."""
