@@ -29,6 +29,7 @@ from panel_helpers import record_loop
 
 from mppf.panel.placement import placement_of
 from mppf.planning.job import load_job
+from mppf.planning.press import press_to_toml
 
 pytestmark = pytest.mark.slow
 
@@ -135,6 +136,7 @@ def shop(tmp_path_factory, planned_plate):
     folder = tmp_path_factory.mktemp("shop")
     record_loop(folder / "history.sqlite", job, folder / "plates" / "B12-P3", measured=2).close()
     shop = Shop(folder, folder / "plates" / "B12-P3" / "cycle-03.job.json")
+    (folder / "press.toml").write_text(press_to_toml(job.press))  # this machine's press, installed once
     shop.start("sim", "sim", "--port", str(shop.plc_port), "--time-scale", "1")
     _wait(lambda: "listening" in shop.log("sim"), 20, "the simulated PLC")
     shop.start("panel", "panel", "--port", str(shop.panel_port))  # finds the PLC in the audit log
