@@ -16,6 +16,7 @@ import click
 
 from mppf.cli._common import console, units_option
 from mppf.core.errors import InputError
+from mppf.core.progress import NullReporter
 
 
 @click.command("tryout")
@@ -99,20 +100,11 @@ def _predicted_scan(job_path: Path, flat_path: Path, out_dir: Path, seed: int, o
     return scanner.acquire(1, context), job
 
 
-class _Progress:
+class _Progress(NullReporter):
     """The reporter of the try-out (:class:`mppf.core.progress.Reporter`): ccx's progress lines on the console."""
 
     def start(self, task: str, total: float | None = None) -> None:
         console.print(task, markup=False, soft_wrap=True)
-
-    def advance(self, amount: float = 1.0) -> None:
-        pass
-
-    def update(self, completed: float) -> None:
-        pass
-
-    def finish(self) -> None:
-        pass
 
     def info(self, message: str) -> None:
         console.print(message, markup=False, soft_wrap=True)

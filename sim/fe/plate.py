@@ -22,8 +22,8 @@ from mppf.sim.fe.deck import history_deck, materials, model_lines, step_count
 from mppf.sim.fe.formed import FormedFEPlate
 from mppf.sim.fe.mesh import build_mesh
 from mppf.sim.fe.results import last_of_steps, read_frd
-from mppf.sim.plate.contact import Compliance
-from mppf.sim.plate.grid import _rotation, plate_frame
+from mppf.sim.plate.contact import Compliance, refuse_crushing
+from mppf.sim.plate.grid import plate_frame, rotation_2d
 from mppf.sim.plate.material import PlateSteel
 from mppf.sim.plate.scatter import PhysicalPlate, Scatter, sample_plate
 
@@ -123,7 +123,7 @@ class FEPlate:
     def to_plate(self, xy_mm) -> np.ndarray:
         """Plate u, v (n, 2) of press x, y (n, 2) (the frame of the scatter fields), mm."""
         centre, angle = self._frame
-        return (np.asarray(xy_mm, dtype=float).reshape(-1, 2) - centre) @ _rotation(angle)
+        return (np.asarray(xy_mm, dtype=float).reshape(-1, 2) - centre) @ rotation_2d(angle)
 
     @property
     def punch_stiffness_n_mm(self) -> float:
@@ -274,13 +274,7 @@ class FEPlate:
             raise InputError(f"a plate needs at least 3 active punch pairs over it, got {int(enabled.sum())}")
         p_lower = np.where(enabled, lower[r, c], self.press.lower.park_mm)
         p_upper = np.where(enabled, upper[r, c], self.press.upper.park_mm)
-        gap = np.where(enabled, p_upper - p_lower, np.inf)
-        half = 0.5 * self.mesh.thickness_mm
-        if np.any(gap < half):
-            i = int(np.argmin(gap - half))
-            raise InputError(f"the gap between upper and lower tips is {gap[i]:.3f} mm at punch (row {r[i]}, "
-                             f"col {c[i]}), less than half the plate thickness {2 * half[i]:.3f} mm",
-                             hint="the step would crush the plate; check the strokes")
+        refuse_crushing(np.where(enabled, p_upper - p_lower, np.inf), self.mesh.thickness_mm, self.mesh.punch_index)
         return p_lower, p_upper, enabled
 
     # --- save / restore ------------------------------------------------------------

@@ -28,11 +28,39 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mppf.core.errors import InputError
 from mppf.core.polygon import contains
 from mppf.core.validate import check_number
 
 NUMERICAL_COMPLIANCE_MM_PER_N = 1e-7
 """Smallest punch compliance (mm/N, 0.1 um/kN): keeps a pair squeezing the plate solvable."""
+
+
+def refuse_crushing(gap_mm, thickness_mm, index) -> None:
+    """Refuse a step whose tips close to less than half the plate's thickness over any pair.
+
+    Parameters
+    ----------
+    gap_mm : ndarray (m,)
+        Upper minus lower tip height of each pair over the plate (mm; ``inf`` where the pair is not active).
+    thickness_mm : ndarray (m,) or float
+        The plate's thickness at each pair (mm).
+    index : ndarray (m, 2) of int
+        Each pair's (row, col) on the press.
+
+    Raises
+    ------
+    InputError
+        At the pair that closes most, naming its row, column, gap and the thickness.
+    """
+    gap_mm = np.asarray(gap_mm, dtype=float)
+    half_mm = 0.5 * np.asarray(thickness_mm, dtype=float) * np.ones_like(gap_mm)
+    if np.any(gap_mm < half_mm):
+        i = int(np.argmin(gap_mm - half_mm))
+        row, col = (int(k) for k in index[i])
+        raise InputError(f"the gap between upper and lower tips is {gap_mm[i]:.3f} mm at punch (row {row}, "
+                         f"col {col}), less than half the plate thickness {2 * half_mm[i]:.3f} mm",
+                         hint="the step would crush the plate; check the strokes")
 
 
 @dataclass(frozen=True)

@@ -55,19 +55,19 @@ def plate_frame(outline_xy_mm) -> tuple[np.ndarray, float, np.ndarray]:
     areas = []
     for a, b in zip(hull, np.roll(hull, -1, axis=0)):
         angle = float(np.arctan2(b[1] - a[1], b[0] - a[0]))
-        areas.append((np.prod(np.ptp(hull @ _rotation(angle), axis=0)), angle))
+        areas.append((np.prod(np.ptp(hull @ rotation_2d(angle), axis=0)), angle))
     angle = min(areas)[1]
-    size = np.ptp(hull @ _rotation(angle), axis=0)
+    size = np.ptp(hull @ rotation_2d(angle), axis=0)
     if size[1] > size[0] + 1e-9:
         angle += 0.5 * np.pi
     angle = float(np.arctan(np.tan(angle))) if abs(np.cos(angle)) > 1e-12 else 0.5 * np.pi
-    uv = hull @ _rotation(angle)
+    uv = hull @ rotation_2d(angle)
     lo, hi = uv.min(axis=0), uv.max(axis=0)
-    return 0.5 * (lo + hi) @ _rotation(angle).T, angle, hi - lo
+    return 0.5 * (lo + hi) @ rotation_2d(angle).T, angle, hi - lo
 
 
-def _rotation(angle: float) -> np.ndarray:
-    """Columns: u and v axes in press x, y (so ``xy @ R`` gives u, v)."""
+def rotation_2d(angle: float) -> np.ndarray:
+    """Columns (2, 2): u and v axes in press x, y (so ``xy @ R`` gives u, v); ``angle`` in radians."""
     c, s = np.cos(angle), np.sin(angle)
     return np.array([[c, -s], [s, c]])
 
@@ -153,11 +153,11 @@ class PlateGrid:
     # --- frames --------------------------------------------------------------------
     def to_plate(self, xy_mm) -> np.ndarray:
         """Plate u, v (n, 2) of press x, y (n, 2), mm."""
-        return (np.asarray(xy_mm, dtype=float).reshape(-1, 2) - self.centre_xy_mm) @ _rotation(self.angle_rad)
+        return (np.asarray(xy_mm, dtype=float).reshape(-1, 2) - self.centre_xy_mm) @ rotation_2d(self.angle_rad)
 
     def to_press(self, uv_mm) -> np.ndarray:
         """Press x, y (n, 2) of plate u, v (n, 2), mm."""
-        return np.asarray(uv_mm, dtype=float).reshape(-1, 2) @ _rotation(self.angle_rad).T + self.centre_xy_mm
+        return np.asarray(uv_mm, dtype=float).reshape(-1, 2) @ rotation_2d(self.angle_rad).T + self.centre_xy_mm
 
     # --- evaluation ----------------------------------------------------------------
     def to_coef(self, q) -> np.ndarray:

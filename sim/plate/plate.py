@@ -25,7 +25,7 @@ import numpy as np
 from mppf.core.errors import GeometryError, InputError
 from mppf.core.validate import check_number, check_positive
 from mppf.planning.press import PressConfig, press_from_dict
-from mppf.sim.plate.contact import Compliance, Punches
+from mppf.sim.plate.contact import Compliance, Punches, refuse_crushing
 from mppf.sim.plate.formed import FormedSteelPlate
 from mppf.sim.plate.grid import PlateGrid
 from mppf.sim.plate.material import PlateSteel
@@ -318,14 +318,7 @@ class SteelPlate:
             raise GeometryError(f"a plate needs at least 3 active punch pairs over it, got {int(enabled.sum())}")
         p_lower = np.where(enabled, self.punches.pick(lower), 0.0)
         p_upper = np.where(enabled, self.punches.pick(upper), 0.0)
-        gap = np.where(enabled, p_upper - p_lower, np.inf)
-        half = 0.5 * self.punches.thickness_mm
-        if np.any(gap < half):
-            i = int(np.argmin(gap - half))
-            row, col = (int(k) for k in self.punches.index[i])
-            raise InputError(f"the gap between upper and lower tips is {gap[i]:.3f} mm at punch (row {row}, "
-                             f"col {col}), less than half the plate thickness {2 * half[i]:.3f} mm",
-                             hint="the step would crush the plate; check the strokes")
+        refuse_crushing(np.where(enabled, p_upper - p_lower, np.inf), self.punches.thickness_mm, self.punches.index)
         return p_lower, p_upper, enabled
 
     # --- save / restore ------------------------------------------------------------
