@@ -36,9 +36,10 @@ from scipy.interpolate import RectBivariateSpline
 from mppf.core import polygon
 from mppf.core.errors import GeometryError, InputError
 from mppf.core.validate import check_number, check_positive
+from mppf.forming.material import Material
 from mppf.forming.plate_model import grid_axes, loaded_surface, spring_back
 from mppf.planning.press import PressConfig
-from mppf.forming.material import Material
+from mppf.sim.plate.formed import grid_inside
 
 GRID_SPACING_MM = 20.0
 """Spacing of the internal grid on which the loaded and unloaded surfaces are computed."""
@@ -157,24 +158,8 @@ class FormedPlate:
         return self._spline(loaded).ev(y, x)
 
     def sample_xy(self, spacing_mm: float) -> np.ndarray:
-        """Press (x, y) (n, 2) of a regular grid of ``spacing_mm`` inside the outline.
-
-        The grid is centred on the outline's bounding box, so the rows and columns left
-        over at the edges are the same on both sides (a grid starting at one edge would
-        sample that edge and stop up to a spacing short of the other: a scan whose edge
-        seems shifted).
-        """
-        spacing_mm = check_positive("the sampling spacing", spacing_mm, unit="mm")
-        lo = self.outline_xy_mm.min(axis=0)
-        hi = self.outline_xy_mm.max(axis=0)
-        count = np.floor((hi - lo) / spacing_mm + 1e-9).astype(int)
-        start = 0.5 * (lo + hi) - 0.5 * count * spacing_mm
-        xs = start[0] + spacing_mm * np.arange(count[0] + 1)
-        ys = start[1] + spacing_mm * np.arange(count[1] + 1)
-        xx, yy = np.meshgrid(xs, ys)
-        xy = np.column_stack([xx.ravel(), yy.ravel()])
-        inside = polygon.contains(self.outline_xy_mm, xy, tolerance_mm=1e-6)
-        return xy[inside]
+        """Press (x, y) (n, 2) of a regular grid of ``spacing_mm`` inside the outline (:func:`grid_inside`)."""
+        return grid_inside(self.outline_xy_mm, spacing_mm)
 
     def mid_surface_points(self, spacing_mm: float = GRID_SPACING_MM, *, loaded: bool = False) -> np.ndarray:
         """Mid-surface points on a regular x, y grid inside the outline.

@@ -13,10 +13,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from mppf.sim.plate.formed import grid_inside
 from scipy.interpolate import CloughTocher2DInterpolator, NearestNDInterpolator
-
-from mppf.core.errors import InputError
-from mppf.core.polygon import contains
 
 SLOPE_STEP_MM = 1.0
 """Half step of the central differences of the normals, mm."""
@@ -89,16 +87,8 @@ class FormedFEPlate:
         return surface(np.column_stack([x.ravel(), y.ravel()])).reshape(x.shape)
 
     def sample_xy(self, spacing_mm: float) -> np.ndarray:
-        """Press (x, y) (n, 2) of a regular grid of ``spacing_mm`` inside the outline (centred on its box)."""
-        if not np.isfinite(spacing_mm) or spacing_mm <= 0:
-            raise InputError(f"sampling spacing must be positive, got {spacing_mm} mm")
-        lo, hi = self.outline_xy_mm.min(axis=0), self.outline_xy_mm.max(axis=0)
-        count = np.floor((hi - lo) / spacing_mm + 1e-9).astype(int)
-        start = 0.5 * (lo + hi) - 0.5 * count * spacing_mm
-        xx, yy = np.meshgrid(start[0] + spacing_mm * np.arange(count[0] + 1),
-                             start[1] + spacing_mm * np.arange(count[1] + 1))
-        xy = np.column_stack([xx.ravel(), yy.ravel()])
-        return xy[contains(self.outline_xy_mm, xy, tolerance_mm=1e-6)]
+        """Press (x, y) (n, 2) of a regular grid of ``spacing_mm`` inside the outline (:func:`grid_inside`)."""
+        return grid_inside(self.outline_xy_mm, spacing_mm)
 
     def mid_surface_points(self, spacing_mm: float = 20.0, *, loaded: bool = False) -> np.ndarray:
         """Mid-surface points (n, 3) on a regular x, y grid inside the outline, mm."""

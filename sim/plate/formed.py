@@ -21,6 +21,26 @@ SAMPLE_SPACING_MM = 20.0
 """Spacing of the press-aligned arrays ``x_mm``, ``y_mm`` of the height fields."""
 
 
+def grid_inside(outline_xy_mm, spacing_mm: float) -> np.ndarray:
+    """Press (x, y) (n, 2) of a regular grid of ``spacing_mm`` (mm) inside the outline (k, 2) (mm).
+
+    The grid is centred on the outline's bounding box, so the rows and columns left over at the
+    edges are the same on both sides (a grid starting at one edge would sample that edge and stop up
+    to a spacing short of the other: a scan whose edge seems shifted).
+    """
+    if not np.isfinite(spacing_mm) or spacing_mm <= 0:
+        raise InputError(f"the sampling spacing must be a positive number of mm, got {spacing_mm}",
+                         hint="give a spacing such as 20 mm")
+    outline = np.asarray(outline_xy_mm, dtype=float)
+    lo, hi = outline.min(axis=0), outline.max(axis=0)
+    count = np.floor((hi - lo) / spacing_mm + 1e-9).astype(int)
+    start = 0.5 * (lo + hi) - 0.5 * count * spacing_mm
+    xx, yy = np.meshgrid(start[0] + spacing_mm * np.arange(count[0] + 1),
+                         start[1] + spacing_mm * np.arange(count[1] + 1))
+    xy = np.column_stack([xx.ravel(), yy.ravel()])
+    return xy[contains(outline, xy, tolerance_mm=1e-6)]
+
+
 @dataclass(frozen=True, eq=False)
 class FormedSteelPlate:
     """A steel plate after a press step, in press coordinates (mm).
@@ -110,21 +130,8 @@ class FormedSteelPlate:
         return self.grid.evaluate(coef, uv).reshape(x.shape)
 
     def sample_xy(self, spacing_mm: float) -> np.ndarray:
-        """Press (x, y) (n, 2) of a regular grid of ``spacing_mm`` inside the outline.
-
-        The grid is centred on the outline's bounding box (same rule as
-        ``sim.forming.FormedPlate.sample_xy``).
-        """
-        if not np.isfinite(spacing_mm) or spacing_mm <= 0:
-            raise InputError(f"sampling spacing must be positive, got {spacing_mm} mm")
-        lo = self.outline_xy_mm.min(axis=0)
-        hi = self.outline_xy_mm.max(axis=0)
-        count = np.floor((hi - lo) / spacing_mm + 1e-9).astype(int)
-        start = 0.5 * (lo + hi) - 0.5 * count * spacing_mm
-        xx, yy = np.meshgrid(start[0] + spacing_mm * np.arange(count[0] + 1),
-                             start[1] + spacing_mm * np.arange(count[1] + 1))
-        xy = np.column_stack([xx.ravel(), yy.ravel()])
-        return xy[contains(self.outline_xy_mm, xy, tolerance_mm=1e-6)]
+        """Press (x, y) (n, 2) of a regular grid of ``spacing_mm`` inside the outline (:func:`grid_inside`)."""
+        return grid_inside(self.outline_xy_mm, spacing_mm)
 
     def mid_surface_points(self, spacing_mm: float = SAMPLE_SPACING_MM, *, loaded: bool = False) -> np.ndarray:
         """Mid-surface points (n, 3) on a regular x, y grid inside the outline, mm."""
