@@ -9,7 +9,7 @@ step helps (:func:`mppf.correct.verdict.convergence_verdict`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -95,12 +95,65 @@ def correct_step(press: PressConfig, design_mid_mm, thickness_mm: float, nominal
     upper, lower = strokes[plan.base]
     learned = learned_correction(press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower, active,
                                  edge_mm=edge_mm, scale=np.full(ring.shape, plan.share))
+    if len(outcomes) > 1:
+        plan, learned = _safer_near_tolerance(plan, learned, outcomes[-1], tolerances,
+                                              lambda share: learned_correction(
+                                                  press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower,
+                                                  active, edge_mm=edge_mm, scale=np.full(ring.shape, share)))
     learned.notes.extend(plan.notes)
     verdict = convergence_verdict([o.rms_mm for o in outcomes], learned.predicted_rms_mm,
                                   tolerances.rms_tolerance_mm, clipped=int(learned.clipped.sum()),
                                   unreached=int(learned.unreached.sum()), max_mm=[o.form_max_mm for o in outcomes],
                                   tolerance_mm=tolerances.tolerance_mm, share=plan.share)
     return CorrectionStep(learned, plan, verdict)
+
+
+def _safer_near_tolerance(plan: StepPlan, learned: LearnedCorrection, now: Outcome, tolerances: Tolerances, correct):
+    """Half the step when only the form max is out, the full step promises more change than the error, half is enough.
+
+    A correction whose promised change at the punches (RMS) exceeds the deviation it removes
+    plans to carry the plate past the design there (the outer rows aimed towards the edge beyond
+    them, a local ratio learned from one secant); a plate answering more than promised then ends
+    the cycle worse, and the way back needs a reverse bend. When the RMS is already within its
+    tolerance (only the form max is out) and half the share is already
+    predicted to bring the plate within the tolerances, that half step is taken instead. The
+    prediction is at the punches; the form max also counts what lies beyond them (the net edge,
+    between the punches), taken as large as it is now: the form max now less the largest
+    deviation at the punches now.
+
+    Parameters
+    ----------
+    plan : StepPlan
+    learned : LearnedCorrection
+        The correction at ``plan.share``.
+    now : Outcome
+        The cycle just measured.
+    tolerances : Tolerances
+    correct : callable
+        ``correct(share) -> LearnedCorrection``, the same correction at another share.
+
+    Returns
+    -------
+    plan, learned
+        Unchanged, or at half the share.
+    """
+    last = np.asarray(now.error_mm, dtype=float)
+    known = np.isfinite(learned.predicted_mm) & np.isfinite(last)
+    if not known.any() or now.rms_mm > tolerances.rms_tolerance_mm:
+        return plan, learned
+    promise = float(np.sqrt(np.mean((learned.predicted_mm - last)[known] ** 2)))
+    error = float(np.sqrt(np.mean(last[known] ** 2)))
+    if promise <= error:
+        return plan, learned
+    half = correct(0.5 * plan.share)
+    predicted = half.predicted_mm[np.isfinite(half.predicted_mm)]
+    beyond = max(0.0, now.form_max_mm - float(np.max(np.abs(last[known]))))
+    if predicted.size == 0 or np.max(np.abs(predicted)) + beyond > tolerances.tolerance_mm \
+            or np.sqrt(np.mean(predicted**2)) > tolerances.rms_tolerance_mm:
+        return plan, learned
+    half.notes.append(f"the full step promised a change of {promise:.2f} mm RMS for an error of {error:.2f} mm: "
+                      f"half of it, predicted within the tolerances, taken instead")
+    return replace(plan, share=0.5 * plan.share), half
 
 
 def outcome(form_max_mm: float, rms_mm: float, error_mm, promised_mm=None) -> Outcome:
