@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from mppf.drivers import codec
+from mppf.drivers.audit import AuditLog
 from mppf.planning.job import Job, StepStrokes
 from mppf.planning.press import example_press_path, load_press, press_from_dict
 
@@ -183,3 +184,15 @@ def fill_up_audit(path, monkeypatch):
         return db
 
     monkeypatch.setattr(audit_module, "open_sqlite", full)
+
+
+def actions(log: AuditLog) -> list[tuple[str, str]]:
+    """(action, outcome) of every entry of the audit log, oldest first."""
+    return [(e.action, e.outcome) for e in log.entries()]
+
+
+def open_audit(tmp_path):
+    """An audit log in ``tmp_path`` (the ``audit`` fixtures of the driver tests: yield it, then close it)."""
+    log = AuditLog(tmp_path / "audit.sqlite")
+    yield log
+    log.close()

@@ -7,7 +7,7 @@ import time
 
 import numpy as np
 import pytest
-from driver_helpers import HookReporter, small_press, step_setpoints
+from driver_helpers import HookReporter, actions, small_press, step_setpoints
 
 from mppf.core.errors import PressFault, PressRefused
 from mppf.drivers.audit import AuditLog
@@ -21,10 +21,6 @@ FAST = 100.0  # simulated seconds per wall second
 @pytest.fixture
 def press():
     return small_press(3, 4)
-
-
-def actions(log: AuditLog) -> list[tuple[str, str]]:
-    return [(e.action, e.outcome) for e in log.entries()]
 
 
 @pytest.mark.parametrize("scan_ms", [1, 10, 50, 100, 200])

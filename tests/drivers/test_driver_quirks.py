@@ -11,10 +11,9 @@ import time
 
 import numpy as np
 import pytest
-from driver_helpers import HookReporter, small_press, step_setpoints
+from driver_helpers import HookReporter, actions, open_audit, small_press, step_setpoints
 
 from mppf.core.errors import PressFault, PressRefused
-from mppf.drivers.audit import AuditLog
 from mppf.drivers.modbus import ModbusPress
 from mppf.drivers.regmap import load_register_map
 from mppf.sim.plc.host import start_simulated_plc
@@ -46,15 +45,7 @@ def start_sim(press):
         handle.stop()
 
 
-@pytest.fixture
-def audit(tmp_path):
-    log = AuditLog(tmp_path / "audit.sqlite")
-    yield log
-    log.close()
-
-
-def actions(log: AuditLog) -> list[tuple[str, str]]:
-    return [(e.action, e.outcome) for e in log.entries()]
+audit = pytest.fixture(open_audit, name="audit")
 
 
 def at_rest(sim) -> bool:

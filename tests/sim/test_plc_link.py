@@ -6,10 +6,9 @@ import time
 
 import numpy as np
 import pytest
-from driver_helpers import HookReporter, small_press, step_setpoints
+from driver_helpers import HookReporter, actions, open_audit, small_press, step_setpoints
 
 from mppf.core.errors import Cancelled, LimitError, PressFault, PressRefused
-from mppf.drivers.audit import AuditLog
 from mppf.drivers.follow import motion_time_s
 from mppf.sim.faults import parse_fault_spec
 from mppf.sim.plc.link import InProcessPress
@@ -20,15 +19,7 @@ def press():
     return small_press()
 
 
-@pytest.fixture
-def audit(tmp_path):
-    log = AuditLog(tmp_path / "audit.sqlite")
-    yield log
-    log.close()
-
-
-def actions(log: AuditLog) -> list[tuple[str, str]]:
-    return [(e.action, e.outcome) for e in log.entries()]
+audit = pytest.fixture(open_audit, name="audit")
 
 
 def test_a_step_is_instant_and_reports_the_programs_positions(press, audit):
