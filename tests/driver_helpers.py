@@ -7,7 +7,7 @@ import numpy as np
 from mppf.drivers import codec
 from mppf.drivers.audit import AuditLog
 from mppf.planning.job import Job, StepStrokes
-from mppf.planning.press import example_press_path, load_press, press_from_dict
+from mppf.planning.press import example_press_path, load_press, press_from_dict, press_to_toml
 
 THICKNESS_MM = 20.0
 
@@ -196,3 +196,21 @@ def open_audit(tmp_path):
     log = AuditLog(tmp_path / "audit.sqlite")
     yield log
     log.close()
+
+
+def running_sim(press):
+    """A simulated PLC for ``press`` on a loopback port at 50x (watchdog 2 s): yield it, then stop it."""
+    from mppf.sim.plc.host import start_simulated_plc
+
+    handle = start_simulated_plc(press, time_scale=50.0, watchdog_s=2.0)
+    yield handle
+    handle.stop()
+
+
+def install_press(tmp_path, monkeypatch, press):
+    """``MPPF_HOME`` in ``tmp_path / "home"`` with ``press`` installed as this machine's press; returns the folder."""
+    home = tmp_path / "home"
+    monkeypatch.setenv("MPPF_HOME", str(home))
+    home.mkdir()
+    (home / "press.toml").write_text(press_to_toml(press))
+    return home

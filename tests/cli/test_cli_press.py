@@ -8,7 +8,7 @@ import time
 
 import numpy as np
 import pytest
-from driver_helpers import small_job, small_press
+from driver_helpers import install_press, running_sim, small_job, small_press
 
 from mppf.cli import main
 from mppf.drivers.audit import AuditLog
@@ -28,20 +28,11 @@ def job_path(tmp_path, press):
     return save_job(small_job(press, n_steps=2), tmp_path / "job.json")
 
 
-@pytest.fixture
-def sim(press):
-    handle = start_simulated_plc(press, time_scale=50.0, watchdog_s=2.0)
-    yield handle
-    handle.stop()
+sim = pytest.fixture(running_sim, name="sim")
 
 
-@pytest.fixture(autouse=True)
-def mppf_home(tmp_path, monkeypatch, press):
-    """Keep the default audit log out of the user's home; this machine's press (installed there) is the small one."""
-    monkeypatch.setenv("MPPF_HOME", str(tmp_path / "home"))
-    (tmp_path / "home").mkdir()
-    (tmp_path / "home" / "press.toml").write_text(press_to_toml(press))
-    return tmp_path / "home"
+# The default audit log kept out of the user's home; this machine's press (installed there) is the small one.
+mppf_home = pytest.fixture(install_press, name="mppf_home", autouse=True)
 
 
 def audit_actions(path) -> list[tuple[str, str, int | None]]:

@@ -11,14 +11,12 @@ import json
 
 import numpy as np
 import pytest
-from driver_helpers import small_job, small_press
+from driver_helpers import install_press, running_sim, small_job, small_press
 from mppf.drivers.audit import AuditLog
-from mppf.sim.plc.host import start_simulated_plc
 
 from mppf.cli import main
 from mppf.core.seal import load_key, seal_document
 from mppf.planning.job import save_job
-from mppf.planning.press import press_to_toml
 
 
 @pytest.fixture
@@ -26,18 +24,10 @@ def press():
     return small_press()
 
 
-@pytest.fixture
-def sim(press):
-    handle = start_simulated_plc(press, time_scale=50.0, watchdog_s=2.0)
-    yield handle
-    handle.stop()
+sim = pytest.fixture(running_sim, name="sim")
 
 
-@pytest.fixture(autouse=True)
-def home(tmp_path, monkeypatch, press):
-    monkeypatch.setenv("MPPF_HOME", str(tmp_path / "home"))
-    (tmp_path / "home").mkdir()
-    (tmp_path / "home" / "press.toml").write_text(press_to_toml(press))
+home = pytest.fixture(install_press, name="home", autouse=True)
 
 
 def _pair(doc, mm):
