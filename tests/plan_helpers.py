@@ -152,7 +152,8 @@ class SofterPlate:
 @functools.lru_cache(maxsize=None)
 def softer_plate_pressed() -> SofterPlate:
     """Strokes refined for the nominal steel; the plate that took them is 15 % softer (computed once, read-only)."""
-    from mppf.forming.precompensate import deviation, predict_mid_heights, refine_strokes
+    from mppf.correct.virtual_cycles import refine_strokes
+    from mppf.forming.precompensate import deviation, predict_mid_heights
 
     press = model_press()
     t = MODEL_THICKNESS_MM

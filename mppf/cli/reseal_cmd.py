@@ -80,7 +80,7 @@ def reseal_command(job_path, reason, press_path, output, audit_path):
     from mppf.cli._common import check_db_path
     from mppf.cli.plc_ops import open_audit
     from mppf.planning.job import (
-        _check_format,
+        check_format,
         job_from_dict,
         read_job_document,
         save_job,
@@ -93,7 +93,7 @@ def reseal_command(job_path, reason, press_path, output, audit_path):
         check_db_path(audit_path, "the audit log", "--audit")
     source = str(job_path)
     doc = read_job_document(job_path)
-    _check_format(doc, source)
+    check_format(doc, source)
     check_job_document(doc, source)
     before, changed = _previous_seal(doc)
     job = job_from_dict(doc, source=source)

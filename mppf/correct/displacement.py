@@ -27,7 +27,7 @@ import numpy as np
 
 from mppf.core.errors import InputError
 from mppf.correct.result import PreviousCycle, Step, punch_grid
-from mppf.planning.press import PressConfig
+from mppf.model.press import PressConfig
 
 GAIN_RANGE = (0.5, 3.0)
 """Range the secant gain is clipped to."""

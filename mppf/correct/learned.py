@@ -43,8 +43,8 @@ from mppf.correct.secant import ModeGain
 from mppf.correct.solve import STALLED, solve_change
 from mppf.correct.section import Section
 from mppf.forming.material import Material
-from mppf.planning.job import StepStrokes
-from mppf.planning.press import PressConfig
+from mppf.model.job_parts import StepStrokes
+from mppf.model.press import PressConfig
 
 AIM = (0.92, 0.95)
 """Share of the way to the design aimed at: by the first correction, and once a secant is known

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from mppf.core.grid import largest_neighbour_difference
-from mppf.planning.press import PressConfig
+from mppf.model.press import PressConfig
 
 ITERATIONS = 200
 """Most alternating projections before the correction is scaled down as a whole."""

@@ -15,7 +15,7 @@ from mppf.core.grid import hessian, integrate_hessian, principal, tensor, tps_fi
 from mppf.correct.result import Step, punch_grid
 from mppf.forming.material import Material
 from mppf.forming.springback import unloaded_curvature
-from mppf.planning.press import PressConfig
+from mppf.model.press import PressConfig
 
 MIN_SLOPE = 0.2
 """Smallest springback slope the model-based correction divides by (at most 5 x the error:

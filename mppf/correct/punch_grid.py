@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from mppf.core.grid import hessian, integrate_hessian, tps_fill
-from mppf.planning.press import PressConfig
+from mppf.model.press import PressConfig
 
 
 class PunchGrid:

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mppf.core.errors import InputError
-from mppf.planning.press import PressConfig
+from mppf.model.press import PressConfig
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,7 @@ from mppf.correct.learned import LearnedCorrection, learned_correction
 from mppf.correct.policy import DEFAULT_NOISE_MM, Outcome, StepPlan, step_plan
 from mppf.correct.verdict import Verdict, convergence_verdict
 from mppf.forming.material import Material
-from mppf.planning.press import PressConfig
+from mppf.model.press import PressConfig
 
 
 @dataclass(frozen=True, eq=False)

@@ -17,7 +17,7 @@ Layers (see ``docs/file-formats.md``, "Flat plate for the cutter"):
 
 The reference corner is the corner of the plate as cut (margin included) with the
 smallest x + y in the coordinates it is laid on the press in
-(:func:`mppf.planning.job.reference_corner_xy`): the corner at the press's first punch
+(:func:`mppf.model.job_parts.reference_corner_xy`): the corner at the press's first punch
 (row 1, column 1). The drawing is in the flat's own coordinates ($INSUNITS 4, mm).
 """
 
@@ -32,7 +32,7 @@ from mppf.core.errors import GeometryError, InputError
 from mppf.core.polygon import area, convex_outline, offset_convex
 from mppf.core.transform import apply_tf, invert_tf
 from mppf.geometry.mesh import boundary_edges
-from mppf.planning.job import reference_corner_xy
+from mppf.model.job_parts import reference_corner_xy
 
 LAYERS = {"CUT": 1, "NET": 3, "MARK": 5, "TEXT": 7, "PUNCH": 4}
 """Layer names and their AutoCAD colour index (red, green, blue, white, cyan)."""

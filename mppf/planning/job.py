@@ -1,209 +1,43 @@
-"""The job file: the planned strokes of a plate, the contract between planner and press.
+"""The job file on disk: sealed on save, its seal checked by the one loader.
 
-A job is JSON, versioned (``"format": "mppf-job"``, ``"version": 4``: sealed; a plate formed
-section by section has its ``"sections"``, :mod:`mppf.planning.job_sections`); see
-``docs/file-formats.md`` and ``docs/sections.md``. :func:`save_job` seals the file with the
-installation's key (:mod:`mppf.core.seal`) and :func:`load_job` refuses a job whose content does
-not match its seal, naming the parts that changed; older, unsealed jobs (versions 1-3) are read
-only where nothing is pressed (``require_seal=False``: compare, history, reports).
-In memory, stroke arrays are (rows, cols) float mm with NaN where a punch is inactive; in the
-file, inactive entries are ``null``. Inactive punches are driven to their parking heights by
-the press driver. The parts (steps, plate layout) are :mod:`mppf.planning.job_parts`.
+The job itself and its (de)serialisation are shared data of every stage and live in
+:mod:`mppf.model.job` (its parts in :mod:`mppf.model.job_parts`, its sections in
+:mod:`mppf.model.job_sections`); they are re-exported here for the callers that still import
+them from planning. :func:`save_job` seals the file with the installation's key
+(:mod:`mppf.core.seal`) and :func:`load_job` refuses a job whose content does not match its seal,
+naming the parts that changed; older, unsealed jobs (versions 1-3) are read only where nothing
+is pressed (``require_seal=False``: compare, history, reports).
 """
 
 from __future__ import annotations
 
-import hashlib
-import json
-from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
-from mppf.core.errors import ConfigError, InputError
-from mppf.core.transform import tf_from_list, tf_to_list
-from mppf.core.validate import check_number
-from mppf.planning.job_parts import (  # noqa: F401 (API)
+from mppf.core.errors import InputError
+from mppf.model.job import (  # noqa: F401 (re-export)
+    JOB_FORMAT,
+    JOB_VERSION,
+    MAX_JOB_BYTES,
+    READ_VERSIONS,
+    SEALED_VERSION,
+    SECTIONS_VERSION,
+    V1_LAYOUT_KEYS,
+    Job,
+    check_format,
+    job_from_dict,
+    read_job_document,
+)
+from mppf.model.job_parts import (  # noqa: F401 (re-export)
     PlateLayout,
     StepStrokes,
-    _grid_from_json,
-    _grid_to_json,
     grid_from_json,
     grid_to_json,
     reference_corner_xy,
     steps_from_json,
     steps_to_json,
 )
-from mppf.planning.job_sections import Section, sections_from_json
-from mppf.planning.press import PressConfig, press_from_dict
-
-JOB_FORMAT = "mppf-job"
-JOB_VERSION = 4
-"""The version written: a sealed job (single piece or in sections); older readers refuse it."""
-SEALED_VERSION = 4
-"""The first version that must carry a seal (:mod:`mppf.core.seal`)."""
-SECTIONS_VERSION = 3
-"""The first version that may hold sections (a plate larger than the bed)."""
-READ_VERSIONS = (1, 2, 3, 4)
-"""Job file versions this mppf reads (version 1: the plate layout in loose top-level keys; 1-3 unsealed,
-read only where nothing is pressed)."""
-
-
-@dataclass
-class Job:
-    """A planned job: press, plate, transforms, punch positions and steps.
-
-    Attributes
-    ----------
-    press : PressConfig
-    thickness_mm : float
-    steps : list of StepStrokes
-    tf_press_design, tf_press_flat : (4, 4) float
-    punch_x_mm : (cols,) float
-    punch_y_mm : (rows,) float
-    layout : PlateLayout or None
-        The plate on the press (None only for old jobs without an outline).
-    extra : dict
-        The planner's reports (registration, validation, pose, input hashes, plate
-        corners, springback...), stored as-is.
-    sections : list of Section or None
-        A plate larger than the bed: its sections in pressing order (then ``steps``,
-        the transforms and ``layout`` are those of section 1); None for a single piece.
-    """
-
-    press: PressConfig
-    thickness_mm: float
-    steps: list[StepStrokes]
-    tf_press_design: np.ndarray = field(default_factory=lambda: np.eye(4))
-    tf_press_flat: np.ndarray = field(default_factory=lambda: np.eye(4))
-    punch_x_mm: np.ndarray | None = None
-    punch_y_mm: np.ndarray | None = None
-    layout: PlateLayout | None = None
-    extra: dict = field(default_factory=dict)
-    sections: list[Section] | None = None
-
-    def __post_init__(self):
-        if self.punch_x_mm is None:
-            self.punch_x_mm = self.press.punch_x_mm
-        if self.punch_y_mm is None:
-            self.punch_y_mm = self.press.punch_y_mm
-
-    def to_dict(self) -> dict:
-        """The JSON document of this job."""
-        doc = {
-            "format": JOB_FORMAT,
-            "version": JOB_VERSION,
-            "press": self.press.to_dict(),
-            "thickness_mm": float(self.thickness_mm),
-            "tf_press_design": tf_to_list(self.tf_press_design),
-            "tf_press_flat": tf_to_list(self.tf_press_flat),
-            "punch_x_mm": [float(x) for x in self.punch_x_mm],
-            "punch_y_mm": [float(y) for y in self.punch_y_mm],
-            "steps": steps_to_json(self.steps),
-        }
-        if self.layout is not None:
-            doc["plate"] = self.layout.to_dict()
-        if self.sections is not None:
-            doc["sections"] = [s.to_dict() for s in self.sections]
-        for key, value in self.extra.items():
-            doc.setdefault(key, value)
-        return doc
-
-    def to_json(self) -> str:
-        """Serialized job (stable key order, so its hash is reproducible; the seal of the file it was read from
-        or saved to is in ``extra["seal"]``)."""
-        return json.dumps(self.to_dict(), indent=1, allow_nan=False)
-
-    def sha256(self) -> str:
-        """SHA-256 of the serialized job (used in the audit log and history)."""
-        return hashlib.sha256(self.to_json().encode()).hexdigest()
-
-
-
-def job_from_dict(doc: dict, source: str = "job") -> Job:
-    """Validate and build a :class:`Job` from its JSON document.
-
-    Raises
-    ------
-    ConfigError
-        Wrong format or version, missing keys, or grids that do not match the press.
-    """
-    _check_format(doc, source)
-    for key in ("press", "thickness_mm", "steps"):
-        if key not in doc:
-            raise ConfigError(f"{source}: missing key '{key}'")
-    press = press_from_dict(doc["press"], source=f"{source} [press]")
-    thickness = check_number(f"{source}: thickness_mm", doc["thickness_mm"], low=0.0, low_open=True, unit="mm",
-                             hint="re-plan the plate with 'mppf plan'", error=ConfigError)
-    steps = steps_from_json(doc["steps"], press, source)
-    known = {"format", "version", "press", "thickness_mm", "steps", "tf_press_design", "tf_press_flat",
-             "punch_x_mm", "punch_y_mm", "plate", "sections"}
-    layout = _layout_from_doc(doc, source)
-    if doc["version"] == 1:  # the loose layout keys of version 1 now live in the layout
-        known |= set(V1_LAYOUT_KEYS)
-    transforms = {}
-    for key in ("tf_press_design", "tf_press_flat"):
-        try:
-            transforms[key] = tf_from_list(doc.get(key, np.eye(4).tolist()), key)
-        except InputError as exc:
-            raise ConfigError(f"{source}: {exc.message}", hint="re-plan the plate with 'mppf plan'") from None
-    return Job(
-        press=press,
-        thickness_mm=float(thickness),
-        steps=steps,
-        punch_x_mm=_axis_from_json(doc.get("punch_x_mm", press.punch_x_mm), press.cols, "punch_x_mm", source),
-        punch_y_mm=_axis_from_json(doc.get("punch_y_mm", press.punch_y_mm), press.rows, "punch_y_mm", source),
-        layout=layout,
-        extra={k: v for k, v in doc.items() if k not in known},
-        sections=_sections_from_doc(doc, press, source),
-        **transforms,
-    )
-
-
-def _sections_from_doc(doc: dict, press: PressConfig, source: str) -> list[Section] | None:
-    """The sections of a version-3 job (None for a single piece; refused in older versions)."""
-    if "sections" not in doc:
-        return None
-    if doc["version"] < SECTIONS_VERSION:
-        raise ConfigError(f"{source}: a version-{doc['version']} job cannot hold sections",
-                          hint="re-plan the plate with 'mppf plan'")
-    return sections_from_json(doc["sections"], press, source)
-
-
-V1_LAYOUT_KEYS = {"plate_outline_mm": "outline_mm", "net_outline_mm": "net_outline_mm", "margin_mm": "margin_mm",
-                  "design_mid_mm": "design_mid_mm", "material": "material"}
-"""Version-1 top-level keys and the layout fields they became in version 2."""
-
-
-def _layout_from_doc(doc: dict, source: str) -> PlateLayout | None:
-    """The job's plate layout: the ``"plate"`` block (v2) or the loose v1 keys; None without an outline."""
-    if doc["version"] >= 2:
-        block = doc.get("plate")
-        if block is None:
-            return None
-        if not isinstance(block, dict):
-            raise ConfigError(f"{source}: 'plate' must be an object with the plate layout")
-        return PlateLayout.from_dict(block, source)
-    if not doc.get("plate_outline_mm"):
-        return None
-    return PlateLayout.from_dict({new: doc[old] for old, new in V1_LAYOUT_KEYS.items() if doc.get(old) is not None},
-                                 source)
-
-
-def _axis_from_json(values, count: int, name: str, source: str) -> np.ndarray:
-    """Punch axis positions (count,) mm from the job document, checked."""
-    try:
-        arr = np.asarray(values, dtype=float)
-    except (TypeError, ValueError):
-        raise ConfigError(f"{source}: {name} must be a list of numbers (mm), got {values!r:.60}") from None
-    if arr.shape != (count,):
-        raise ConfigError(f"{source}: {name} must hold {count} finite numbers (one per punch), got shape "
-                          f"{arr.shape}", hint="re-plan the plate with 'mppf plan'")
-    if not np.all(np.isfinite(arr)):
-        k = int(np.argmin(np.isfinite(arr)))
-        raise ConfigError(f"{source}: {name} must hold {count} finite numbers (one per punch), got {arr[k]} at "
-                          f"position {k + 1}", hint="re-plan the plate with 'mppf plan'")
-    return arr
+from mppf.model.job_sections import Section  # noqa: F401 (re-export)
+from mppf.model.press import PressConfig  # noqa: F401 (re-export)
 
 
 def load_job(path, *, require_seal: bool = True) -> Job:
@@ -230,7 +64,7 @@ def load_job(path, *, require_seal: bool = True) -> Job:
 
     source = str(path)
     doc = read_job_document(path)
-    _check_format(doc, source)
+    check_format(doc, source)
     check_job_document(doc, source)
     check_seal(doc, source, require_seal=require_seal)
     return job_from_dict(doc, source=source)
@@ -254,64 +88,6 @@ def check_seal(doc: dict, source: str, *, require_seal: bool = True) -> None:
                                    f"{source} --reason \"...\" --press PRESS.toml'")
         return
     verify_document(doc, source)
-
-
-def _check_format(doc, source: str) -> None:
-    if not isinstance(doc, dict) or doc.get("format") != JOB_FORMAT:
-        raise ConfigError(
-            f"{source}: not an mppf job file (format {doc.get('format') if isinstance(doc, dict) else None!r})",
-            hint="make one with 'mppf plan'",
-        )
-    if isinstance(doc.get("version"), bool) or doc.get("version") not in READ_VERSIONS:
-        raise ConfigError(
-            f"{source}: job file version {doc.get('version')!r} is not supported (this mppf reads "
-            f"{', '.join(str(v) for v in READ_VERSIONS)})",
-            hint="re-plan the plate with this version of mppf",
-        )
-
-
-def read_job_document(path) -> dict:
-    """The JSON document of a job file, not yet checked.
-
-    Raises
-    ------
-    InputError
-        Missing or unreadable file, invalid JSON.
-    """
-    import stat
-
-    path = Path(path)
-    try:
-        info = path.stat()
-        if stat.S_ISREG(info.st_mode) and info.st_size > MAX_JOB_BYTES:
-            raise InputError(f"job file {path} is {info.st_size / 1e6:.0f} MB: larger than any job "
-                             f"({MAX_JOB_BYTES / 1e6:.0f} MB at most)", hint="give the job file 'mppf plan' wrote")
-        if not stat.S_ISREG(info.st_mode) and not stat.S_ISDIR(info.st_mode):
-            raise InputError(f"job file {path} is not a regular file (a device, a pipe or a socket)",
-                             hint="give the job file 'mppf plan' wrote")
-        text = path.read_text()
-    except FileNotFoundError:
-        raise InputError(f"job file {path} does not exist", hint="make one with 'mppf plan'") from None
-    except (IsADirectoryError, UnicodeDecodeError, PermissionError) as exc:
-        raise InputError(f"job file {path} cannot be read: {exc}") from None
-    try:
-        doc = json.loads(text, parse_int=_parse_int)
-    except json.JSONDecodeError as exc:
-        raise ConfigError(f"{path}, line {exc.lineno}: not valid JSON: {exc.msg}") from None
-    except RecursionError:
-        raise ConfigError(f"{path}: not a job: its JSON is nested too deeply to be one",
-                          hint="give the job file 'mppf plan' wrote") from None
-    return doc
-
-
-def _parse_int(text: str):
-    """A JSON integer: an int, or beyond 18 digits a float (infinite beyond floats: refused as not finite)."""
-    return int(text) if len(text.lstrip("-")) <= 18 else float(text)
-
-
-MAX_JOB_BYTES = 256_000_000
-"""The largest job file read (a job of a 16 x 24 press is about 0.1 MB a step; the largest plates in many
-sections and steps stay far below)."""
 
 
 def save_job(job: Job, path, *, sealed_by: str = "mppf plan", reason: str | None = None) -> Path:

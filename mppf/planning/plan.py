@@ -19,8 +19,8 @@ from mppf.core.polygon import contains, convex_outline, distance_outside, offset
 from mppf.core.progress import NULL_REPORTER
 from mppf.core.transform import apply_tf, as_points, rotation_angle_deg
 from mppf.core.validate import check_number
+from mppf.correct.virtual_cycles import refine_strokes
 from mppf.forming.material import Material
-from mppf.forming.precompensate import refine_strokes
 from mppf.geometry.surface import fit_plate
 from mppf.planning.belongs import check_flat_belongs, design_area_mm2
 from mppf.planning.contact import PlacedSurface, tip_heights
@@ -60,7 +60,7 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
     springback : bool
         Pre-compensate springback: over-bend the principal arcs, then refine the strokes
         by virtual press cycles on the plate model with the nominal material
-        (:func:`mppf.forming.precompensate.refine_strokes`).
+        (:func:`mppf.correct.virtual_cycles.refine_strokes`).
     design_faces : (m, 3) int, optional
         Mesh triangles of the design (better fold and area checks).
     reporter : Reporter

@@ -331,7 +331,8 @@ def _flat_keys(press: PressConfig) -> dict:
     return out
 
 
-def _press_differences(job_press: PressConfig, press_file: PressConfig, source: str) -> list[str]:
+def press_differences(job_press: PressConfig, press_file: PressConfig, source: str) -> list[str]:
+    """Each key whose value differs between two press descriptions, as ``"[forming] speed_mm_s is ..."``."""
     mine, theirs = _flat_keys(job_press), _flat_keys(press_file)
     return [f"{key} is {mine[key]!r} in the job, {theirs[key]!r} in {source}"
             for key in mine if mine[key] != theirs[key]]
@@ -371,7 +372,7 @@ def validate_job(job: Job, *, press_file: PressConfig | None = None, plc_shape: 
     press = job.press
     if press_file is not None and press_file != press:
         raise ConfigError(f"the job was planned for another press than {press_source}: "
-                          + "; ".join(_press_differences(press, press_file, press_source)[:MAX_LISTED]),
+                          + "; ".join(press_differences(press, press_file, press_source)[:MAX_LISTED]),
                           hint="plan the plate for this press, or give the press file the job was planned for")
     if plc_shape is not None and tuple(plc_shape) != press.shape:
         raise ConfigError(f"the job is for {press.rows} x {press.cols} punches, the PLC drives "

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from mppf.core.errors import InputError
-from mppf.forming.precompensate import predict_mid_heights, refine_strokes
+from mppf.correct.virtual_cycles import refine_strokes
+from mppf.forming.precompensate import predict_mid_heights
 from mppf.forming.springback import unloaded_curvature
 from plan_helpers import MODEL_THICKNESS_MM as T
 from plan_helpers import NOMINAL as STEEL
