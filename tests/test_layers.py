@@ -148,3 +148,12 @@ def test_the_scan_sees_every_kind_of_import(tmp_path, monkeypatch, source, expec
     (found,) = imports_of(path)
     assert (found.module, layer_of(found.module)) == expected
     assert found.importer == "mppf.forming.probe" and found.line >= 1
+
+
+def test_every_package_is_installed():
+    """A package folder missing from ``[tool.setuptools] packages`` is missing from a fresh (non-editable) install."""
+    import tomllib
+
+    listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    packages = {module_name(p) for p in source_files() if p.name == "__init__.py"} - {"mppf.examples"}  # package data
+    assert packages <= listed, f"add {sorted(packages - listed)} to [tool.setuptools] packages in pyproject.toml"
