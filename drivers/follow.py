@@ -50,9 +50,21 @@ class Follow:
 
     def read_actuals_mm(self) -> dict[str, np.ndarray]:
         """Actual tip heights, ``{"upper": (rows, cols), "lower": (rows, cols)}`` in mm."""
+        return self._read_heights_mm("actuals")
+
+    def read_setpoints_mm(self) -> dict[str, np.ndarray]:
+        """The setpoints in the PLC, ``{"upper": (rows, cols), "lower": (rows, cols)}`` in mm (what it would drive to)."""
+        return self._read_heights_mm("setpoints")
+
+    def read_fault_bits(self) -> dict[str, np.ndarray]:
+        """The per-punch fault bits, ``{"upper": (rows, cols) bool, "lower": (rows, cols) bool}``."""
+        return {side: np.asarray(bits, dtype=bool) for side, bits in self._fault_bits().items()}
+
+    def _read_heights_mm(self, kind: str) -> dict[str, np.ndarray]:
+        """One block of tip heights per side (``"actuals"`` or ``"setpoints"``), decoded from counts to mm."""
         out = {}
         for side in SIDES:
-            addr, n = self._block("actuals", side)
+            addr, n = self._block(kind, side)
             words = self._io.read_holding(addr, n, max_chunk=self.map.max_read_registers)
             counts = codec.decode_int32(words, self.identity.word_order).reshape(self.press.shape)
             out[side] = codec.counts_to_mm(counts, self.map.count_mm)

@@ -3,14 +3,14 @@
 The corners of the plate as cut (with its trim margin) in press mm, corner A first (the
 corner the reference mark is on: the mark is the corner of the plate as cut), then
 counter-clockwise, and where the mark itself lies; the same corners the panel's "Lay the plate" view and the per-plate report draw
-(:func:`mppf.panel.placement.placement_of`). On a real press the operator then confirms
+(:func:`mppf.model.placement.placement_of`). On a real press the operator then confirms
 that the plate lies there (:func:`mppf.cli.press_policy.confirm_motion`).
 """
 
 from __future__ import annotations
 
-from mppf.panel.placement import placement_of
-from mppf.planning.job import Job
+from mppf.model.job import Job
+from mppf.model.placement import placement_of
 
 
 def placement_lines(job: Job) -> list[str]:

@@ -1,7 +1,7 @@
 """The live press PLC for the panel: a reader in a background thread, and STOP.
 
-:class:`PlcMonitor` polls the PLC with :class:`PanelPress` (the Modbus driver, reading
-only: no heartbeat is written, so a dead master's watchdog still stops the press) four
+:class:`PlcMonitor` polls the PLC with :class:`~mppf.drivers.modbus.ModbusPress` (the Modbus driver,
+which decodes the registers; reading only: no heartbeat is written, so a dead master's watchdog still stops the press) four
 times a second while the press moves and once a second at rest, and keeps the latest
 snapshot for the page (:mod:`mppf.panel.live`); when the PLC stops answering the snapshot
 says "LINK LOST" and the monitor reconnects every second, asking ``locate`` again (the
@@ -16,14 +16,11 @@ import time
 from collections.abc import Callable
 from datetime import datetime, timezone
 
-import numpy as np
-
 from mppf.core.errors import MppfError
-from mppf.drivers import codec
 from mppf.drivers.modbus import ModbusPress
+from mppf.model.press import PressConfig
 from mppf.panel.live import SIDES, LiveTracker, grid_json, press_state
 from mppf.panel.sources import PlcTarget
-from mppf.planning.press import PressConfig
 
 PERIOD_S = 0.25
 """Reading period while the press moves (and of the page's refresh)."""
@@ -36,27 +33,6 @@ RECONNECT_S = 1.0
 
 REPLY_TIMEOUT_S = 0.5
 """Reply timeout of one request of the panel's reader."""
-
-
-class PanelPress(ModbusPress):
-    """The Modbus driver with the two readings the panel draws besides the actual positions.
-
-    Read-only: construct it with ``heartbeat_s=None``.
-    """
-
-    def read_setpoints_mm(self) -> dict[str, np.ndarray]:
-        """The setpoints in the PLC, ``{"upper": (rows, cols), "lower": (rows, cols)}`` in mm."""
-        out = {}
-        for side in SIDES:
-            addr, n = self._block("setpoints", side)
-            words = self._io.read_holding(addr, n, max_chunk=self.map.max_read_registers)
-            counts = codec.decode_int32(words, self.identity.word_order).reshape(self.press.shape)
-            out[side] = codec.counts_to_mm(counts, self.map.count_mm)
-        return out
-
-    def read_fault_bits(self) -> dict[str, np.ndarray]:
-        """The per-punch fault bits, ``{"upper": (rows, cols) bool, "lower": ...}``."""
-        return {side: np.asarray(bits, dtype=bool) for side, bits in self._fault_bits().items()}
 
 
 def send_stop(url: str, audit, reason: str, timeout_s: float = 1.0) -> None:
@@ -138,7 +114,7 @@ class PlcMonitor:
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self._link: PanelPress | None = None
+        self._link: ModbusPress | None = None
         self._target: PlcTarget | None = None
         self._targets = self._actuals = None
         self._job = None
@@ -214,7 +190,7 @@ class PlcMonitor:
             self._publish_lost("no PLC known: start the panel with --plc URL, or start 'mppf loop' / 'mppf press'")
             return
         try:
-            self._link = PanelPress(self._target.url, self.press, heartbeat_s=None, timeout_s=REPLY_TIMEOUT_S)
+            self._link = ModbusPress(self._target.url, self.press, heartbeat_s=None, timeout_s=REPLY_TIMEOUT_S)
         except MppfError as exc:
             self._publish_lost(exc.message)
             return

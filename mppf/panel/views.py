@@ -12,9 +12,10 @@ from datetime import datetime, timezone
 import numpy as np
 
 from mppf.loop.states import CycleState, Decision
+from mppf.model.placement import placement_of
 from mppf.panel.charts import convergence_svg
 from mppf.panel.config import PanelConfig
-from mppf.panel.placement import bed_svg, placement_of
+from mppf.panel.placement import bed_svg
 from mppf.panel.sources import HistoryReader, next_cycle, read_job, report_files
 from mppf.panel.svg import DIVERGING, VIRIDIS, heat_map, legend, punch_name, scale_of
 
