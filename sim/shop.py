@@ -197,20 +197,24 @@ class SimulatedPlateScanner:
         return SteelPlate(self.press, self.outline_xy_mm, self.thickness_mm, steel, seed=self.seed,
                           **self.plate_options)
 
-    def acquire(self, cycle: int, context: ScanContext) -> Path:
-        """Press the plate with the cycle's steps (each once, in order) and scan it into the work folder."""
+    def acquire(self, cycle: int, context: ScanContext, path=None) -> Path:
+        """Press the plate with the cycle's steps (each once, in order) and scan it into the work folder (or to
+        ``path``; its mark beside it, ``<path>.mark.json``)."""
         context.reporter.info(f"cycle {cycle}: simulated forming and scan")
         formed = self._formed(cycle, context)
-        return self._take(cycle).scan(formed, context.work_dir / f"scan-cycle-{cycle:02d}{self.suffix}",
-                                      self.mark_xy_mm)
+        return self.scan_formed(cycle, formed, path or context.work_dir / f"scan-cycle-{cycle:02d}{self.suffix}")
 
-    def rescan(self, cycle: int, number: int, context: ScanContext) -> Path:
+    def scan_formed(self, cycle: int, formed, path) -> Path:
+        """The cycle's first take of ``formed`` written to ``path`` (its mark beside it, when marks are picked)."""
+        return self._take(cycle).scan(formed, path, self.mark_xy_mm)
+
+    def rescan(self, cycle: int, number: int, context: ScanContext, path=None) -> Path:
         """The plate of the cycle scanned again where it lies, in the pose of the cycle's first take, without a
         mark (the first take's places it): its own noise and outliers (seeded by ``[seed, cycle, number]``).
 
         Aimed at the request's areas where it lists them on the press (``context.regions``' corners): the
         station is set up for them, so they are seen whole (no occlusion blobs); else the whole plate again,
-        with its own occlusion blobs.
+        with its own occlusion blobs. Written into the work folder, or to ``path``.
         """
         context.reporter.info(f"cycle {cycle}: simulated rescan {number}")
         formed = self._formed(cycle, context)
@@ -219,8 +223,8 @@ class SimulatedPlateScanner:
         take = SimulatedScanner(noise_mm=self.noise_mm, occlusion_fraction=0.0 if aim else self.occlusion_fraction,
                                 outlier_fraction=self.outlier_fraction, spacing_mm=self.spacing_mm,
                                 seed=[self.seed, int(cycle), int(number)])
-        return take.scan(formed, context.work_dir / f"scan-cycle-{cycle:02d}-rescan-{number}{self.suffix}",
-                         tf_scan_press=pose, aim_xy_mm=aim)
+        path = path or context.work_dir / f"scan-cycle-{cycle:02d}-rescan-{number}{self.suffix}"
+        return take.scan(formed, path, tf_scan_press=pose, aim_xy_mm=aim)
 
     def _take(self, cycle: int) -> SimulatedScanner:
         """The scanner of the cycle's first take (its seed)."""
@@ -233,7 +237,7 @@ class SimulatedPlateScanner:
         context.work_dir.mkdir(parents=True, exist_ok=True)
         state_path = context.work_dir / STATE_FILE
         # 1. the plate as the last run left it (another process, after a crash)
-        self._restore(state_path)
+        self.restore(state_path)
         if hasattr(self.plate, "progress"):  # the FE plate: ccx's progress lines to the operator
             self.plate.progress = context.reporter.info
         # 2. press every step of the cycle not yet pressed on it, in order
@@ -269,7 +273,7 @@ class SimulatedPlateScanner:
         np.savez(partial, **state)
         os.replace(partial, path)
 
-    def _restore(self, path: Path) -> None:
+    def restore(self, path: Path) -> None:
         """Take the saved plate when it has been pressed with more than the plate in memory."""
         if not path.exists():
             return

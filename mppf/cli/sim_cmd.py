@@ -138,11 +138,20 @@ def _command(sim, line: str, echo) -> bool:
     help="Behave like a misread PLC or let a foreign master act (repeatable): literal-complete, late-status:N, "
     "borrow-ids, none-after-go, foreign-stop[@T]. See docs/simulator.md.",
 )
+@click.option("--station", "station_dir", type=click.Path(file_okay=False), default=None, metavar="DIR",
+              help="Also run a simulated scanner station on DIR: it presses a simulated plate with the tips this PLC "
+                   "reached and answers the scan requests of 'mppf loop --plc URL --scanner DIR' (docs/simulator.md).")
+@click.option("--physics", type=click.Choice(["fd", "fe"]), default=None,
+              help="With --station: the plate's physics, finite-difference steel (fd, default) or the FE plate (fe, "
+                   "CalculiX).")
+@click.option("--plate-seed", type=click.IntRange(0, None), default=None,
+              help="With --station: seed of the simulated plates' true properties and scans (default 0).")
 @click.option("--status-every", type=float, default=5.0, show_default=True, help="Seconds between status lines.")
 @click.option("--duration", type=float, default=None, help="Stop after this many seconds (default: until Ctrl-C).")
 def sim_command(
     host, port, rtu_port, baud, parity, paced, press_path, time_scale, word_order, unit, watchdog, scan_ms, key,
-    fault_specs, tip_gap_min, positioning_timeout, quirk_specs, status_every, duration,
+    fault_specs, tip_gap_min, positioning_timeout, quirk_specs, station_dir, physics, plate_seed, status_every,
+    duration,
 ):  # fmt: skip
     """Run the simulated press PLC until Ctrl-C (or 'quit' on its standard input).
 
@@ -151,7 +160,9 @@ def sim_command(
     master's writes are acted on at the next scan), moves the punches like the hydraulics
     would, and prints its URL and a status line now and then. Standard input takes
     operator commands: estop, release, key local, key remote, fault SPEC, clear, restart,
-    status, help, quit.
+    status, help, quit. With --station DIR it is also the plate and the scanner station of a
+    dry run: each scan request the loop writes into DIR is answered with a scan of a simulated
+    plate pressed with every motion this PLC made since that plate's last scan.
     """
     from mppf.cli._common import console
     from mppf.planning.press import example_press_path, load_press
@@ -175,6 +186,7 @@ def sim_command(
 
     quirks = [spec for spec in quirk_specs if parse_quirk(spec)]  # a bad spec: InputError naming it
     press = load_press(press_path or example_press_path())
+    station = _station(station_dir, physics, plate_seed, press)  # before the PLC: a bad option starts nothing
     sim = start_simulated_plc(
         press, host=host or "127.0.0.1", port=5020 if port is None else port, rtu=rtu_port == "pty",
         rtu_port=rtu_port if rtu_port not in (None, "pty") else None, baud=baud, parity=parity, paced=paced,
@@ -186,8 +198,15 @@ def sim_command(
     def echo(text: str) -> None:
         console.print(text, soft_wrap=True, markup=False)
 
+    stop_station = threading.Event()
     try:
         echo(f"simulated PLC listening on {sim.url}")
+        if station is not None:
+            station.say = echo
+            station.log.follow(sim.plc)  # its next scan is observed
+            threading.Thread(target=station.run, args=(stop_station,), daemon=True, name="sim-station").start()
+            echo(f"scanner station on {station.folder}: the {station.physics} plate, seed {station.seed}; "
+                 f"run mppf loop ... --plc {sim.url} --scanner {station.folder}")
         echo(f"{press.name}: {press.rows} x {press.cols} punches, word order {word_order}, scan {scan_ms:g} ms, "
              f"time scale {time_scale:g}, watchdog {watchdog:g} s, key switch {key}"
              + (f", quirks {', '.join(quirks)}" if quirks else "") + f"; Ctrl-C to stop; {STDIN_HELP}")
@@ -207,8 +226,21 @@ def sim_command(
     except KeyboardInterrupt:
         pass
     finally:
+        stop_station.set()
         sim.stop()
     echo("simulated PLC stopped")
+
+
+def _station(station_dir, physics, plate_seed, press):
+    """The scanner station of ``--station`` (None without it); its options without it are refused."""
+    if station_dir is None:
+        if physics is not None or plate_seed is not None:
+            raise InputError("--physics and --plate-seed are options of the simulated scanner station",
+                             hint="add --station DIR (the folder mppf loop --scanner watches), or leave them out")
+        return None
+    from mppf.sim.station import MotionLog, ScanStation
+
+    return ScanStation(station_dir, press, MotionLog(press), physics=physics or "fd", seed=plate_seed or 0)
 
 
 COMMANDS = [sim_command]
