@@ -72,25 +72,29 @@ def triangulate(uv: np.ndarray, pts: np.ndarray) -> np.ndarray:
     area_uv = signed_areas_2d(uv, tri)
     tri[area_uv < 0] = tri[area_uv < 0][:, ::-1]  # every triangle counter-clockwise
     tri = tri[np.abs(area_uv) > 1e-12 * float(np.ptp(uv, axis=0).max()) ** 2]  # no flat ones
+    # each triangle's quality and sides once; peeling only updates which triangles are left
+    a, b, c = pts[tri[:, 0]], pts[tri[:, 1]], pts[tri[:, 2]]
+    sq = np.column_stack([np.sum((b - a) ** 2, 1), np.sum((c - b) ** 2, 1), np.sum((a - c) ** 2, 1)])
+    quality = 4.0 * np.sqrt(3.0) * triangle_areas(pts, tri) / np.maximum(sq.sum(axis=1), 1e-300)
+    sides, longest = np.sqrt(sq), np.sqrt(sq.max(axis=1))
+    edge_of = np.unique(_edge_keys(tri), return_inverse=True)[1].reshape(3, -1)  # (3, m) edge of each side
+    shared = np.bincount(edge_of.ravel())  # triangles left on each edge
+    uses = np.bincount(tri.ravel(), minlength=pts.shape[0])  # triangles left at each point
+    left = np.ones(len(tri), dtype=bool)
     while True:
-        a, b, c = pts[tri[:, 0]], pts[tri[:, 1]], pts[tri[:, 2]]
-        sq = np.column_stack([np.sum((b - a) ** 2, 1), np.sum((c - b) ** 2, 1), np.sum((a - c) ** 2, 1)])
-        area = triangle_areas(pts, tri)
-        quality = 4.0 * np.sqrt(3.0) * area / np.maximum(sq.sum(axis=1), 1e-300)
-        longest = np.sqrt(sq.max(axis=1))
-        median = np.median(np.sqrt(sq))
-        bad = (quality < SLIVER_QUALITY) | (longest > SLIVER_EDGE_FACTOR * median)
-        on_boundary = _on_boundary(tri)
-        candidates = np.flatnonzero(bad & on_boundary)
+        bad = (quality < SLIVER_QUALITY) | (longest > SLIVER_EDGE_FACTOR * np.median(sides[left]))
+        on_boundary = (shared[edge_of] == 1).any(axis=0)
+        candidates = np.flatnonzero(bad & on_boundary & left)
         if candidates.size == 0:
-            return tri
+            return tri[left]
         # peel only triangles whose corners all stay in some other triangle
-        uses = np.bincount(tri.ravel(), minlength=pts.shape[0])
-        left = uses - np.bincount(tri[candidates].ravel(), minlength=pts.shape[0])
-        removable = candidates[np.all(left[tri[candidates]] > 0, axis=1)]
+        kept = uses - np.bincount(tri[candidates].ravel(), minlength=pts.shape[0])
+        removable = candidates[np.all(kept[tri[candidates]] > 0, axis=1)]
         if removable.size == 0:
-            return tri
-        tri = np.delete(tri, removable, axis=0)
+            return tri[left]
+        left[removable] = False
+        uses -= np.bincount(tri[removable].ravel(), minlength=pts.shape[0])
+        shared -= np.bincount(edge_of[:, removable].ravel(), minlength=len(shared))
 
 
 def _edge_keys(tri: np.ndarray) -> np.ndarray:
@@ -120,12 +124,6 @@ def boundary_edges(faces) -> np.ndarray:
     """
     edges, boundary = unique_edges(np.asarray(faces, dtype=np.int64))
     return edges[boundary]
-
-
-def _on_boundary(tri: np.ndarray) -> np.ndarray:
-    """Mask of triangles with at least one side that no other triangle shares."""
-    _, inverse, counts = np.unique(_edge_keys(tri), return_inverse=True, return_counts=True)
-    return (counts[inverse] == 1).reshape(3, -1).any(axis=0)
 
 
 def check_all_used(tri: np.ndarray, n_points: int) -> None:
