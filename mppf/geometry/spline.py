@@ -112,8 +112,12 @@ class SplineSurface:
     def evaluate(self, u, v) -> np.ndarray:
         """Heights z (mm) at (u, v) (mm); same shape as the broadcast inputs."""
         shape, cu, cv, du, dv = self._split(u, v)
-        s, su, sv = self._pieces(cu, cv, [(0, 0), (1, 0), (0, 1)])
-        return (s + su * du + sv * dv).reshape(shape)
+        s = self._pieces(cu, cv, [(0, 0)])[0]
+        outside = np.flatnonzero((du != 0.0) | (dv != 0.0))  # only there the tangent plane needs the slopes
+        if outside.size:
+            su, sv = self._pieces(cu[outside], cv[outside], [(1, 0), (0, 1)])
+            s[outside] = s[outside] + su * du[outside] + sv * dv[outside]
+        return s.reshape(shape)
 
     def derivatives(self, u, v) -> tuple[np.ndarray, ...]:
         """(z, zu, zv, zuu, zuv, zvv) at (u, v), each shaped like the inputs."""

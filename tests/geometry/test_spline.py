@@ -57,6 +57,19 @@ def test_spline_extension_is_continuous_and_first_order():
     np.testing.assert_allclose(spline.evaluate(np.full(7, umax + 100.0), vs), edge_z + 100.0 * edge_zu, atol=1e-9)
 
 
+def test_heights_are_those_of_the_derivatives_to_the_last_bit_inside_and_beyond_the_bounds():
+    u, v, z = knuckle_plate()
+    spline = fit_spline(u, v, z)
+    (umin, umax), (vmin, vmax) = spline.bounds
+    rng = np.random.default_rng(4)
+    uq = rng.uniform(umin - 300.0, umax + 300.0, 2000)  # about a third beyond the bounds
+    vq = rng.uniform(vmin - 300.0, vmax + 300.0, 2000)
+    assert np.array_equal(spline.evaluate(uq, vq), spline.derivatives(uq, vq)[0])
+    inside = spline.evaluate(np.clip(uq, umin, umax), np.clip(vq, vmin, vmax))
+    assert np.array_equal(inside, spline.derivatives(np.clip(uq, umin, umax), np.clip(vq, vmin, vmax))[0])
+    assert spline.evaluate(uq[:6].reshape(2, 3), vq[:6].reshape(2, 3)).shape == (2, 3)
+
+
 def test_spline_bridges_a_hole_in_the_scan():
     # no data in the middle: the knot grid coarsens instead of inventing a shape there
     u, v = scattered_uv(3000, seed=13)
