@@ -1,0 +1,294 @@
+"""Benchmark: does the loop bring plates larger than the press into tolerance, section by section?
+
+For every bundled long plate x physics x seed: plan the plate in sections with the NOMINAL material
+(springback pre-compensated, :func:`mppf.loop.plate.plan_first_cycle`), then press a simulated plate that is
+not the planner's model section by section (the plate shifted under the press for each,
+:meth:`mppf.sim.plate.plate.SteelPlate.place`), measure it, correct every section and press again, for up to
+``--max-cycles`` cycles. Targets (issue 42): every plate in tolerance (form max <= 2.5 mm, RMS <= 1 mm)
+within 5 cycles, no section border kinked by more than the tolerance.
+
+Plates (``--plates``): the 7.5 x 2.4 m cylinder (R 20 m) and twisted plate and the 9 m KCS stern plate of
+``mppf/examples/long/``, and two plates cut from the KCS hull by ``benchmarks/real_plates.py`` (``real0010``:
+x 55.4-64.7 m, girth 13.4-15.3 m, 9.3 x 1.9 m; ``real0013``: x 21.7-28.6 m, girth 11.3-14.1 m, 6.9 x 2.8 m).
+Physics (``--physics``): the finite-difference steel plate of :mod:`mppf.sim.plate` as
+:mod:`benchmarks.bench_loop` builds it (``steel``, ``yield:1.2``...). The FE plate (CalculiX) cannot be
+pressed in sections (its punch contacts are fixed to the first placement: ``FEPlate.place`` refuses), so
+it is left out here.
+
+Mode ``direct`` (the only one): the sectional loop's correction
+(:func:`mppf.loop.sectional.plan_next_sections`'s, per section: :func:`mppf.correct.compensate.compensate`
+model-free with the secant gain, then :func:`mppf.planning.sectional.apply_section_corrections`) on the TRUE
+deviation: the formed mid-surface against the design placed as section 1 places it, best plane removed
+over the whole plate; at each section's punches where the section places the design. No scanner.
+
+Per cycle: form max and RMS over the whole net plate, and the **border kink**: at each section's bed edge
+inside the plate, the deviation's departure from the straight line through its values one pitch to
+either side, ``|e(b) - (e(b - p) + e(b + p)) / 2|`` (a smooth deviation has none; a step or a kink left
+where a section ended shows here), largest over the borders of all sections.
+
+Resumable: every finished run is written at once to ``--results`` (JSON keyed by physics, plate, seed,
+max cycles, grid and ``--label``); ``--budget-s`` (default 540) stops starting new runs after that long.
+``--table`` prints the tables of the file only.
+
+Run:  python benchmarks/bench_loop_sectional.py [--plates cylinder twisted kcs_stern real0010 real0013]
+          [--physics steel] [--seeds 1] [--grid-mm 150] [--label before] [--results FILE.json] [--table]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_loop import NOMINAL, RMS_TOL_MM, THICKNESS_MM, TOL_MM, _load, _save, _series, physics_parts  # noqa: E402
+
+from mppf.core.errors import MppfError  # noqa: E402
+from mppf.core.grid import without_plane  # noqa: E402
+from mppf.core.transform import apply_tf  # noqa: E402
+from mppf.geometry.read import read_points  # noqa: E402
+from mppf.geometry.unfold import unfold  # noqa: E402
+from mppf.geometry.write import write_points  # noqa: E402
+from mppf.loop.section_steps import placement_mm  # noqa: E402
+from mppf.planning.press import example_press_path, load_press  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+LONG = ROOT / "mppf" / "examples" / "long"
+REAL = ROOT / "benchmarks" / ".real-plates"
+PLATES = {
+    "cylinder": (LONG / "long_cylinder_7500x2400_R20m.csv", LONG / "long_cylinder_7500x2400_R20m_flat.csv"),
+    "twisted": (LONG / "twisted_7500x2400.csv", LONG / "twisted_7500x2400_flat.csv"),
+    "kcs_stern": (LONG / "kcs_stern_bilge_9000x2400.csv", None),
+    "real0010": (REAL / "real0010.csv", None),
+    "real0013": (REAL / "real0013.csv", None),
+}
+"""name: (design, flat or None: unfolded here)."""
+
+
+def plate_files(name: str, work: Path):
+    """(design, flat) point clouds of a bundled plate; the real ones written by ``real_plates`` when missing."""
+    design_path, flat_path = PLATES[name]
+    if not design_path.exists() and design_path.parent == REAL:
+        from real_plates import write_real_batch
+
+        write_real_batch(REAL, 14)
+    design = read_points(design_path)
+    if flat_path is None:
+        flat_path = write_points(work / f"{name}.flat.csv", unfold(design.points).flat)
+    return design, read_points(flat_path)
+
+
+class Planned:
+    """A long plate planned in sections with the nominal material; the design as each section places it."""
+
+    def __init__(self, press, name: str, work: Path):
+        from mppf.loop.plate import plan_first_cycle
+
+        self.name = name
+        self.design, self.flat = plate_files(name, work)
+        t0 = time.process_time()
+        self.job = plan_first_cycle(self.design, self.flat, press, THICKNESS_MM, material=NOMINAL)
+        self.plan_cpu_s = time.process_time() - t0
+        if self.job.sections is None:
+            raise ValueError(f"{name} fits the bed: not a sectional plate")
+        self.placed = [apply_tf(s.tf_press_design, self.design.points) for s in self.job.sections]
+
+
+def make_plate(press, planned: Planned, physics: str, seed: int, grid_mm: float, true_yield_mpa: float):
+    """The finite-difference steel plate of the whole plate as cut, in section 1's press frame."""
+    from mppf.sim.plate.plate import SteelPlate
+
+    steel, parts = physics_parts(physics, true_yield_mpa, len(planned.job.sections[0].steps))
+    return SteelPlate(press, planned.job.layout.outline_mm, THICKNESS_MM, steel, seed=seed,
+                      grid_spacing_mm=grid_mm, **parts)
+
+
+def press_cycle(press, plate, job) -> None:
+    """Every section's steps in order, the plate shifted under the press for each."""
+    for s in job.sections:
+        plate.place(placement_mm(job, s.index))
+        for step in s.steps:
+            upper, lower = step.setpoints_mm(press)
+            plate.press_step(upper, lower, step.active)
+
+
+def true_deviation(planned: Planned, formed) -> np.ndarray:
+    """(n,) mm: the formed mid-surface minus the design (as section 1 places it), best plane removed."""
+    p = planned.placed[0]
+    dev = formed.height_mm(p[:, 0], p[:, 1]) - p[:, 2]
+    return without_plane(p[:, 0], p[:, 1], dev)
+
+
+def section_punch_deviations(press, planned: Planned, dev) -> list[np.ndarray]:
+    """Per section, (rows, cols) mm: the deviation at its active punches, where the section places the design."""
+    from scipy.interpolate import LinearNDInterpolator
+
+    gx, gy = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    out = []
+    for s, p in zip(planned.job.sections, planned.placed):
+        at = LinearNDInterpolator(p[:, :2], dev)(gx, gy)
+        out.append(np.where(s.steps[-1].active, at, np.nan))
+    return out
+
+
+def border_kink(press, planned: Planned, dev) -> float:
+    """Largest departure of the deviation from a straight line over one pitch across a section's bed edge, mm."""
+    from scipy.interpolate import LinearNDInterpolator
+
+    worst = 0.0
+    for p in planned.placed:
+        field = LinearNDInterpolator(p[:, :2], dev)
+        lo, hi = p[:, :2].min(axis=0), p[:, :2].max(axis=0)
+        for axis, axes in ((0, press.punch_x_mm), (1, press.punch_y_mm)):
+            pitch = float(axes[1] - axes[0])
+            other = press.punch_y_mm if axis == 0 else press.punch_x_mm
+            for edge in (axes[0], axes[-1]):
+                if not lo[axis] + pitch < edge < hi[axis] - pitch:
+                    continue  # the plate ends here: no border
+                pts = np.zeros((len(other), 3, 2))
+                pts[:, :, 1 - axis] = other[:, None]
+                pts[:, :, axis] = edge + pitch * np.array([-1.0, 0.0, 1.0])
+                e = field(pts.reshape(-1, 2)).reshape(-1, 3)
+                kink = np.abs(e[:, 1] - 0.5 * (e[:, 0] + e[:, 2]))
+                if np.isfinite(kink).any():
+                    worst = max(worst, float(np.nanmax(kink)))
+    return worst
+
+
+CORRECTIONS = ("blend", "field")
+"""``blend``: the model-free correction of each section on its deviation, blended where sections overlap (the
+loop before issue 42); ``field``: :func:`mppf.loop.sectional.section_corrections` (one correction of the whole
+plate: each section's deviation without its best plane, through the springback model, no blend)."""
+
+
+def correct_sections(press, job, devs, previous, how: str):
+    """The next cycle's job: every section corrected as the sectional loop does, on the true deviation.
+
+    ``previous``: per section the (lower strokes, deviation) of the cycle before, or None.
+    """
+    from mppf.correct.compensate import compensate
+    from mppf.correct.result import PreviousCycle
+    from mppf.planning.sectional import apply_section_corrections
+
+    if how == "field":
+        from mppf.loop.sectional import section_corrections
+
+        deltas, gains = section_corrections(press, job, devs, NOMINAL, previous)
+        return apply_section_corrections(job, deltas, blend=False), gains
+    deltas, gains = [], []
+    for s, dev, prev in zip(job.sections, devs, previous):
+        final = s.steps[-1]
+        c = compensate(final.upper_mm, final.lower_mm, dev, press=press, thickness_mm=THICKNESS_MM,
+                       previous=None if prev is None else PreviousCycle(*prev))
+        deltas.append((np.where(final.active, c.upper_mm - final.upper_mm, 0.0),
+                       np.where(final.active, c.lower_mm - final.lower_mm, 0.0)))
+        gains.append(float(np.nanmean(c.gain)) if np.isfinite(c.gain).any() else float("nan"))
+    return apply_section_corrections(job, deltas), gains
+
+
+def run_direct(press, planned: Planned, plate, max_cycles: int, how: str = "field") -> dict:
+    """Press, measure the true deviation, correct every section; up to ``max_cycles`` cycles."""
+    job = planned.job
+    row = {"max": [], "rms": [], "kink": [], "decisions": [], "ok_at": None, "verdict": None, "gain": [],
+           "steps": [], "sections": len(job.sections), "plan_cpu_s": round(planned.plan_cpu_s, 2)}
+    previous = [None] * len(job.sections)
+    for cycle in range(1, max_cycles + 1):
+        press_cycle(press, plate, job)
+        dev = true_deviation(planned, plate.formed)
+        row["max"].append(float(np.nanmax(np.abs(dev)))), row["rms"].append(float(np.sqrt(np.nanmean(dev ** 2))))
+        row["kink"].append(border_kink(press, planned, dev))
+        row["steps"].append([len(s.steps) for s in job.sections])
+        if row["max"][-1] <= TOL_MM and row["rms"][-1] <= RMS_TOL_MM:
+            row["decisions"].append("in_tolerance")
+            row["ok_at"] = cycle
+            break
+        if cycle == max_cycles:
+            row["decisions"].append("max_cycles")
+            break
+        devs = section_punch_deviations(press, planned, dev)
+        corrected, gains = correct_sections(press, job, devs, previous, how)
+        previous = [(s.steps[-1].lower_mm, d) for s, d in zip(job.sections, devs)]
+        row["gain"].append([round(g, 2) for g in gains])
+        row["decisions"].append("continue")
+        job = corrected
+    return row
+
+
+def report(results: dict) -> None:
+    """One table per plate (cycles: form max / RMS / border kink), and a summary table."""
+    print("\n| plate | physics | seed | label | sections | cycle: form max / RMS / border kink (mm) | in tol. at "
+          "| s |")
+    print("|---|---|---|---|---|---|---|---|")
+    for key, r in sorted(results.items()):
+        physics, name, seed, _, grid, how, label = key.split("|")
+        cycles = ", ".join(f"{k}: {m:.1f} / {s:.2f} / {b:.2f}" for k, (m, s, b) in
+                           enumerate(zip(r["max"], r["rms"], r["kink"]), start=1))
+        end = r["decisions"][-1] if r["decisions"] else ""
+        why = f" ({r['verdict'][:120]})" if r.get("verdict") else ""
+        print(f"| {name} | {physics} (grid {grid}) | {seed} | {label}, {how} | {r.get('sections', '')} | {cycles} "
+              f"| {r['ok_at'] or end}{why} | {r.get('seconds', '')} |")
+
+
+def run_part(args, results: dict) -> bool:
+    """Run what is not in ``results`` yet, until ``--budget-s``; True when everything asked for is done."""
+    press = load_press(example_press_path())
+    todo = [(ph, name, seed) for ph in args.physics for name in args.plates for seed in args.seeds
+            if _key(ph, name, seed, args) not in results]
+    started = time.monotonic()
+    with tempfile.TemporaryDirectory(prefix="bench-sectional-") as tmp:
+        planned = {}
+        for physics, name, seed in todo:
+            if time.monotonic() - started > args.budget_s:
+                print(f"budget of {args.budget_s:.0f} s spent: call again with the same --results to go on")
+                return False
+            t0 = time.monotonic()
+            try:
+                planned.setdefault(name, Planned(press, name, Path(tmp)))
+                plate = make_plate(press, planned[name], physics, seed, args.grid_mm, args.true_yield)
+                row = run_direct(press, planned[name], plate, args.max_cycles, args.correction)
+            except MppfError as exc:  # a failed run counts as not in tolerance
+                row = {"max": [], "rms": [], "kink": [], "decisions": ["error"], "ok_at": None,
+                       "verdict": f"{type(exc).__name__}: {exc.message[:200]}"}
+            row["seconds"] = round(time.monotonic() - t0, 1)
+            results[_key(physics, name, seed, args)] = row
+            _save(args.results, results)
+            print(f"[{physics}] {name} seed {seed}: ok at {row['ok_at']} max {_series(row['max'])} "
+                  f"rms {_series(row['rms'])} kink {_series(row['kink'])} ({row['seconds']:.0f} s)"
+                  + (f" {row['verdict']}" if row.get("verdict") else ""), flush=True)
+    return True
+
+
+def _key(physics: str, name: str, seed: int, args) -> str:
+    return f"{physics}|{name}|{seed}|{args.max_cycles}|{args.grid_mm:g}|{args.correction}|{args.label}"
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--plates", nargs="+", default=list(PLATES), choices=list(PLATES))
+    parser.add_argument("--physics", nargs="+", default=["steel"])
+    parser.add_argument("--seeds", nargs="+", type=int, default=[1])
+    parser.add_argument("--max-cycles", type=int, default=5)
+    parser.add_argument("--grid-mm", type=float, default=150.0, help="cell size of the simulated plate's grid (mm)")
+    parser.add_argument("--true-yield", type=float, default=265.0, help="the simulated steel's yield stress (MPa)")
+    parser.add_argument("--correction", choices=CORRECTIONS, default="field",
+                        help="how the sections are corrected (see CORRECTIONS)")
+    parser.add_argument("--label", default="now", help="names the code measured (e.g. before, after)")
+    parser.add_argument("--results", type=Path, default=Path("bench_loop_sectional.json"))
+    parser.add_argument("--budget-s", type=float, default=540.0, help="start no new run after this long (s)")
+    parser.add_argument("--table", action="store_true", help="only print the tables of --results")
+    args = parser.parse_args(argv)
+    threadpool_limits(1, "blas")
+    results = _load(args.results)
+    done = True if args.table else run_part(args, results)
+    report(results)
+    ok = all(r["ok_at"] is not None and (r["kink"] or [0.0])[-1] <= TOL_MM for r in results.values())
+    return 0 if (ok and done) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
