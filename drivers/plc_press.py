@@ -36,7 +36,7 @@ from mppf.drivers.follow import Follow, abandon
 from mppf.drivers.handshake import Handshake
 from mppf.drivers.safety import Safety
 from mppf.drivers.session import PlcSession, WallClock
-from mppf.planning.press import PressConfig
+from mppf.model.press import PressConfig
 
 __all__ = ["PlcPress", "WallClock"]
 

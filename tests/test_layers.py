@@ -36,6 +36,12 @@ KNOWN_UPWARD = {
 }
 """Upward imports still to remove, (importer, imported module) -> why it is still there."""
 
+REEXPORTS = ("mppf.planning.press", "mppf.planning.job", "mppf.planning.job_parts", "mppf.planning.job_sections",
+             "mppf.panel.placement")
+"""Old homes of moved names that re-export them (so that work in progress elsewhere keeps running): a name
+imported from one of them counts as imported from where it lives now. Drop an entry once nothing imports
+the moved names from there."""
+
 KNOWN_PRIVATE = {
     ("mppf.planning.sectional", "mppf.planning.plan"): "issue 42 makes the planner's shared steps public",
     ("mppf.planning.sectional_overbend", "mppf.planning.plan"): "issue 42 makes the springback report public",
@@ -96,8 +102,31 @@ def layer_of(module: str) -> str:
     return "cli" if parts[1] == "__main__" else parts[1]
 
 
+def reexported_from(module: str) -> dict[str, str]:
+    """The names a module of :data:`REEXPORTS` takes from another mppf module at its top level -> that module."""
+    path = next(p for p in source_files() if module_name(p) == module)
+    return {alias.name: node.module for node in ast.parse(path.read_text()).body
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("mppf.")
+            for alias in node.names}
+
+
+def through_reexports(found: list[Import]) -> list[Import]:
+    """Each import of moved names from their old home split into imports from where they live now."""
+    homes = {module: reexported_from(module) for module in REEXPORTS}
+    out = []
+    for i in found:
+        if i.module not in homes or not i.names:
+            out.append(i)
+            continue
+        by_home: dict[str, list[str]] = {}
+        for n in i.names:
+            by_home.setdefault(homes[i.module].get(n, i.module), []).append(n)
+        out += [Import(i.importer, i.path, i.line, home, tuple(names)) for home, names in by_home.items()]
+    return out
+
+
 def all_imports() -> list[Import]:
-    return [i for path in source_files() for i in imports_of(path)]
+    return through_reexports([i for path in source_files() for i in imports_of(path)])
 
 
 def test_every_package_has_a_layer():
@@ -157,3 +186,10 @@ def test_every_package_is_installed():
     listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
     packages = {module_name(p) for p in source_files() if p.name == "__init__.py"} - {"mppf.examples"}  # package data
     assert packages <= listed, f"add {sorted(packages - listed)} to [tool.setuptools] packages in pyproject.toml"
+
+
+def test_a_name_taken_from_its_old_home_counts_where_it_lives_now():
+    old = Import("mppf.correct.probe", ROOT / "mppf/correct/probe.py", 1, "mppf.planning.press",
+                 ("PressConfig", "machine_press"))
+    assert {(i.module, i.names) for i in through_reexports([old])} == {
+        ("mppf.model.press", ("PressConfig",)), ("mppf.planning.press", ("machine_press",))}

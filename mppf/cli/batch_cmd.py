@@ -46,7 +46,7 @@ def batch_command(designs, manifest, out_dir, press_path, thickness_mm, material
     from mppf.core.validate import check_number
     from mppf.planning.batch import BatchOptions, plates_from_files, read_manifest, run_batch
     from mppf.planning.batch_summary import totals, write_csv, write_html
-    from mppf.planning.press import example_press_path, load_press
+    from mppf.model.press import example_press_path, load_press
 
     if bool(designs) == bool(manifest):
         raise InputError("give either design files or --manifest, not both" if designs else "no plates given",

@@ -55,8 +55,8 @@ def panel(host, port, plc_url, press_path, job_path, history_path, audit_path, t
     press's own). Ctrl-C ends it; the press is not touched.
     """
     from mppf.loop.history import default_history_path
+    from mppf.model.press import load_press
     from mppf.panel.config import PanelConfig, check_bind, default_audit_path
-    from mppf.planning.press import load_press
 
     check_bind(host, token)
     if plc_url:

@@ -79,12 +79,8 @@ def reseal_command(job_path, reason, press_path, output, audit_path):
     """
     from mppf.cli._common import check_db_path
     from mppf.cli.plc_ops import open_audit
-    from mppf.planning.job import (
-        check_format,
-        job_from_dict,
-        read_job_document,
-        save_job,
-    )
+    from mppf.model.job import check_format, job_from_dict, read_job_document
+    from mppf.planning.job import save_job
     from mppf.planning.press import machine_press
     from mppf.planning.validate import check_job_document, validate_job
 

@@ -56,7 +56,7 @@ from mppf.loop.sectional import PlaceCallback, plan_next_sections, press_section
 from mppf.loop.settings import LoopSettings
 from mppf.loop.states import CycleState, Decision
 from mppf.planning.job import load_job
-from mppf.planning.press import PressConfig, press_from_dict
+from mppf.model.press import PressConfig, press_from_dict
 
 #: Called with each cycle record once compared (and again when corrected or done),
 #: plus the comparison when it was computed in this run (else None).

@@ -26,8 +26,8 @@ if TYPE_CHECKING:  # the demo's heavy modules are imported when it runs: the CLI
     from mppf.geometry.unfold import Unfolding
     from mppf.loop.cycle import CycleCallback, LoopResult
     from mppf.loop.records import PlateRecord
-    from mppf.planning.job import Job
-    from mppf.planning.press import PressConfig
+    from mppf.model.job import Job
+    from mppf.model.press import PressConfig
 
 DEMO_PLATE = "P1_midbody_bilge_smooth"
 """The bundled plate of the demo (the DTC midship bilge)."""
@@ -134,8 +134,8 @@ def run_demo(out, *, plate_name: str = DEMO_PLATE, seed: int = DEMO_SEED, thickn
     from mppf.loop.cycle import run_loop
     from mppf.loop.history import History
     from mppf.loop.plate import start_plate
+    from mppf.model.press import example_press_path, load_press
     from mppf.planning.job import load_job
-    from mppf.planning.press import example_press_path, load_press
     from mppf.sim.shop import PHYSICS, SimulatedPlateScanner
 
     if physics not in PHYSICS:

@@ -36,7 +36,7 @@ from mppf.loop import lease as leases
 from mppf.loop.records import (CYCLE_COLUMNS, SCHEMA, SCHEMA_VERSION, CycleRecord, Event, PlateRecord,
                                cycle_from_row, dumps, plate_from_row, steps_to_json)
 from mppf.loop.states import CycleState, Decision, PlateStatus
-from mppf.planning.job import StepStrokes, grid_to_json
+from mppf.model.job_parts import StepStrokes, grid_to_json
 
 _WRITE_HINT = ("free disk space or make the history writable, then continue with 'mppf loop --resume'; "
                "the plate stays as it was before this step")

@@ -31,7 +31,7 @@ from mppf.loop.settings import LoopSettings
 from mppf.measure.compare import compare
 from mppf.measure.job_options import job_compare_options
 from mppf.registration.scan_start import AmbiguousStart
-from mppf.planning.press import PressConfig
+from mppf.model.press import PressConfig
 
 
 def read_checked(path, sha256: str, what: str, units: str = "mm") -> PointCloud:

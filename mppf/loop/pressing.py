@@ -18,8 +18,13 @@ from mppf.core.scanner import PressedStep, ScanContext
 from mppf.loop.history import History
 from mppf.loop.records import CycleRecord, PlateRecord, load_cycle_job
 from mppf.loop.section_steps import placed_steps
-from mppf.planning.job import StepStrokes, grid_from_json, grid_to_json, steps_to_json
-from mppf.planning.press import PressConfig
+from mppf.model.job_parts import (
+    StepStrokes,
+    grid_from_json,
+    grid_to_json,
+    steps_to_json,
+)
+from mppf.model.press import PressConfig
 
 
 def press_cycle(history: History, record: CycleRecord, press: PressConfig, link: PressLink,

@@ -15,7 +15,9 @@ import numpy as np
 
 from mppf.core.errors import ConfigError
 from mppf.loop.states import CycleState, Decision, PlateStatus
-from mppf.planning.job import Job, StepStrokes, grid_from_json, grid_to_json, load_job
+from mppf.model.job import Job
+from mppf.model.job_parts import StepStrokes, grid_from_json, grid_to_json
+from mppf.planning.job import load_job
 
 SCHEMA_VERSION = 1
 

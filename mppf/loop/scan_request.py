@@ -24,7 +24,7 @@ from mppf.geometry.read import READ_SUFFIXES
 from mppf.loop.records import CycleRecord, PlateRecord
 from mppf.loop.settings import LoopSettings
 from mppf.measure.mark import mark_path
-from mppf.planning.job import Job
+from mppf.model.job import Job
 
 REQUEST_FORMAT = "mppf-scan-request"
 REQUEST_VERSION = 1

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mppf.core.scanner import PressedStep
-from mppf.planning.job import Job
+from mppf.model.job import Job
 
 
 @dataclass(frozen=True)

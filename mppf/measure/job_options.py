@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from mppf.measure.mark import reference_mark
-from mppf.planning.job import Job
+from mppf.model.job import Job
 
 
 def job_compare_options(job: Job, design_points: np.ndarray, scan_path=None, *, offset_mm: float | None = None,

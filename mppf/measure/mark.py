@@ -19,7 +19,8 @@ import numpy as np
 from mppf.core.errors import GeometryError, InputError
 from mppf.core.transform import apply_tf, invert_tf
 from mppf.geometry.scans import read_header_mark
-from mppf.planning.job import Job, reference_corner_xy
+from mppf.model.job import Job
+from mppf.model.job_parts import reference_corner_xy
 
 MARK_SUFFIX = ".mark.json"
 """The reference-corner mark of a scan ``S`` is read from ``S`` + this suffix, when present:

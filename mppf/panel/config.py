@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from mppf.core.errors import InputError
-from mppf.planning.press import PressConfig
+from mppf.model.press import PressConfig
 
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8450

@@ -17,7 +17,8 @@ from mppf.core.errors import InputError, MppfError
 from mppf.loop.history import History
 from mppf.loop.records import CycleRecord, PlateRecord
 from mppf.loop.states import CycleState, PlateStatus
-from mppf.planning.job import Job, load_job
+from mppf.model.job import Job
+from mppf.planning.job import load_job
 
 AUDIT_ROWS_SEARCHED = 500
 """The newest rows of the audit log searched for a running master."""

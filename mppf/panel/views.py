@@ -52,7 +52,7 @@ def press_of(cfg: PanelConfig, reader: HistoryReader):
     """The press description: the configured one, else the history's current plate's (None if neither)."""
     if cfg.press is not None:
         return cfg.press
-    from mppf.planning.press import press_from_dict
+    from mppf.model.press import press_from_dict
 
     current = reader.current()
     return None if current is None else press_from_dict(current[0].press, source="the plate history")
@@ -170,7 +170,7 @@ def _correction(cycles, measured_cycle: int, base: int) -> dict | None:
     after = [c for c in cycles if c.cycle == measured_cycle + 1 and c.correction]
     if not after:
         return None
-    from mppf.planning.job import grid_from_json
+    from mppf.model.job_parts import grid_from_json
 
     corr = after[0].correction
     applied = grid_from_json(corr.get("applied_mm"))

@@ -18,7 +18,7 @@ from mppf.core.errors import GeometryError, LimitError
 from mppf.core.progress import NULL_REPORTER
 from mppf.core.transform import apply_tf, make_tf
 from mppf.geometry.frame import fit_frame
-from mppf.planning.press import PressConfig
+from mppf.model.press import PressConfig
 from mppf.registration.register import Registration, register_icp, register_paired
 
 FLATNESS_FRACTION = 0.01

@@ -18,7 +18,7 @@ import numpy as np
 
 from mppf.core.errors import LimitError
 from mppf.core.validate import check_number
-from mppf.planning.press import PressConfig
+from mppf.model.press import PressConfig
 
 TRANSITION_PITCHES = 3
 """Default width of a transition zone: this many punch pitches (4 punch rows shared by two sections)."""
@@ -213,7 +213,8 @@ def section_job(job, index: int):
         The job has no sections, or no section ``index`` (1-based).
     """
     from mppf.core.errors import InputError
-    from mppf.planning.job import Job, grid_to_json
+    from mppf.model.job import Job
+    from mppf.model.job_parts import grid_to_json
 
     if job.sections is None:
         raise InputError("the job is a single piece (no sections)")

@@ -18,8 +18,8 @@ import numpy as np
 
 from mppf.core.grid import largest_neighbour_difference
 from mppf.core.validate import check_number
-from mppf.planning.job import StepStrokes
-from mppf.planning.press import PressConfig
+from mppf.model.job_parts import StepStrokes
+from mppf.model.press import PressConfig
 
 MAX_STEPS = 200
 """Most press steps one job may hold (a larger count is a typing error or a dimpling

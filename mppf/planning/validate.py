@@ -38,8 +38,10 @@ import numpy as np
 
 from mppf.core.errors import ConfigError, InputError, LimitError
 from mppf.core.grid import neighbour_differences
-from mppf.planning.job import Job, StepStrokes, load_job
-from mppf.planning.press import PressConfig
+from mppf.model.job import Job
+from mppf.model.job_parts import StepStrokes
+from mppf.model.press import PressConfig
+from mppf.planning.job import load_job
 from mppf.planning.steps import flat_heights
 
 GAP_TOLERANCE_MM = 0.01

@@ -9,7 +9,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
 from mppf.core.errors import InputError
-from mppf.planning.job import Job
+from mppf.model.job import Job
 
 
 def plot_strokes(job: Job, path, step: int | None = None) -> Path:
