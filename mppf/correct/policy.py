@@ -85,6 +85,21 @@ class StepPlan:
     notes: list = field(default_factory=list)
 
 
+def outer_ring(active) -> np.ndarray:
+    """The first and last active punch of every row and column (rows, cols bool)."""
+    act = np.asarray(active, dtype=bool)
+    ring = np.zeros_like(act)
+    for axis in (0, 1):
+        idx = np.arange(act.shape[axis])
+        shape = [1, 1]
+        shape[axis] = -1
+        pos = np.where(act, idx.reshape(shape), -1)
+        last = pos.max(axis=axis, keepdims=True)
+        first = np.where(act, idx.reshape(shape), act.shape[axis]).min(axis=axis, keepdims=True)
+        ring |= act & ((pos == last) | (pos == first))
+    return ring
+
+
 def excess(outcome: Outcome, tolerance_mm: float, rms_tolerance_mm: float) -> float:
     """How far a cycle is out of tolerance: the larger of form max / tolerance and RMS / RMS tolerance."""
     return max(outcome.form_max_mm / tolerance_mm, outcome.rms_mm / rms_tolerance_mm)

@@ -13,8 +13,16 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from mppf.correct.bounded import bounded_correction
 from mppf.correct.learned import LearnedCorrection, learned_correction
-from mppf.correct.policy import DEFAULT_NOISE_MM, Outcome, StepPlan, step_plan
+from mppf.correct.measured import measured_correction
+from mppf.correct.policy import (
+    DEFAULT_NOISE_MM,
+    Outcome,
+    StepPlan,
+    outer_ring,
+    step_plan,
+)
 from mppf.correct.verdict import Verdict, convergence_verdict
 from mppf.forming.material import Material
 from mppf.model.press import PressConfig
@@ -45,23 +53,15 @@ class Tolerances:
     noise_mm: float = DEFAULT_NOISE_MM
 
 
-def outer_ring(active) -> np.ndarray:
-    """The first and last active punch of every row and column (rows, cols bool)."""
-    act = np.asarray(active, dtype=bool)
-    ring = np.zeros_like(act)
-    for axis in (0, 1):
-        idx = np.arange(act.shape[axis])
-        shape = [1, 1]
-        shape[axis] = -1
-        pos = np.where(act, idx.reshape(shape), -1)
-        last = pos.max(axis=axis, keepdims=True)
-        first = np.where(act, idx.reshape(shape), act.shape[axis]).min(axis=axis, keepdims=True)
-        ring |= act & ((pos == last) | (pos == first))
-    return ring
+CORRECTIONS = ("learned", "measured", "bounded")
+"""The corrections :func:`correct_step` can use: the learned one (a model of the plate with its memory), the
+measured one (this plate's measured response in loaded heights, :mod:`mppf.correct.measured`) and the learned one
+bounded on the loading side by the measured response (:mod:`mppf.correct.bounded`)."""
 
 
 def correct_step(press: PressConfig, design_mid_mm, thickness_mm: float, nominal: Material, cycles, outcomes,
-                 strokes, active, edge_mm, tolerances: Tolerances, policy: bool = True) -> CorrectionStep:
+                 strokes, active, edge_mm, tolerances: Tolerances, policy: bool = True,
+                 correction: str = "learned") -> CorrectionStep:
     """The next strokes from every pressed and measured cycle, sized by what the plate showed.
 
     Parameters
@@ -84,6 +84,8 @@ def correct_step(press: PressConfig, design_mid_mm, thickness_mm: float, nominal
     tolerances : Tolerances
     policy : bool
         False: every step at full size from the last strokes (to measure what the policy does).
+    correction : str
+        One of :data:`CORRECTIONS`.
 
     Returns
     -------
@@ -93,13 +95,19 @@ def correct_step(press: PressConfig, design_mid_mm, thickness_mm: float, nominal
     plan = (step_plan(outcomes, ring, tolerances.tolerance_mm, tolerances.rms_tolerance_mm, tolerances.noise_mm)
             if policy else StepPlan())
     upper, lower = strokes[plan.base]
-    learned = learned_correction(press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower, active,
-                                 edge_mm=edge_mm, scale=np.full(ring.shape, plan.share))
+
+    def correct(share):
+        if correction in ("measured", "bounded"):
+            chosen = measured_correction if correction == "measured" else bounded_correction
+            return chosen(press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower, active,
+                          edge_mm=edge_mm, share=share, noise_mm=tolerances.noise_mm,
+                          **({"leave_mm": tolerances.rms_tolerance_mm} if correction == "bounded" else {}))
+        return learned_correction(press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower, active,
+                                  edge_mm=edge_mm, scale=np.full(ring.shape, share))
+
+    learned = correct(plan.share)
     if len(outcomes) > 1:
-        plan, learned = _safer_near_tolerance(plan, learned, outcomes[-1], tolerances,
-                                              lambda share: learned_correction(
-                                                  press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower,
-                                                  active, edge_mm=edge_mm, scale=np.full(ring.shape, share)))
+        plan, learned = _safer_near_tolerance(plan, learned, outcomes[-1], tolerances, correct)
     learned.notes.extend(plan.notes)
     verdict = convergence_verdict([o.rms_mm for o in outcomes], learned.predicted_rms_mm,
                                   tolerances.rms_tolerance_mm, clipped=int(learned.clipped.sum()),
