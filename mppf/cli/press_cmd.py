@@ -53,14 +53,14 @@ def _load_sealed_job(job_path, plc_url, audit_path):
     Raises
     ------
     InputError
-        As :func:`mppf.planning.validate.load_checked_job` (a :class:`~mppf.core.seal.SealError`
+        As :func:`mppf.planning.job.load_job` (a :class:`~mppf.core.seal.SealError`
         for a seal that does not match).
     """
     from mppf.core.seal import SealError
-    from mppf.planning.validate import load_checked_job
+    from mppf.planning.job import load_job
 
     try:
-        return load_checked_job(job_path)
+        return load_job(job_path)
     except SealError as exc:  # an edited job: who tried to press it, and what changed, are kept
         with open_audit(audit_path) as audit:
             audit.record(plc_url or "dry run", "seal", "refused", detail=exc.message[:500])

@@ -121,9 +121,10 @@ def _write_flat(out: Path, result, design: str, drawing) -> None:
 def _job(job_path: str):
     """The job file, through the one job validator (a job the press would refuse marks no punches)."""
     from mppf.core.errors import ConfigError, LimitError
-    from mppf.planning.validate import load_checked_job, validate_job
+    from mppf.planning.job import load_job
+    from mppf.planning.validate import validate_job
 
-    job = load_checked_job(job_path)
+    job = load_job(job_path)
     try:
         validate_job(job)
     except (ConfigError, LimitError) as exc:

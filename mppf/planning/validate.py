@@ -41,7 +41,6 @@ from mppf.core.grid import neighbour_differences
 from mppf.model.job import Job
 from mppf.model.job_parts import StepStrokes
 from mppf.model.press import PressConfig
-from mppf.planning.job import load_job
 from mppf.planning.steps import flat_heights
 
 GAP_TOLERANCE_MM = 0.01
@@ -155,17 +154,6 @@ def _labeller(doc: dict):
     matrix = matrix if isinstance(matrix, dict) else {}
     base = matrix.get("label_base", 1) if matrix.get("label_base", 1) in (0, 1) else 1
     return lambda r, c: f"row {r + base}, col {c + base}"
-
-
-def load_checked_job(path, *, require_seal: bool = True) -> Job:
-    """Read a job file through the one strict loader, :func:`mppf.planning.job.load_job`.
-
-    Raises
-    ------
-    InputError
-        Missing or unreadable file, invalid JSON, non-numbers, a seal that does not match, an invalid job.
-    """
-    return load_job(path, require_seal=require_seal)
 
 
 # ---------------------------------------------------------------- setpoints ---

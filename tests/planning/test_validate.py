@@ -11,7 +11,8 @@ import pytest
 from mppf.core.errors import ConfigError, InputError, LimitError
 from mppf.planning.job import Job, StepStrokes, save_job
 from mppf.planning.press import example_press_path, load_press
-from mppf.planning.validate import check_job_document, check_setpoints, load_checked_job, validate_job, validate_steps
+from mppf.planning.job import load_job
+from mppf.planning.validate import check_job_document, check_setpoints, validate_job, validate_steps
 
 PRESS = load_press(example_press_path())
 T = 20.0
@@ -113,7 +114,7 @@ def test_a_stroke_that_is_not_a_finite_number_is_refused_not_read_as_one(tmp_pat
     path = tmp_path / "tampered.json"
     path.write_text(json.dumps(doc))
     with pytest.raises(ConfigError, match="the job holds values that cannot be pressed"):
-        load_checked_job(path)
+        load_job(path)
 
 
 def test_activity_flags_and_the_thickness_must_be_what_they_claim(tmp_path):
