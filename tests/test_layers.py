@@ -16,6 +16,7 @@ top-level package, and ``mppf.drivers`` and ``mppf.sim`` are installed from othe
 from __future__ import annotations
 
 import ast
+import functools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -125,8 +126,10 @@ def through_reexports(found: list[Import]) -> list[Import]:
     return out
 
 
-def all_imports() -> list[Import]:
-    return through_reexports([i for path in source_files() for i in imports_of(path)])
+@functools.cache
+def all_imports() -> tuple[Import, ...]:
+    """Every mppf import of every module, read once per test session."""
+    return tuple(through_reexports([i for path in source_files() for i in imports_of(path)]))
 
 
 def test_every_package_has_a_layer():
@@ -152,6 +155,18 @@ def test_no_private_name_is_imported_from_another_module():
                    for i, n in private if (i.importer, i.module) not in KNOWN_PRIVATE]
     assert not unexplained, "private names imported across modules; make them public or move them:\n" + \
         "\n".join(unexplained)
+
+
+def test_no_two_modules_import_each_other():
+    """Within a layer too, the imports run one way (a lazy import inside a function counts)."""
+    modules = {module_name(p) for p in source_files()}
+    edges: dict[str, set[str]] = {}
+    for i in all_imports():
+        targets = {i.module} | {f"{i.module}.{n}" for n in i.names}  # "from mppf.planning import validate"
+        edges.setdefault(i.importer, set()).update(targets & modules - {i.importer})
+    pairs = sorted({tuple(sorted((a, b))) for a, bs in edges.items() for b in bs if a in edges.get(b, ())})
+    assert not pairs, "modules that import each other; move what both need into a third module:\n" + \
+        "\n".join(f"{a} <-> {b}" for a, b in pairs)
 
 
 def test_the_known_exceptions_are_still_there():
