@@ -1,4 +1,4 @@
-"""The press description (``mppf/planning/press.py``): loading, validation in the dataclasses and every ConfigError."""
+"""The press description (``mppf/model/press.py``): loading, validation in the dataclasses and every ConfigError."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from mppf.core.errors import ConfigError
-from mppf.planning.press import AxisLimits, PressConfig, example_press_path, load_press, press_from_dict
+from mppf.model.press import AxisLimits, PressConfig, example_press_path, load_press, press_from_dict
 
 EXAMPLE = load_press(example_press_path())
 
