@@ -13,14 +13,11 @@ readers and writers of :mod:`mppf.geometry` and :mod:`mppf.planning.job`; the pl
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import hashlib
 import json
-import multiprocessing
-import os
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import as_completed
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -28,6 +25,7 @@ from mppf.core.errors import FileFormatError, InputError, MppfError
 from mppf.core.progress import NULL_REPORTER
 from mppf.core.validate import check_name
 from mppf.forming.material import MATERIALS
+from mppf.planning.batch_pool import planning_pool
 
 MANIFEST_COLUMNS = ("name", "design", "flat", "thickness_mm", "material", "springback")
 """Columns of a manifest; ``design`` and ``thickness_mm`` are required (thickness may come from ``--thickness``)."""
@@ -221,9 +219,8 @@ def job_path(plate: Plate, options: BatchOptions) -> Path:
 
 def finished_row(plate: Plate, options: BatchOptions, key: str) -> dict | None:
     """The summary row of a finished job with this input key, or None (no job, another key, unreadable)."""
-    from mppf.planning.job import load_job
-
     from mppf.core.seal import SealError
+    from mppf.planning.job import load_job
 
     path = job_path(plate, options)
     if not path.is_file():
@@ -335,27 +332,11 @@ def _task(plate: Plate, options: BatchOptions) -> dict:
                           time.perf_counter() - started)
 
 
-@contextlib.contextmanager
-def _one_blas_thread_each():
-    """The workers start with one BLAS thread each (the pool already uses every core); restored after."""
-    names = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
-    saved = {name: os.environ.get(name) for name in names}
-    for name in names:
-        os.environ.setdefault(name, "1")
-    try:
-        yield
-    finally:
-        for name, value in saved.items():
-            if value is None:
-                os.environ.pop(name, None)
-            else:
-                os.environ[name] = value
-
-
-def run_batch(plates: list[Plate], options: BatchOptions, reporter=NULL_REPORTER) -> list[dict]:
+def run_batch(plates: list[Plate], options: BatchOptions, reporter=NULL_REPORTER, *, pool=None) -> list[dict]:
     """Plan every plate (skipping finished ones), ``options.workers`` at a time; the rows in the plates' order.
 
-    Each finished plate is reported as a progress line ``[k/n] name: ...``.
+    Each finished plate is reported as a progress line ``[k/n] name: ...``. ``pool`` (from
+    :func:`planning_pool`) plans them in running workers instead of a pool of the batch's own.
     """
     Path(options.out_dir).mkdir(parents=True, exist_ok=True)
     rows: dict[str, dict] = {}
@@ -366,21 +347,26 @@ def run_batch(plates: list[Plate], options: BatchOptions, reporter=NULL_REPORTER
         reporter.advance()
         reporter.info(f"[{len(rows)}/{len(plates)}] {row['plate']}: {describe(row)}")
 
-    if options.workers <= 1:
+    if pool is None and options.workers <= 1:
         for plate in plates:
             done(_task(plate, options))
+    elif pool is not None:
+        _plan_in(pool, plates, options, done)
     else:
-        # fresh worker processes ("spawn"): nothing of this process's threads and locks is inherited
-        with _one_blas_thread_each(), ProcessPoolExecutor(max_workers=options.workers,
-                                                          mp_context=multiprocessing.get_context("spawn")) as pool:
-            futures = {pool.submit(_task, plate, options): plate for plate in plates}
-            for future in as_completed(futures):
-                try:
-                    done(future.result())
-                except Exception as exc:  # noqa: BLE001 - the worker died (memory?): that plate failed
-                    done(failed_row(futures[future], f"the worker planning it stopped: {type(exc).__name__}: {exc}"))
+        with planning_pool(options.workers) as own:
+            _plan_in(own, plates, options, done)
     reporter.finish()
     return [rows[p.name] for p in plates]
+
+
+def _plan_in(pool, plates: list[Plate], options: BatchOptions, done) -> None:
+    """Each plate a task of the pool; ``done(row)`` as they finish."""
+    futures = {pool.submit(_task, plate, options): plate for plate in plates}
+    for future in as_completed(futures):
+        try:
+            done(future.result())
+        except Exception as exc:  # noqa: BLE001 - the worker died (memory?): that plate failed
+            done(failed_row(futures[future], f"the worker planning it stopped: {type(exc).__name__}: {exc}"))
 
 
 def describe(row: dict) -> str:

@@ -109,6 +109,21 @@ def test_pool_of_two_workers_gives_the_same_rows(plate_dir, tmp_path):
     assert [r["status"] for r in rows] == ["planned", "planned"] and rows[1]["sections"] == 2
 
 
+def test_batches_in_one_running_pool_start_no_pool_of_their_own(plate_dir, tmp_path, monkeypatch):
+    import os
+
+    from mppf.planning import batch
+
+    plates = read_manifest(plate_dir / "plates.csv")[:2]
+    with batch.planning_pool(2) as pool:
+        monkeypatch.setattr(batch, "planning_pool", None)  # run_batch must not start one
+        first = run_batch(plates[:1], _options(tmp_path, workers=2), pool=pool)
+        second = run_batch(plates[1:], _options(tmp_path, workers=2), pool=pool)
+        workers = {pool.submit(os.getpid).result() for _ in range(6)}
+    assert [r["status"] for r in first + second] == ["planned", "planned"] and second[0]["sections"] == 2
+    assert 1 <= len(workers) <= 2 and os.getpid() not in workers
+
+
 def test_summary_files(tmp_path):
     rows = [{"plate": "A", "status": "planned", "sections": 2, "steps": 5, "time_s": 1.5, "cpu_s": 1.2,
              "max_travel_mm": 30.0},
