@@ -110,6 +110,7 @@ def save_job(job: Job, path, *, sealed_by: str = "mppf plan", reason: str | None
     InputError
         The file cannot be written, or the seal key cannot be read or made.
     """
+    from mppf.core.json_text import indented_json
     from mppf.core.seal import SEAL_KEY, load_key, seal_document
 
     path = Path(path)
@@ -117,7 +118,7 @@ def save_job(job: Job, path, *, sealed_by: str = "mppf plan", reason: str | None
     job.extra = {**{k: v for k, v in job.extra.items() if k != SEAL_KEY}, SEAL_KEY: doc[SEAL_KEY]}
     tmp = path.with_name(path.name + ".tmp")
     try:
-        tmp.write_text(job.to_json())
+        tmp.write_text(indented_json(doc))  # job.to_json(): doc is job.to_dict() with its new seal last
         tmp.replace(path)
     except OSError as exc:
         raise InputError(f"cannot write job file {path}: {exc.strerror}", hint="choose a writable path") from None
