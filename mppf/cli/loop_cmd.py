@@ -42,7 +42,7 @@ from mppf.cli.press_policy import (
 )
 from mppf.core.errors import InputError
 from mppf.core.validate import check_number, check_positive
-from mppf.forming.material import MATERIALS
+from mppf.forming.material import MATERIALS, check_yield_uncertainty
 from mppf.loop.settings import MAX_RESCANS, LoopSettings
 
 SCAN_SIM = "sim"
@@ -271,6 +271,10 @@ def _latest_job(history, plate_id):
 @click.option("--max-cycles", type=int, default=_DEFAULTS.max_cycles, show_default=True, help="Press cycles at most.")
 @click.option("--gain", type=float, default=_DEFAULTS.gain, show_default=True, help="Gain of the first correction.")
 @click.option("--no-springback", is_flag=True, help="Plan without springback pre-compensation.")
+@click.option("--yield-uncertainty", "yield_uncertainty", type=float, default=_DEFAULTS.yield_uncertainty_pct,
+              show_default=True, help="Scatter of the plate's yield stress (+- %, the mill certificate's): the first "
+              "press compensates springback for the weakest plate of the range, so it under-bends and the "
+              "corrections add bend (0: the nominal yield stress; docs/planning.md).")
 @click.option("--margin", "margin_mm", type=float, default=None,
               help="Trim margin (mm) the flat plate is cut with and trimmed off after forming; default the "
                    "press's [forming] margin_mm.")
@@ -318,7 +322,7 @@ def _latest_job(history, plate_id):
 def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, rms_tolerance, max_cycles, gain,
          no_springback, margin_mm, material, history_path, audit_path, plate_id, work_dir, seed, time_scale,
          scan_timeout, on_pressed, on_pressed_timeout, mark_timeout, mark_settle, rescans, rescan_timeout, resume,
-         as_json, yes, write_report_, operator, units, physics):
+         as_json, yes, write_report_, operator, units, physics, yield_uncertainty):
     """Plan, press, measure, compare, correct, press again, until the plate is in tolerance.
 
     Stops when the largest absolute form deviation is within --tolerance and the RMS within
@@ -354,6 +358,7 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
         find_ccx()  # without CalculiX: how to install it (exit 2), before anything is recorded
     settings = LoopSettings(tolerance_mm=tolerance, rms_tolerance_mm=rms_tolerance, max_cycles=max_cycles,
                             gain=gain, springback=not no_springback, margin_mm=margin_mm, on_pressed=on_pressed,
+                            yield_uncertainty_pct=check_yield_uncertainty(yield_uncertainty),
                             on_pressed_timeout_s=_positive("--on-pressed-timeout", on_pressed_timeout),
                             mark_timeout_s=_positive("--mark-timeout", mark_timeout),
                             mark_settle_s=check_number("--mark-settle", mark_settle, low=0.0, unit="s",

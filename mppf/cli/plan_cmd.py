@@ -10,7 +10,7 @@ import click
 from mppf.cli._common import (PICTURE_SUFFIXES, RichReporter, check_design_size, check_output_path, console, esc,
                               print_json, read_input, scale_option, units_option)
 from mppf.core.errors import InputError
-from mppf.forming.material import MATERIALS, Material
+from mppf.forming.material import DEFAULT_YIELD_UNCERTAINTY_PCT, MATERIALS, Material, check_yield_uncertainty
 
 
 THICKNESS_MAX_MM = 200.0
@@ -34,6 +34,18 @@ def _material(name, youngs, poisson, yield_mpa) -> Material | None:
         poisson=base.poisson if poisson is None else poisson,
         yield_stress_mpa=base.yield_stress_mpa if yield_mpa is None else yield_mpa,
     )
+
+
+def _yield_uncertainty(pct, springback: bool) -> float:
+    """The declared yield scatter (%) the first press is planned for: the default with --springback, checked."""
+    if pct is None:
+        return DEFAULT_YIELD_UNCERTAINTY_PCT if springback else 0.0
+    check_yield_uncertainty(pct)
+    if not springback:
+        raise InputError(f"--yield-uncertainty {pct:g} % has no effect without --springback (it sets the yield stress "
+                         "the springback is compensated for)", hint="add --springback --material steel|ah36, or leave "
+                         "--yield-uncertainty out")
+    return float(pct)
 
 
 def _fmt(value, digits=1):
@@ -69,6 +81,10 @@ def _print_summary(summary: dict, output) -> None:
                 continue
             text = ", ".join(_fmt(r and r / 1000, 2) + " m" for r in radii[f"{what}_radii_mm"])
             table.add_row(f"springback: {what} radii", text)
+        first = radii.get("first_press")
+        if first:
+            table.add_row("springback: planned yield stress", f"{first['planned_yield_mpa']:.0f} MPa (nominal "
+                          f"{first['nominal_yield_mpa']:.0f} - {first['yield_uncertainty_pct']:g} %: under-bent)")
         refinement = radii.get("refinement")
         if refinement:
             table.add_row("springback: virtual cycles", f"{refinement['virtual_cycles']}, predicted largest "
@@ -122,6 +138,10 @@ def _print_sections(sections: list[dict]) -> None:
 @click.option("--steps", type=click.IntRange(min=1), default=None,
               help="Number of press steps (default: the fewest within the dimpling limit).")
 @click.option("--springback", is_flag=True, help="Over-bend to pre-compensate springback (needs a material).")
+@click.option("--yield-uncertainty", "yield_uncertainty", type=float, default=None,
+              help=f"With --springback: scatter of the plate's yield stress (+- %, the mill certificate's; default "
+                   f"{DEFAULT_YIELD_UNCERTAINTY_PCT:g}). Springback is compensated for the weakest plate of the "
+                   "range, so the first press under-bends and never over-bends (0: the nominal yield stress).")
 @click.option("--margin", "margin_mm", type=float, default=None,
               help="Trim margin (mm): the flat plate is cut this much larger all round, pressed with the "
                    "punches under the margin, and trimmed after forming; default the press's [forming] margin_mm.")
@@ -141,7 +161,7 @@ def _print_sections(sections: list[dict]) -> None:
               help="Draw the stroke map of the last step (.png .pdf .svg).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 def plan_command(design, flat, press_path, thickness_mm, steps, springback, margin_mm, material, youngs, poisson,
-                 yield_mpa, transition_mm, units, scale, output, plot, as_json):
+                 yield_mpa, transition_mm, units, scale, output, plot, as_json, yield_uncertainty):
     """Plan the strokes of both punch matrices to press FLAT into DESIGN.
 
     DESIGN is the curved plate (mid-surface points or mesh), FLAT its unfolded plate
@@ -172,6 +192,7 @@ def plan_command(design, flat, press_path, thickness_mm, steps, springback, marg
     if springback and mat is None:
         raise InputError("--springback needs the plate material",
                          hint="add --material steel|ah36 or --youngs/--poisson/--yield")
+    uncertainty_pct = _yield_uncertainty(yield_uncertainty, springback)
     design_cloud = read_input(design, units=units, scale=scale)
     flat_cloud = read_input(flat, units=units)
     for path, cloud in ((design, design_cloud), (flat, flat_cloud)):
@@ -185,7 +206,7 @@ def plan_command(design, flat, press_path, thickness_mm, steps, springback, marg
     reporter = RichReporter(enabled=not as_json)
     job = plan_plate(design_cloud.points, flat_cloud.points, press, thickness_mm, steps=steps, material=mat,
                      springback=springback, design_faces=design_cloud.faces, reporter=reporter, inputs=inputs,
-                     margin_mm=margin_mm, transition_mm=transition_mm)
+                     margin_mm=margin_mm, transition_mm=transition_mm, yield_uncertainty_pct=uncertainty_pct)
     reporter.finish()
     if plot:  # the picture first: a job file exists only when the whole command succeeded
         from mppf.report.strokes import plot_strokes

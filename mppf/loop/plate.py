@@ -39,7 +39,8 @@ def plan_first_cycle(design: PointCloud, flat: PointCloud, press: PressConfig, t
     press : PressConfig
     thickness_mm : float
     settings : LoopSettings
-        ``springback`` and ``margin_mm`` are used.
+        ``springback``, ``yield_uncertainty_pct`` (the first press planned for the weakest plate
+        of the declared yield range: it under-bends) and ``margin_mm`` are used.
     material : Material
         Nominal plate material.
 
@@ -51,7 +52,8 @@ def plan_first_cycle(design: PointCloud, flat: PointCloud, press: PressConfig, t
     inputs = {"design": {"path": str(design.path), "sha256": design.sha256},
               "flat": {"path": str(flat.path), "sha256": flat.sha256}}
     return plan_plate(design.points, flat.points, press, thickness_mm, material=material,
-                      springback=settings.springback, reporter=reporter, inputs=inputs, margin_mm=settings.margin_mm)
+                      springback=settings.springback, reporter=reporter, inputs=inputs, margin_mm=settings.margin_mm,
+                      yield_uncertainty_pct=settings.yield_uncertainty_pct)
 
 
 def plate_reach(press: PressConfig, job: Job, design_points, tolerance_mm: float) -> dict | None:

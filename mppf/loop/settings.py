@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 from mppf.core.defaults import RMS_TOLERANCE_MM, TOLERANCE_MM
 from mppf.core.validate import check_number
+from mppf.forming.material import DEFAULT_YIELD_UNCERTAINTY_PCT, check_yield_uncertainty
 
 MAX_CYCLES_LIMIT = 50
 """Most press cycles a plate may be given."""
@@ -42,6 +43,11 @@ class LoopSettings:
         (see :func:`mppf.loop.decide.decide`).
     springback : bool
         Plan the first cycle with springback pre-compensation (over-bend).
+    yield_uncertainty_pct : float
+        Declared scatter of the plate's yield stress, +- % in [0, 50) (``--yield-uncertainty``;
+        default :data:`mppf.forming.material.DEFAULT_YIELD_UNCERTAINTY_PCT`): the first cycle's
+        springback is compensated for the weakest plate of the range, so the first press
+        under-bends and the corrections add bend (docs/planning.md, "The first press under-bends").
     offset_mm : float or None
         Normal offset from the design surface to the scanned skin (mm); None = half the
         thickness (the design is the moulded mid-surface, the scanner sees the top skin).
@@ -82,6 +88,7 @@ class LoopSettings:
     gain: float = 1.0
     divergence_factor: float = 1.5
     springback: bool = True
+    yield_uncertainty_pct: float = DEFAULT_YIELD_UNCERTAINTY_PCT
     offset_mm: float | None = None
     model_gain: bool = True
     margin_mm: float | None = None
@@ -103,6 +110,8 @@ class LoopSettings:
         for name, low in checks.items():
             object.__setattr__(self, name, check_number(f"loop setting {name}", getattr(self, name), low=low,
                                                         low_open=True))
+        object.__setattr__(self, "yield_uncertainty_pct", check_yield_uncertainty(
+            self.yield_uncertainty_pct, "loop setting yield_uncertainty_pct"))
         object.__setattr__(self, "mark_settle_s", check_number("loop setting mark_settle_s", self.mark_settle_s,
                                                                low=0.0, unit="s"))
         if self.on_pressed is not None and not str(self.on_pressed).strip():

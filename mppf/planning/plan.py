@@ -20,7 +20,7 @@ from mppf.core.progress import NULL_REPORTER
 from mppf.core.transform import apply_tf, as_points, rotation_angle_deg
 from mppf.core.validate import check_number
 from mppf.correct.virtual_cycles import refine_strokes
-from mppf.forming.material import Material
+from mppf.forming.material import Material, check_yield_uncertainty, weakest_material
 from mppf.geometry.surface import fit_plate
 from mppf.planning.belongs import check_flat_belongs, design_area_mm2
 from mppf.planning.contact import PlacedSurface, tip_heights
@@ -40,7 +40,8 @@ MAX_MARGIN_MM = 500.0
 
 def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float, *, steps: int | None = None,
              material: Material | None = None, springback: bool = False, design_faces=None,
-             reporter=NULL_REPORTER, inputs: dict | None = None, margin_mm: float | None = None) -> Job:
+             reporter=NULL_REPORTER, inputs: dict | None = None, margin_mm: float | None = None,
+             yield_uncertainty_pct: float = 0.0) -> Job:
     """Plan the strokes of every punch of both matrices for one plate.
 
     Parameters
@@ -70,6 +71,11 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
         Trim margin: the flat plate is cut with this excess band around its net outline
         (trimmed after forming), so punches under the band are used too; default the
         press's ``[forming] margin_mm``. The design surface is extended smoothly over it.
+    yield_uncertainty_pct : float
+        With ``springback``: the declared scatter of the yield stress (+- %, in [0, 50)). The
+        springback is compensated for the weakest plate of the range (:func:`first_press_material`),
+        so every plate within it is under-bent, never over-bent; the layout keeps the nominal
+        material and ``extra["springback"]["first_press"]`` records what was assumed.
 
     Returns
     -------
@@ -88,6 +94,7 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
     """
     design, flat, t, margin = _check_inputs(design_points, flat_points, press, thickness_mm, steps, material,
                                             springback, margin_mm)
+    planned_material = first_press_material(material, springback, yield_uncertainty_pct)
     # 1. lay the flat plate on the bed: centred, long side along x, bottom skin at z = 0
     reporter.info("placing the flat plate on the bed")
     placement = place_flat(flat, press, t)
@@ -100,8 +107,8 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
                       "(registration start was ambiguous)")
     belongs = check_flat_belongs(design, placement.flat_press_mm, registration.method == "paired",
                                  design_area_mm2(fitted, design, design_faces))
-    # 3. the surface to press: the design, over-bent for springback if asked
-    surface, springback_report = _surface_to_press(fitted, design, press, t, material, springback, margin)
+    # 3. the surface to press: the design, over-bent for springback (of the weakest plate declared) if asked
+    surface, springback_report = _surface_to_press(fitted, design, press, t, planned_material, springback, margin)
     # 4. active punches: axes inside the plate as cut (the design's outline seen from above, grown by the margin)
     design_press = apply_tf(registration.tf, design)
     outline_xy = offset_convex(convex_outline(design_press[:, :2], "the placed design"), margin)
@@ -115,11 +122,12 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
     outline = offset_convex(net_outline, margin)
     # 6. the design's mid-surface height at each active punch (the refinement's and the loop's target)
     target = _design_heights(press, fitted, tf_press_design, active, t)
-    # 7. springback: virtual press cycles on the plate model (nominal material) against the design
+    # 7. springback: virtual press cycles on the plate model (the planned material) against the design
     if springback:
         reporter.info("refining the springback pre-compensation on the plate model")
         upper, lower, springback_report["refinement"] = _refine(press, upper, lower, active, target, outline, t,
-                                                                material)
+                                                                planned_material)
+        springback_report["first_press"] = first_press_report(material, yield_uncertainty_pct)
     # 8. press steps from flat to the target, within the dimpling limit
     n_steps = steps if steps is not None else steps_needed(upper, lower, active, press, t)
     step_list = _split(upper, lower, active, press, t, n_steps)
@@ -133,6 +141,45 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
                          material=material)
     return Job(press=press, thickness_mm=t, steps=step_list, tf_press_design=tf_press_design,
                tf_press_flat=placement.tf_press_flat, layout=layout, extra=extra)
+
+
+def first_press_material(material: Material | None, springback: bool, yield_uncertainty_pct: float):
+    """The material the first press's springback is compensated for: the weakest plate of the declared range.
+
+    Parameters
+    ----------
+    material : Material or None
+        The nominal material.
+    springback : bool
+        Whether springback is compensated at all (without it: ``material`` unchanged).
+    yield_uncertainty_pct : float
+        Declared scatter of the yield stress, +- %, in [0, 50).
+
+    Returns
+    -------
+    Material or None
+        ``material`` with the yield stress x (1 - pct / 100)
+        (:func:`mppf.forming.material.weakest_material`).
+
+    Raises
+    ------
+    InputError
+        A negative, NaN or too large uncertainty (checked whether or not springback is on).
+    """
+    pct = check_yield_uncertainty(yield_uncertainty_pct)
+    if not springback or material is None:
+        return material
+    return weakest_material(material, pct)
+
+
+def first_press_report(material: Material, yield_uncertainty_pct: float) -> dict:
+    """What the first press assumed (``extra["springback"]["first_press"]``): the declared scatter, the
+    nominal and the planned yield stress (MPa)."""
+    planned = weakest_material(material, yield_uncertainty_pct)
+    return {"yield_uncertainty_pct": float(yield_uncertainty_pct),
+            "nominal_yield_mpa": material.yield_stress_mpa, "planned_yield_mpa": planned.yield_stress_mpa,
+            "rule": "springback compensated for the weakest plate of the declared range (yield x (1 - pct/100)): "
+                    "every plate within it is under-bent, the corrections add bend (docs/planning.md)"}
 
 
 def _check_inputs(design_points, flat_points, press: PressConfig, thickness_mm, steps, material, springback,

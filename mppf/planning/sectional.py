@@ -23,7 +23,8 @@ from mppf.planning.job import Job, PlateLayout
 from mppf.planning.job_sections import Section
 from mppf.planning.placement import FlatPlacement, fits_bed, lay_flat, register_design
 from mppf.planning.plan import (SURFACE_DEGREE, SURFACE_KIND, _active_punches, _check_inputs, _check_trim,
-                                _on_grid, _optimise_pose, _reports, _split, plan_job)
+                                _on_grid, _optimise_pose, _reports, _split, first_press_material,
+                                first_press_report, plan_job)
 from mppf.planning.press import PressConfig
 from mppf.planning.sectional_borders import BORDER_STEP_LIMIT_MM, border_steps, border_warnings, recovered_residual
 from mppf.planning.sectional_overbend import closer_fit, whole_target
@@ -54,7 +55,7 @@ def plan_plate(design_points, flat_points, press: PressConfig, thickness_mm: flo
 def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm: float, *, steps: int | None = None,
                    material=None, springback: bool = False, design_faces=None, reporter=NULL_REPORTER,
                    inputs: dict | None = None, margin_mm: float | None = None,
-                   transition_mm: float | None = None) -> Job:
+                   transition_mm: float | None = None, yield_uncertainty_pct: float = 0.0) -> Job:
     """Plan the strokes of a plate larger than the bed, section by section.
 
     Each section is the plate shifted on the bed (by whole punch pitches) with its own pose
@@ -72,6 +73,7 @@ def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm:
     """
     design, flat, t, margin = _check_inputs(design_points, flat_points, press, thickness_mm, steps, material,
                                             springback, margin_mm)
+    planned_material = first_press_material(material, springback, yield_uncertainty_pct)
     # 1. lay the flat on an unlimited bed: the plate coordinates
     placement = lay_flat(flat, press, t)
     # 2. fit the design, register it onto the flat, check the flat is its unfolding
@@ -88,8 +90,9 @@ def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm:
     # one surface for every section: the sections then press the same shape where they meet; with springback
     # one over-bent target of that surface for the whole plate, the material's points moved onto it
     whole = _whole_surface(fitted, design, design_faces)
-    target = whole_target(whole, design, press, t, material, margin) if springback else None
-    springback_report = target.report if springback else {"enabled": False}
+    target = whole_target(whole, design, press, t, planned_material, margin) if springback else None
+    springback_report = {**target.report, "first_press": first_press_report(material, yield_uncertainty_pct)} \
+        if springback else {"enabled": False}
     ctx = {"press": press, "fitted": whole, "design": design, "flat_file": flat, "registration": registration,
            "t": t, "margin": margin, "material": material, "target": target,
            "points": design if target is None else target.material_points(design)}
