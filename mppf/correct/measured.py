@@ -225,6 +225,57 @@ def measured_correction(press: PressConfig, design_mid_mm, thickness_mm: float, 
                     reverse, share)
 
 
+def _curvature(grid: PunchGrid, heights) -> np.ndarray:
+    """Curvature (m, 3) of heights (m,) at the active punches."""
+    return (grid.stroke_curvature @ heights).reshape(-1, 3)
+
+
+def learn_curvature_response(grid: PunchGrid, ring, design_mid_mm, cycles, noise_per_mm: float) -> LoadedResponse:
+    """The loading-side response point by point in curvature, from every secant after the first correction."""
+    response = LoadedResponse(grid, ring, noise_per_mm)
+    design = np.asarray(design_mid_mm, float)
+    known = [c for c in cycles if c.measured and c.steps_mid_mm]
+    for before, after in itertools.pairwise(known[1:]):  # not the first correction's secant
+        loaded = grid.curvature(loaded_mid(before))
+        spring = loaded - grid.curvature(design + before.error_mm)
+        u = grid.curvature(loaded_mid(after)) - loaded
+        v = grid.curvature(design + after.error_mm) - grid.curvature(design + before.error_mm)
+        response.update(u, v, np.sum(u * spring, axis=1) > 0.0)
+    return response
+
+
+def curvature_correction(press: PressConfig, design_mid_mm, thickness_mm: float, nominal: Material, cycles,
+                         base_upper_mm, base_lower_mm, active, edge_mm=None, share: float = 1.0,
+                         noise_mm: float = DEFAULT_NOISE_MM) -> LearnedCorrection:
+    """:func:`measured_correction` point by point in curvature instead of heights (same parameters and result).
+
+    The loaded curvature change at every punch is the wanted residual curvature change over the measured
+    loading-side response (``g``, 1 before any secant); where it presses against the bend the elastic stretch
+    of a reverse bend is added, :data:`REVERSE_STRETCH` springbacks, held to ``|wanted| / g_min``; the field is
+    integrated to heights (:attr:`mppf.correct.punch_grid.PunchGrid.heights_matrix`).
+    """
+    if sum(1 for c in cycles if c.measured) < 2:  # the first correction: the model knows the elastic gaps
+        return learned_correction(press, design_mid_mm, thickness_mm, nominal, cycles, base_upper_mm, base_lower_mm,
+                                  active, edge_mm=edge_mm, scale=np.full(np.shape(active), share))
+    grid = PunchGrid(press, active)
+    ring = outer_ring(active).ravel()[grid.index]
+    noise_per_mm = noise_mm * np.sqrt(6.0) / (press.pitch_x_mm * press.pitch_y_mm)
+    response = learn_curvature_response(grid, ring, design_mid_mm, cycles, noise_per_mm)
+    error = grid.plane_free @ grid.active_values(balanced_error(cycles[-1].error_mm, edge_mm))
+    want = -share * _curvature(grid, error)
+    design = np.asarray(design_mid_mm, float)
+    spring = grid.curvature(loaded_mid(cycles[-1])) - grid.curvature(design + cycles[-1].error_mm)
+    reverse = np.sum(want * spring, axis=1) < 0.0
+    step = want / response.per_punch()[:, None]
+    extra = np.where(reverse[:, None], -REVERSE_STRETCH * spring, 0.0)
+    size, limit = np.linalg.norm(extra, axis=1), np.linalg.norm(want, axis=1) / response.smallest
+    extra = extra * np.minimum(1.0, limit / np.maximum(size, 1e-300))[:, None]
+    change = grid.heights_matrix @ (step + extra).ravel()
+    section = Section(thickness_mm, nominal.youngs_modulus_mpa, nominal.poisson, nominal.yield_stress_mpa)
+    return _strokes(press, grid, base_upper_mm, base_lower_mm, grid.to_field(change), error, response, section,
+                    reverse, share)
+
+
 def _strokes(press, grid, base_upper, base_lower, change, error, response, section, reverse, share):
     """The strokes within the stroke limits, their steps and the deviation expected (loading side only)."""
     act = grid.active

@@ -11,7 +11,13 @@ import numpy as np
 import pytest
 
 from mppf.correct.learned import steps_towards
-from mppf.correct.measured import LoadedResponse, loading_side, measured_correction, reverse_bend
+from mppf.correct.measured import (
+    LoadedResponse,
+    curvature_correction,
+    loading_side,
+    measured_correction,
+    reverse_bend,
+)
 from mppf.correct.memory import PressedCycle, loaded_curvatures, replay
 from mppf.correct.policy import outer_ring
 from mppf.correct.punch_grid import PunchGrid
@@ -36,7 +42,7 @@ def setup():
 
 
 def test_a_change_along_the_springback_is_on_the_loading_side(setup):
-    _, active, design, grid = setup
+    _, _, design, grid = setup
     shape = grid.plane_free @ grid.active_values(design)
     springback = 0.4 * shape  # loaded deeper than the plate sprang back to
     assert loading_side(grid, 0.1 * shape, springback).all()  # more of the same bend
@@ -44,8 +50,8 @@ def test_a_change_along_the_springback_is_on_the_loading_side(setup):
 
 
 def test_the_response_is_one_before_any_secant_and_the_measured_ratio_after(setup):
-    _, active, design, grid = setup
-    ring = outer_ring(active).ravel()[grid.index]
+    _, _, design, grid = setup
+    ring = outer_ring(grid.active).ravel()[grid.index]
     response = LoadedResponse(grid, ring, noise_mm=0.3)
     np.testing.assert_array_equal(response.per_punch(), 1.0)  # the most responsive plate physically possible
     u = grid.plane_free @ grid.active_values(design)  # a large loaded change (tens of mm)
@@ -57,7 +63,7 @@ def test_the_response_is_one_before_any_secant_and_the_measured_ratio_after(setu
 
 
 def test_a_reverse_bend_is_asked_only_against_the_bend(setup):
-    _, active, design, grid = setup
+    _, _, design, grid = setup
     shape = grid.plane_free @ grid.active_values(design)
     extra, reverse = reverse_bend(grid, -0.1 * shape, 0.4 * shape, noise_mm=0.0)
     assert reverse.all()
@@ -86,3 +92,20 @@ def test_an_under_bent_plate_comes_near_the_design(setup):
     assert rms[0] > 3.0
     assert rms[2] < rms[1] < 0.5 * rms[0]  # the learned first correction, then the loading-side step
     assert rms[-1] < 0.2 * rms[0]  # (a mixed-sign residual can come back worse: docs/correction.md)
+
+
+def test_point_by_point_in_curvature_the_loading_side_step_never_overshoots(setup):
+    press, active, design, grid = setup
+    mid = np.where(active, 1.5 * design, np.nan)
+    steps, cycles, rms = [(mid + T / 2, mid - T / 2)], [], []
+    for n in range(4):
+        mids = [0.5 * (u + lo) for u, lo in steps]
+        error = _measure(grid, design, cycles + [PressedCycle(mids, None)])
+        cycles.append(PressedCycle(mids, error))
+        rms.append(float(np.sqrt(np.mean(error[active] ** 2))))
+        upper, lower = steps[-1]
+        step = curvature_correction(press, design, T, NOMINAL, cycles, upper, lower, active)
+        steps = [(s.upper_mm, s.lower_mm) for s in steps_towards(press, (upper, lower), step, active)]
+    assert rms[1] < 0.5 * rms[0]
+    assert rms[-1] < 0.1 * rms[0]
+    assert all(b <= 1.1 * min(rms[: k + 1]) for k, b in enumerate(rms[1:]))
