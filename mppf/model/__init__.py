@@ -5,5 +5,6 @@ only :mod:`mppf.core`, so geometry, forming, planning, the drivers, the loop and
 take these types from one place. Its modules: :mod:`mppf.model.press` (:class:`PressConfig`),
 :mod:`mppf.model.job` (:class:`Job` and its JSON), :mod:`mppf.model.job_parts`
 (:class:`StepStrokes`, :class:`PlateLayout`, the punch-grid JSON helpers),
-:mod:`mppf.model.job_sections` (:class:`Section`).
+:mod:`mppf.model.job_sections` (:class:`Section`), :mod:`mppf.model.material`
+(:class:`Material`), :mod:`mppf.model.placement` (where to lay the plate).
 """

@@ -13,7 +13,7 @@ import numpy as np
 
 from mppf.core.errors import ConfigError
 from mppf.core.validate import check_number
-from mppf.forming.material import Material
+from mppf.model.material import Material
 from mppf.model.press import PressConfig
 
 
