@@ -13,7 +13,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from mppf.correct.bounded import bounded_correction
 from mppf.correct.learned import LearnedCorrection, learned_correction
 from mppf.correct.measured import curvature_correction, measured_correction
 from mppf.correct.policy import (
@@ -53,11 +52,11 @@ class Tolerances:
     noise_mm: float = DEFAULT_NOISE_MM
 
 
-CORRECTIONS = ("learned", "measured", "bounded", "curvature")
+CORRECTIONS = ("learned", "measured", "curvature")
 """The corrections :func:`correct_step` can use: the learned one (a model of the plate with its memory), the
-measured one (this plate's measured response in loaded heights, :mod:`mppf.correct.measured`) and the learned one
-bounded on the loading side by the measured response (:mod:`mppf.correct.bounded`), the measured one point by point
-in curvature (:func:`mppf.correct.measured.curvature_correction`)."""
+measured one (this plate's measured response in loaded heights, :mod:`mppf.correct.measured`) and the same point by
+point in curvature (:func:`mppf.correct.measured.curvature_correction`). The loop uses the learned one; the others
+are measured against it by ``benchmarks/bench_loop.py --correction`` (docs/correction.md)."""
 
 
 def correct_step(press: PressConfig, design_mid_mm, thickness_mm: float, nominal: Material, cycles, outcomes,
@@ -98,12 +97,10 @@ def correct_step(press: PressConfig, design_mid_mm, thickness_mm: float, nominal
     upper, lower = strokes[plan.base]
 
     def correct(share):
-        if correction in ("measured", "bounded", "curvature"):
-            chosen = {"measured": measured_correction, "bounded": bounded_correction,
-                      "curvature": curvature_correction}[correction]
+        if correction in ("measured", "curvature"):
+            chosen = measured_correction if correction == "measured" else curvature_correction
             return chosen(press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower, active,
-                          edge_mm=edge_mm, share=share, noise_mm=tolerances.noise_mm,
-                          **({"leave_mm": tolerances.rms_tolerance_mm} if correction == "bounded" else {}))
+                          edge_mm=edge_mm, share=share, noise_mm=tolerances.noise_mm)
         return learned_correction(press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower, active,
                                   edge_mm=edge_mm, scale=np.full(ring.shape, share))
 
