@@ -48,8 +48,10 @@ def planned(name: str, out: Path) -> tuple[Path, Path, Path]:
 
 
 def first_cycle(job_path: Path, flat_path: Path, physics: str, folder: Path, seed: int,
-                last_only: bool = False) -> tuple[Path, float]:
-    """The scan of the plate pressed with the job's first cycle (or its last step only), and the seconds it took."""
+                last_only: bool = False, options: dict | None = None) -> tuple[Path, float]:
+    """The scan of the plate pressed with the job's first cycle (or its last step only), and the seconds it took.
+
+    ``options``: the plate's options (the FE plate's ``cells_per_pitch``, ``layers``)."""
     from mppf.core.progress import NULL_REPORTER
     from mppf.core.scanner import PressedStep, ScanContext
     from mppf.geometry.read import read_points
@@ -60,7 +62,7 @@ def first_cycle(job_path: Path, flat_path: Path, physics: str, folder: Path, see
     flat = read_points(flat_path)
     scanner = SimulatedPlateScanner.for_job(job.press, job.thickness_mm, job, flat.points, seed=seed,
                                             plate_model=PHYSICS[physics], noise_mm=0.0, occlusion_fraction=0.0,
-                                            outlier_fraction=0.0)
+                                            outlier_fraction=0.0, plate_options=options)
     steps = tuple(PressedStep(1, k, *step.setpoints_mm(job.press), np.asarray(step.active, dtype=bool))
                   for k, step in enumerate(job.steps, start=1))
     if last_only:
@@ -71,6 +73,7 @@ def first_cycle(job_path: Path, flat_path: Path, physics: str, folder: Path, see
                           lower_mm=steps[-1].lower_mm, active=steps[-1].active, steps=steps, reporter=NULL_REPORTER)
     start = time.monotonic()
     scan = scanner.acquire(1, context)
+    first_cycle.plate = scanner.plate  # for the studies that look into the pressed plate
     return scan, time.monotonic() - start
 
 

@@ -10,11 +10,12 @@ is kept (``mppf-ccx-failed-*`` in the temporary directory) and :class:`FESolveEr
 from __future__ import annotations
 
 import os
+import resource
 import shutil
 import subprocess
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from mppf.core.errors import InputError, MppfError
@@ -51,12 +52,18 @@ class CcxRun:
         Wall time of the run, s.
     log_tail : str
         The end of ccx's log.
+    steps : dict
+        Per analysis step (1-based): ``(increments, cutbacks, iterations)`` from the status file.
+    cpu_s : float
+        CPU time of the run (user + system, s; of every child process that ended meanwhile).
     """
 
     frd: str
     restart: bytes
     seconds: float
     log_tail: str
+    steps: dict = field(default_factory=dict)
+    cpu_s: float = 0.0
 
 
 def find_ccx() -> str:
@@ -107,8 +114,10 @@ def run_ccx(deck: str, *, restart_in: bytes | None = None, progress=None,
         (folder / f"{JOB}.rin").write_bytes(restart_in)
     env = {**os.environ, "OMP_NUM_THREADS": "1", "CCX_NPROC_STIFFNESS": "1", "CCX_NPROC_EQUATION_SOLVER": "1"}
     start = time.monotonic()
+    cpu_before = _children_cpu_s()
     with open(folder / "ccx.log", "w") as log:
-        proc = subprocess.Popen([ccx, "-i", JOB], cwd=folder, stdout=log, stderr=subprocess.STDOUT, env=env)
+        proc = subprocess.Popen([*_end_with_parent(), ccx, "-i", JOB], cwd=folder, stdout=log,
+                                stderr=subprocess.STDOUT, env=env)
         last = start
         while proc.poll() is None:
             time.sleep(0.2)
@@ -127,9 +136,37 @@ def run_ccx(deck: str, *, restart_in: bytes | None = None, progress=None,
         reason = next((line.strip() for line in text.splitlines() if "*ERROR" in line), "")
         _fail(folder, f"ccx failed (exit status {proc.returncode}{': ' + reason if reason else ''})")
     result = CcxRun(frd.read_text(errors="replace"), rout.read_bytes() if rout.exists() else b"", seconds,
-                    text[-2000:])
+                    text[-2000:], sta_summary(folder / f"{JOB}.sta"), _children_cpu_s() - cpu_before)
     shutil.rmtree(folder, ignore_errors=True)
     return result
+
+
+def _children_cpu_s() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def sta_summary(sta_path: Path) -> dict:
+    """Per analysis step of a ccx status file: ``{step: (increments, cutbacks, iterations)}``."""
+    summary: dict = {}
+    try:
+        lines = sta_path.read_text().splitlines()[2:]
+    except OSError:
+        return summary
+    for row in (line.split() for line in lines):
+        if len(row) < 7 or not row[0].isdigit():
+            continue
+        increments, cutbacks, iterations = summary.get(int(row[0]), (0, 0, 0))
+        attempts = int(row[2].rstrip("U") or 1)
+        summary[int(row[0])] = (increments + 1, cutbacks + attempts - 1, iterations + int(row[3]))
+    return summary
+
+
+def _end_with_parent() -> list[str]:
+    """The prefix that ends ccx when the thread that started it ends (``setpriv --pdeathsig``, util-linux): a
+    simulator stopped while its station presses a plate leaves no ccx running on a shared machine."""
+    setpriv = shutil.which("setpriv")
+    return [setpriv, "--pdeathsig", "TERM"] if setpriv else []
 
 
 def status_line(sta_path: Path) -> str:

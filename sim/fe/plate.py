@@ -118,7 +118,8 @@ class FEPlate:
         self.tips_enabled = np.ones(m, dtype=bool)
         self.history: list[tuple] = []  # (tips (2 m,), touch (2 m,)) of every press step
         self.steps = 0
-        self.last_seconds = 0.0
+        self.last_seconds = self.last_cpu_s = 0.0  # the last ccx run's wall and CPU time, s
+        self.last_ccx_steps: dict = {}  # its analysis steps: (increments, cutbacks, iterations)
 
     def to_plate(self, xy_mm) -> np.ndarray:
         """Plate u, v (n, 2) of press x, y (n, 2) (the frame of the scatter fields), mm."""
@@ -185,7 +186,11 @@ class FEPlate:
         self.loaded_u_mm, self.u_mm = self._displacements(steps[free_step - 1]), self._displacements(steps[free_step])
         self.force_n = self._contact_forces(lower, upper)
         self.history.append(entry)
-        self.last_seconds = run.seconds
+        self.last_seconds, self.last_cpu_s, self.last_ccx_steps = run.seconds, run.cpu_s, run.steps
+        if self.progress is not None:
+            counts = np.array(list(run.steps.values()) or [(0, 0, 0)]).sum(axis=0)
+            self.progress(f"ccx: press step {self.steps + 1} done in {run.seconds:.0f} s ({run.cpu_s:.0f} s CPU, "
+                          f"{len(run.steps)} analysis steps, {counts[0]} increments, {counts[2]} iterations)")
         self.tips_lower_mm, self.tips_upper_mm, self.tips_enabled = lower, upper, enabled
         self.steps += 1
         return self.formed
