@@ -108,7 +108,7 @@ def planned_plate(plate_files):
     """
     from mppf.geometry.read import read_points
     from mppf.loop.plate import plan_first_cycle
-    from mppf.planning.press import example_press_path, load_press
+    from mppf.model.press import example_press_path, load_press
 
     design, flat = (read_points(path) for path in plate_files)
     press = load_press(example_press_path())

@@ -6,8 +6,9 @@ import numpy as np
 
 from mppf.drivers import codec
 from mppf.drivers.audit import AuditLog
-from mppf.planning.job import Job, StepStrokes
-from mppf.planning.press import example_press_path, load_press, press_from_dict, press_to_toml
+from mppf.model.job import Job
+from mppf.model.job_parts import StepStrokes
+from mppf.model.press import example_press_path, load_press, press_from_dict, press_to_toml
 
 THICKNESS_MM = 20.0
 

@@ -8,8 +8,10 @@ import numpy as np
 
 from mppf.loop.history import History
 from mppf.loop.states import Decision
-from mppf.planning.job import Job, PlateLayout, StepStrokes, save_job
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.job import Job
+from mppf.model.job_parts import PlateLayout, StepStrokes
+from mppf.model.press import example_press_path, load_press
+from mppf.planning.job import save_job
 
 THICKNESS_MM = 20.0
 CUT_MM = ((-1200.0, -800.0), (1300.0, -800.0), (1300.0, 700.0), (-1200.0, 700.0))

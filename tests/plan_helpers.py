@@ -10,8 +10,8 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from mppf.forming.material import Material
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.material import Material
+from mppf.model.press import example_press_path, load_press
 
 
 class PlaneSurface:

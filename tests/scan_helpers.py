@@ -9,9 +9,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from mppf.core.transform import apply_tf, make_tf
-from mppf.forming.material import Material
+from mppf.model.material import Material
 from mppf.measure.compare import compare
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 from mppf.sim.forming import PlateSample, form_plate
 from mppf.sim.scanner import SimulatedScanner
 

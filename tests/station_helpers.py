@@ -55,7 +55,7 @@ def planned_plate(folder: Path, name: str, points: np.ndarray, settings) -> tupl
     """A small plate written as files, read back and planned for its first cycle: (design, flat, press, job)."""
     from mppf.geometry.read import read_points
     from mppf.loop.plate import plan_first_cycle
-    from mppf.planning.press import example_press_path, load_press
+    from mppf.model.press import example_press_path, load_press
 
     design_path, flat_path = plate_files(folder, name, points)
     design, flat = read_points(design_path), read_points(flat_path)

@@ -42,8 +42,9 @@ from mppf.cli.press_policy import (
 )
 from mppf.core.errors import InputError
 from mppf.core.validate import check_number, check_positive
-from mppf.forming.material import MATERIALS, check_yield_uncertainty
+from mppf.forming.material import check_yield_uncertainty
 from mppf.loop.settings import MAX_RESCANS, LoopSettings
+from mppf.model.material import MATERIALS
 
 SCAN_SIM = "sim"
 _DEFAULTS = LoopSettings()  # the loop's defaults (tolerances from mppf.core.defaults), written once
@@ -140,7 +141,7 @@ def _draft_plate(plate_id, design, flat, press_path, thickness, plc_url, scanner
                  reporter) -> _Draft:
     """Check the link and the scanner, read the files and plan the new plate (nothing recorded)."""
     from mppf.loop.plate import plan_first_cycle, plate_reach
-    from mppf.planning.press import load_press
+    from mppf.model.press import load_press
 
     _check_link_and_scanner(plc_url, scanner_spec)  # before planning and recording anything
     if plc_url and scanner_spec == SCAN_SIM:
@@ -170,7 +171,7 @@ def _resumed_plate(history, design, flat, plate_id, press_path):
                          "between): there is nothing to resume",
                          hint=f"start it again under its id: mppf loop DESIGN FLAT ... --plate-id {plate.plate_id}")
     if press_path is not None:
-        from mppf.planning.press import load_press, press_from_dict
+        from mppf.model.press import load_press, press_from_dict
 
         given, recorded = load_press(press_path), press_from_dict(plate.press, source="the history")
         if given != recorded:
@@ -203,7 +204,7 @@ def run_plate(history, plate_id, draft, *, plc_url, scanner_spec, time_scale, au
     """
     from mppf.cli._placement import placement_lines
     from mppf.loop.cycle import run_loop
-    from mppf.planning.press import press_from_dict
+    from mppf.model.press import press_from_dict
 
     plate = history.plate(plate_id) if draft is None else None
     press = draft.press if plate is None else press_from_dict(plate.press, source=f"history of plate {plate_id}")

@@ -10,7 +10,8 @@ import click
 from mppf.cli._common import (PICTURE_SUFFIXES, RichReporter, check_design_size, check_output_path, console, esc,
                               print_json, read_input, scale_option, units_option)
 from mppf.core.errors import InputError
-from mppf.forming.material import DEFAULT_YIELD_UNCERTAINTY_PCT, MATERIALS, Material, check_yield_uncertainty
+from mppf.forming.material import DEFAULT_YIELD_UNCERTAINTY_PCT, check_yield_uncertainty
+from mppf.model.material import MATERIALS, Material
 
 
 THICKNESS_MAX_MM = 200.0
@@ -173,7 +174,7 @@ def plan_command(design, flat, press_path, thickness_mm, steps, springback, marg
     from mppf.planning.job import save_job
     from mppf.planning.plan import plan_summary  # numpy/scipy work: imported when planning
     from mppf.planning.sectional import plan_plate, sections_summary
-    from mppf.planning.press import example_press_path, load_press
+    from mppf.model.press import example_press_path, load_press
 
     if thickness_mm > THICKNESS_MAX_MM:  # 0, negative and NaN: the planner's own message
         raise InputError(f"--thickness {thickness_mm:g} mm is not a plate thickness (at most {THICKNESS_MAX_MM:g} mm)",

@@ -143,7 +143,7 @@ def _drawing(result, design: str, cloud, margin_mm: float | None, job):
         if margin_mm is None and job.layout is not None:
             margin_mm = job.layout.margin_mm
     if margin_mm is None:
-        from mppf.planning.press import example_press_path, load_press
+        from mppf.model.press import example_press_path, load_press
 
         margin_mm = load_press(example_press_path()).margin_mm
     width, height = result.to_dict()["flat_size_mm"]

@@ -20,7 +20,7 @@ from mppf.correct.displacement import displacement_step
 from mppf.correct.limits import limit_correction, limited_notes
 from mppf.correct.model_step import MAX_STEP_RATIO, model_step
 from mppf.correct.result import Correction, PreviousCycle, punch_grid
-from mppf.forming.material import Material
+from mppf.model.material import Material
 from mppf.model.press import PressConfig
 
 __all__ = ["SMOOTHING", "Correction", "PreviousCycle", "compensate", "limit_correction"]

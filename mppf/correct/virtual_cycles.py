@@ -21,8 +21,8 @@ import numpy as np
 
 from mppf.core.validate import check_number
 from mppf.correct.compensate import compensate
-from mppf.forming.material import Material
 from mppf.forming.precompensate import deviation, predict_mid_heights
+from mppf.model.material import Material
 from mppf.model.press import PressConfig
 
 ITERATIONS = 10

@@ -26,7 +26,7 @@ import numpy as np
 
 from mppf.core.grid import best_plane, from_principal, hessian, integrate_hessian, plane_values, principal, tps_fill
 from mppf.core.polygon import contains
-from mppf.forming.material import Material
+from mppf.model.material import Material
 from mppf.forming.springback import springback_ratio
 
 RBF_SMOOTHING = 1e-3

@@ -16,8 +16,8 @@ import numpy as np
 from scipy.interpolate import RectBivariateSpline
 
 from mppf.core.grid import without_plane
-from mppf.forming.material import Material
 from mppf.forming.plate_model import grid_axes, loaded_surface, spring_back
+from mppf.model.material import Material
 from mppf.model.press import PressConfig
 
 MODEL_SPACING_MM = 30.0

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import brentq
 
-from mppf.forming.material import Material
+from mppf.model.material import Material
 
 #: x = R sy' / (E' t) at which the outer fibres just reach yield: below it the
 #: section is elastic-plastic, above it purely elastic (full springback).

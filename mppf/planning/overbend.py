@@ -33,9 +33,9 @@ from scipy.interpolate import RectBivariateSpline
 
 from mppf.core.errors import GeometryError
 from mppf.core.grid import from_principal, integrate_hessian, without_plane
-from mppf.forming.material import Material
 from mppf.forming.springback import loaded_curvature
 from mppf.geometry.curvature import curvatures
+from mppf.model.material import Material
 
 FLAT_RADIUS_MM = 1.0e6
 """Principal radii above this (1 km) count as flat and are not over-bent."""

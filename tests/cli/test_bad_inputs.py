@@ -28,7 +28,7 @@ import pytest
 from mppf.cli import main
 from mppf.core.errors import EXIT_INPUT
 from mppf.loop.history import History
-from mppf.planning.press import example_press_path
+from mppf.model.press import example_press_path
 
 from test_bad_inputs_corpus import CASES, FILES  # the corpus (data), beside this file
 from test_bad_inputs_issue38 import CASES38, FILES38  # issue 38's cases: sealed jobs, the machine's press, ...
@@ -45,9 +45,9 @@ def good_inputs(tmp_path_factory) -> dict[str, str]:
     """
     from mppf.geometry.unfold import unfold
     from mppf.geometry.write import write_points
+    from mppf.model.press import load_press
     from mppf.planning.job import save_job
     from mppf.planning.plan import plan_job
-    from mppf.planning.press import load_press
 
     folder = tmp_path_factory.mktemp("good")
     x, y = np.meshgrid(np.linspace(-600.0, 600.0, 25), np.linspace(-450.0, 450.0, 19))

@@ -184,7 +184,7 @@ def test_bad_mark_exits_2(files, capsys):
 
 def test_symmetric_plate_without_mark_exits_4_with_both_candidates(tmp_path, capsys):
     import scan_helpers as sh
-    from mppf.planning.job import reference_corner_xy
+    from mppf.model.job_parts import reference_corner_xy
     from mppf.sim.scanner import SimulatedScanner
 
     formed = sh.form(8000.0, 18000.0, asymmetric=False)

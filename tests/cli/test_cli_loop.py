@@ -24,7 +24,7 @@ from mppf.geometry.write import write_points
 from mppf.loop.history import History
 from mppf.loop.plate import record_plate
 from mppf.loop.settings import LoopSettings
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 
 CONVERGING_PLATE = "P1_midbody_bilge_smooth"  # the DTC midship bilge, the demo's plate
 

@@ -7,7 +7,7 @@ import numpy as np
 from mppf.cli import main
 from mppf.examples.analytic import cylinder_plate
 from mppf.loop.history import History
-from mppf.planning.press import example_press_path
+from mppf.model.press import example_press_path
 
 
 def _plate(folder, length_mm: float, radius_mm: float, spacing_mm: float = 100.0):

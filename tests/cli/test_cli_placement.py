@@ -5,8 +5,9 @@ import re
 import numpy as np
 
 from mppf.cli._placement import placement_lines
-from mppf.planning.job import Job, PlateLayout
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.job import Job
+from mppf.model.job_parts import PlateLayout
+from mppf.model.press import example_press_path, load_press
 
 
 def _corners(lines):

@@ -45,7 +45,7 @@ def test_a_press_too_small_for_the_plate_plans_it_in_sections_not_refuses_it(hul
     from mppf.geometry.read import read_points
     from mppf.geometry.unfold import unfold
     from mppf.geometry.write import write_points
-    from mppf.planning.press import example_press_path
+    from mppf.model.press import example_press_path
 
     design = hull_dir / "P2_bow_flare_smooth.csv"
     flat = write_points(tmp_path / "P2_flat.csv", unfold(read_points(design).points).flat)

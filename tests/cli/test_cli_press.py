@@ -14,7 +14,7 @@ from mppf.cli import main
 from mppf.drivers.audit import AuditLog
 from mppf.core.seal import load_key, seal_document
 from mppf.planning.job import save_job
-from mppf.planning.press import press_to_toml
+from mppf.model.press import press_to_toml
 from mppf.sim.plc.host import start_simulated_plc
 
 

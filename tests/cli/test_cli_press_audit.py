@@ -9,7 +9,7 @@ from driver_helpers import small_job, small_press
 from mppf.cli import main
 from mppf.drivers.audit import AuditLog
 from mppf.planning.job import save_job
-from mppf.planning.press import press_to_toml
+from mppf.model.press import press_to_toml
 from mppf.sim.plc.host import start_simulated_plc
 
 

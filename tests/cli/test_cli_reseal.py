@@ -9,8 +9,8 @@ from driver_helpers import small_job, small_press
 from mppf.drivers.audit import AuditLog
 
 from mppf.cli import main
+from mppf.model.press import press_to_toml
 from mppf.planning.job import load_job, save_job
-from mppf.planning.press import press_to_toml
 
 
 @pytest.fixture

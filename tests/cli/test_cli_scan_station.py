@@ -8,7 +8,7 @@ import sys
 from station_helpers import plate_files, start_station, station_log, symmetric_points
 
 from mppf.cli import main
-from mppf.planning.press import example_press_path
+from mppf.model.press import example_press_path
 
 
 def _args(design, flat, home, *extra) -> list[str]:

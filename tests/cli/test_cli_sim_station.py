@@ -18,7 +18,7 @@ import pytest
 from station_helpers import asymmetric_points, plate_files
 
 from mppf.cli import main
-from mppf.planning.press import example_press_path
+from mppf.model.press import example_press_path
 
 
 def _start_sim(folder: Path, *options: str) -> tuple[subprocess.Popen, list[str], str]:

@@ -17,7 +17,7 @@ from driver_helpers import small_job, small_press
 from mppf.cli import main
 from mppf.drivers.audit import AuditLog
 from mppf.planning.job import load_job, save_job
-from mppf.planning.press import example_press_path
+from mppf.model.press import example_press_path
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
 

@@ -7,7 +7,7 @@ import subprocess
 import sys
 
 from mppf.loop.history import History
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 
 
 def test_plate_table_title_and_legend_are_not_wrapped_in_a_log(tmp_path):

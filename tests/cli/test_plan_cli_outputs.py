@@ -11,7 +11,7 @@ import pytest
 
 from mppf.cli import main
 from mppf.geometry.write import write_points
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 from plan_helpers import cylinder_points, developed_cylinder
 
 PRESS = load_press(example_press_path())

@@ -11,7 +11,7 @@ from mppf.cli import main
 from mppf.geometry.read import read_points
 from mppf.geometry.write import write_points
 from mppf.planning.job import load_job
-from mppf.planning.press import example_press_path
+from mppf.model.press import example_press_path
 from mppf.geometry.unfold import unfold
 
 

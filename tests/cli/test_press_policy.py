@@ -18,7 +18,7 @@ from mppf.cli.press_policy import (
 )
 from mppf.core.errors import Cancelled, PressRefused
 from mppf.core.progress import NULL_REPORTER
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 
 
 class Notes:

@@ -20,7 +20,7 @@ from mppf.core.seal import (
     verify_document,
 )
 from mppf.examples.analytic import cylinder_plate
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 from mppf.planning.sectional import plan_plate
 
 KEY = bytes(range(32))

@@ -118,7 +118,7 @@ def test_a_plc_limit_tighter_than_the_press_description_is_checked_too(start_sim
     doc = press.to_dict()
     doc["upper"]["max_mm"] = 100.0
     doc["upper"]["park_mm"] = 100.0
-    from mppf.planning.press import press_from_dict
+    from mppf.model.press import press_from_dict
 
     sim = start_sim(press=press_from_dict(doc))
     upper, lower = step_setpoints(press, upper_mm=95.0)  # up to 115 mm: fine for the press file

@@ -16,7 +16,7 @@ import subprocess
 import pytest
 
 from mppf.drivers import regmap as rm
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 from mppf.sim.plc.host import run_simulated_plc
 
 pytestmark = pytest.mark.slow  # needs mbpoll

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from mppf.core.errors import InputError
-from mppf.forming.material import Material
+from mppf.model.material import Material
 from mppf.forming.springback import loaded_curvature, springback_ratio, unloaded_curvature
 
 STEEL = Material(youngs_modulus_mpa=206000.0, poisson=0.3, yield_stress_mpa=235.0)

@@ -12,9 +12,9 @@ from mppf.geometry.dxf import LAYERS, flat_drawing, write_flat_dxf
 from mppf.geometry.mesh import boundary_edges
 from mppf.geometry.read import read_points
 from mppf.geometry.unfold import unfold
-from mppf.planning.job import reference_corner_xy
+from mppf.model.job_parts import reference_corner_xy
 from mppf.planning.placement import place_flat
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 
 
 @pytest.fixture(scope="module", params=["K1_midbody_bilge", "K3_stern_saddle"])

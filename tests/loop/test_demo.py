@@ -6,7 +6,7 @@ import pytest
 
 from mppf.core.errors import InputError
 from mppf.loop.demo import DEMO_PLATE, bundled_plate, in_process_press, run_demo
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 from mppf.sim.plc.link import InProcessPress
 
 

@@ -11,8 +11,8 @@ import pytest
 from mppf.cli import main
 from mppf.core.errors import InputError
 from mppf.loop.history import History, default_history_path
-from mppf.planning.job import StepStrokes
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.job_parts import StepStrokes
+from mppf.model.press import example_press_path, load_press
 
 
 @pytest.fixture()

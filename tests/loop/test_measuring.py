@@ -9,12 +9,13 @@ import numpy as np
 import pytest
 
 from mppf.core.errors import InputError
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 
 
 def test_reference_mark_file_is_read_and_a_bad_one_refused(tmp_path):
     from mppf.measure.mark import reference_mark
-    from mppf.planning.job import Job, PlateLayout, StepStrokes, reference_corner_xy
+    from mppf.model.job import Job
+    from mppf.model.job_parts import PlateLayout, StepStrokes, reference_corner_xy
 
     press = load_press(example_press_path())
     active = np.zeros(press.shape, dtype=bool)

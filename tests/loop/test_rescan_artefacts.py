@@ -21,8 +21,8 @@ from mppf.loop.cycle import run_loop
 from mppf.loop.history import History
 from mppf.loop.plate import plan_first_cycle, record_plate
 from mppf.loop.settings import LoopSettings
+from mppf.model.press import example_press_path, load_press
 from mppf.planning.job import load_job
-from mppf.planning.press import example_press_path, load_press
 
 SETTINGS = {"max_cycles": 1, "margin_mm": 0.0, "mark_settle_s": 0.0}  # the station writes no mark; the plate needs none
 THICKNESS_MM = 20.0

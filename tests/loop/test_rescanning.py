@@ -16,7 +16,7 @@ from mppf.loop.plate import plan_first_cycle, record_plate
 from mppf.loop.rescanning import AGREE_FLOOR_MM, AGREE_NOISE, MIN_OVERLAP, overlap_agreement
 from mppf.loop.settings import LoopSettings
 from mppf.planning.job import load_job
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 from mppf.sim.plc.link import InProcessPress
 from mppf.sim.shop import SimulatedPlateScanner
 

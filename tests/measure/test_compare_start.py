@@ -12,7 +12,7 @@ from mppf.core.errors import EXIT_PRESS
 from mppf.core.transform import rotation_angle_deg
 from mppf.measure.compare import compare
 from mppf.measure.mark import MARK_SUFFIX, design_mark, reference_mark
-from mppf.planning.job import reference_corner_xy
+from mppf.model.job_parts import reference_corner_xy
 from mppf.registration.scan_start import AmbiguousStart
 from mppf.sim.scanner import SimulatedScanner
 

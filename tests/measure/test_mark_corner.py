@@ -13,8 +13,9 @@ from mppf.geometry.dxf import flat_drawing
 from mppf.geometry.scans import read_header_mark
 from mppf.geometry.unfold import unfold
 from mppf.measure.mark import design_mark, mark_path, read_scan_mark, reference_mark
-from mppf.panel.placement import placement_of
-from mppf.planning.job import job_from_dict, reference_corner_xy
+from mppf.model.job import job_from_dict
+from mppf.model.job_parts import reference_corner_xy
+from mppf.model.placement import placement_of
 
 
 def test_the_mark_is_the_cut_corner_everywhere(planned_plate):

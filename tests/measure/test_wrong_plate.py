@@ -7,7 +7,7 @@ import pytest
 
 import scan_helpers as sh
 from mppf.core.errors import GeometryError
-from mppf.forming.material import Material
+from mppf.model.material import Material
 from mppf.measure.compare import compare
 from mppf.measure.identity import Evidence
 from mppf.sim.forming import PlateSample, form_plate

@@ -10,7 +10,7 @@ from panel_helpers import layout_job, record_loop
 from mppf.panel.app import create_app
 from mppf.panel.config import PanelConfig
 from mppf.panel.security import COOKIE
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 
 TOKEN = "s3cret-token-for-the-panel-0123"
 LOCAL = "http://127.0.0.1:8450"

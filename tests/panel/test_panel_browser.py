@@ -27,9 +27,9 @@ import pytest
 
 from panel_helpers import record_loop
 
-from mppf.panel.placement import placement_of
+from mppf.model.placement import placement_of
 from mppf.planning.job import load_job
-from mppf.planning.press import press_to_toml
+from mppf.model.press import press_to_toml
 
 pytestmark = pytest.mark.slow
 

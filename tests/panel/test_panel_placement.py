@@ -8,7 +8,8 @@ import numpy as np
 
 from panel_helpers import CUT_MM, layout_job, rectangle
 
-from mppf.panel.placement import bed_svg, outline_corners, placement_of
+from mppf.model.placement import outline_corners, placement_of
+from mppf.panel.placement import bed_svg
 
 SVG = "{http://www.w3.org/2000/svg}"
 

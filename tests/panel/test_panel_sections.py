@@ -37,7 +37,7 @@ class _NoPlc:
 
 @pytest.fixture(scope="module")
 def sectional_job(tmp_path_factory):
-    from mppf.planning.press import example_press_path, load_press
+    from mppf.model.press import example_press_path, load_press
 
     design, flat = cylinder_plate(5000.0, 2000.0, 15000.0, spacing_mm=150.0)
     job = plan_plate(design, flat, load_press(example_press_path()), 20.0, steps=2)

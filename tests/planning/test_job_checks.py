@@ -10,8 +10,8 @@ import pytest
 from mppf.core.errors import ConfigError
 from mppf.core.transform import make_tf
 from mppf.examples.analytic import cylinder_plate
+from mppf.model.press import example_press_path, load_press
 from mppf.planning.job_checks import check_plan
-from mppf.planning.press import example_press_path, load_press
 from mppf.planning.sectional import plan_plate
 from mppf.planning.validate import validate_job
 

@@ -8,8 +8,10 @@ import numpy as np
 import pytest
 
 from mppf.core.errors import ConfigError, InputError
-from mppf.planning.job import JOB_FORMAT, JOB_VERSION, Job, StepStrokes, job_from_dict, load_job, save_job
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.job import JOB_FORMAT, JOB_VERSION, Job, job_from_dict
+from mppf.model.job_parts import StepStrokes
+from mppf.planning.job import load_job, save_job
+from mppf.model.press import example_press_path, load_press
 from mppf.core.transform import make_tf
 
 PRESS = load_press(example_press_path())
@@ -168,8 +170,8 @@ def test_save_job_refuses_unwritable_paths_and_keeps_the_old_file(tmp_path):
 
 
 def test_plate_layout_round_trips_and_version_1_jobs_are_read(tmp_path):
-    from mppf.forming.material import Material
-    from mppf.planning.job import PlateLayout
+    from mppf.model.job_parts import PlateLayout
+    from mppf.model.material import Material
 
     net = np.array([[-500.0, -300.0], [500.0, -300.0], [500.0, 300.0], [-500.0, 300.0]])
     mid = np.where(PRESS.punch_x_mm[None, :] > 0, 5.0, np.nan) * np.ones(PRESS.shape)

@@ -6,13 +6,8 @@ import pytest
 from driver_helpers import small_press
 
 from mppf.core.errors import ConfigError
-from mppf.planning.press import (
-    check_installed_press,
-    example_press_path,
-    load_press,
-    machine_press,
-    press_to_toml,
-)
+from mppf.model.press import example_press_path, load_press, press_to_toml
+from mppf.planning.press import check_installed_press, machine_press
 
 
 @pytest.fixture

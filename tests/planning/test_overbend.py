@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from mppf.core.errors import GeometryError
-from mppf.forming.material import Material
+from mppf.model.material import Material
 from mppf.forming.springback import loaded_curvature
 from mppf.planning.overbend import overbend
 from plan_helpers import CylinderSurface

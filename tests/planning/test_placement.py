@@ -7,7 +7,7 @@ import pytest
 
 from mppf.core.errors import GeometryError, LimitError
 from mppf.planning.placement import place_flat
-from mppf.planning.press import example_press_path, load_press, press_from_dict
+from mppf.model.press import example_press_path, load_press, press_from_dict
 from plan_helpers import developed_cylinder
 
 PRESS = load_press(example_press_path())

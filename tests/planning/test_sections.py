@@ -15,7 +15,7 @@ from mppf.examples import analytic
 from mppf.examples.analytic import cylinder_plate, hull_pose, twisted_plate
 from mppf.geometry.unfold import unfold
 from mppf.planning.contact import PlacedSurface, tip_heights
-from mppf.planning.job import JOB_VERSION, SECTIONS_VERSION, job_from_dict
+from mppf.model.job import JOB_VERSION, SECTIONS_VERSION, job_from_dict
 from mppf.planning.placement import place_flat
 from mppf.planning.plan import plan_job
 from mppf.planning.sectional import plan_plate, plan_sectional, sections_summary
@@ -76,8 +76,8 @@ def _recovered(press, section, tf_world_local, surface):
 
 def _loaded_radius_mm(radius_mm):
     """The radius a cylinder of ``radius_mm`` is over-bent to (steel, ``T_MM``)."""
-    from mppf.forming.material import MATERIALS
     from mppf.forming.springback import loaded_curvature
+    from mppf.model.material import MATERIALS
 
     return 1.0 / float(loaded_curvature(np.array([1.0 / radius_mm]), T_MM, MATERIALS["steel"])[0])
 
@@ -236,7 +236,7 @@ def test_twisted_plate_in_sections_matches_its_exact_surface(press):
 
 @pytest.fixture(scope="module")
 def springback_job(press):
-    from mppf.forming.material import MATERIALS
+    from mppf.model.material import MATERIALS
 
     design, flat = cylinder_plate(5000.0, 2000.0, RADIUS_MM, spacing_mm=150.0)
     return plan_plate(design, flat, press, T_MM, springback=True, material=MATERIALS["steel"])
@@ -331,8 +331,8 @@ def test_sections_whose_over_bends_disagree_are_warned_of(press, springback_job)
     over-bent target (it stepped by 128 mm when each section was over-bent about its own centre). The 9.4 m KCS
     stern plate still does: its curvature varies strongly over the plate and the target there is the principal
     arcs plus the design's departure from them, which the sections' fits follow only to some mm (docs/sections.md)."""
-    from mppf.forming.material import MATERIALS
     from mppf.geometry.read import read_points
+    from mppf.model.material import MATERIALS
     from mppf.planning.sectional import BORDER_STEP_LIMIT_MM, border_warnings
 
     assert springback_job.extra["sectional"]["warnings"] == []

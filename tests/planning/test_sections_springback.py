@@ -13,7 +13,7 @@ from scipy.interpolate import LinearNDInterpolator
 
 from mppf.core.transform import apply_tf, invert_tf, make_tf
 from mppf.examples.analytic import cylinder_plate, hull_pose
-from mppf.forming.material import MATERIALS
+from mppf.model.material import MATERIALS
 from mppf.forming.springback import loaded_curvature
 from mppf.planning.contact import PlacedSurface, tip_heights
 from mppf.planning.sectional import BORDER_STEP_LIMIT_MM, plan_plate

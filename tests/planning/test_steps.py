@@ -7,7 +7,7 @@ import pytest
 
 from mppf.core.errors import LimitError
 from mppf.core.grid import neighbour_differences
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 from mppf.planning.steps import split_steps, steps_needed
 from mppf.planning.validate import validate_steps
 

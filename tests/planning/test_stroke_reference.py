@@ -15,7 +15,7 @@ import pytest
 
 from mppf.geometry.read import read_points
 from mppf.geometry.unfold import unfold
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 from mppf.planning.sectional import plan_plate
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "mppf" / "examples"

@@ -9,8 +9,10 @@ import numpy as np
 import pytest
 
 from mppf.core.errors import ConfigError, InputError, LimitError
-from mppf.planning.job import Job, StepStrokes, save_job
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.job import Job
+from mppf.model.job_parts import StepStrokes
+from mppf.planning.job import save_job
+from mppf.model.press import example_press_path, load_press
 from mppf.planning.job import load_job
 from mppf.planning.validate import check_job_document, check_setpoints, validate_job, validate_steps
 

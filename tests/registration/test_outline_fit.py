@@ -88,7 +88,7 @@ def test_outline_fit_keeps_the_surface_turn_of_a_well_formed_bilge():
     it by the few tenths of a degree its edge is uncertain by (a twist of mm at the corners)."""
     press = sh.press()
     t = sh.THICKNESS_MM
-    from mppf.planning.job import reference_corner_xy
+    from mppf.model.job_parts import reference_corner_xy
 
     formed = sh.form(3400.0, -1e7, asymmetric=False)
     design = formed.mid_surface_points(50.0)

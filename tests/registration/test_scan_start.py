@@ -46,7 +46,7 @@ def test_reference_mark_gives_the_right_turn_of_a_symmetric_plate_in_any_pose():
     may still turn by a few degrees (seed 3: 5 deg); the loop's outline fit removes that
     (``test_outline_fit_places_a_badly_formed_plate``), so the turn is checked to 10 deg.
     """
-    from mppf.planning.job import reference_corner_xy
+    from mppf.model.job_parts import reference_corner_xy
 
     t = sh.THICKNESS_MM
     formed = sh.form(8000.0, 18000.0, asymmetric=False)
