@@ -35,7 +35,7 @@ KNOWN_UPWARD: dict[tuple[str, str], str] = {}
 """Upward imports still to remove, (importer, imported module) -> why it is still there."""
 
 REEXPORTS = ("mppf.planning.press", "mppf.planning.job", "mppf.planning.job_sections",
-             "mppf.panel.placement", "mppf.forming.material")
+             "mppf.forming.material")
 """Old homes of moved names that re-export them (so that work in progress elsewhere keeps running): a name
 imported from one of them counts as imported from where it lives now. Drop an entry once nothing imports
 the moved names from there."""

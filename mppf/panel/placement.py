@@ -1,26 +1,18 @@
 """Where to lay the plate, drawn: the bed to scale with the plate as cut, its mark and its corners.
 
-The corners and the mark (:class:`~mppf.model.placement.Placement`, :func:`placement_of`) are
-:mod:`mppf.model.placement`, re-exported here; :func:`bed_svg` draws the bed to scale with the punches
-(those of the step about to be pressed filled), the plate as cut, its net outline, the
-mark and the lettered corners with their press coordinates. Corner A is the corner of the
-cut plate the mark is on (the mark is the corner of the plate as cut, the same corner as the
-cutter's DXF and the comparison), the others follow counter-clockwise. Pure: arrays in, SVG text
-out; for the panel's "Lay the plate" view, the placement output of ``mppf press`` /
-``mppf loop`` and the per-plate report alike.
+The corners and the mark (:class:`~mppf.model.placement.Placement`,
+:func:`~mppf.model.placement.placement_of`) are :mod:`mppf.model.placement`, where ``mppf press``
+and ``mppf loop`` take them too (:mod:`mppf.cli._placement`). :func:`bed_svg` draws the bed to
+scale with the punches (those of the step about to be pressed filled), the plate as cut, its net
+outline, the mark and the lettered corners with their press coordinates, for the panel's "Lay the
+plate" view. Pure: arrays in, SVG text out.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from mppf.model.placement import (  # noqa: F401 (re-export)
-    MAX_CORNERS,
-    MIN_TURN_DEG,
-    Placement,
-    outline_corners,
-    placement_of,
-)
+from mppf.model.placement import Placement
 from mppf.model.press import PressConfig
 from mppf.panel.svg import esc
 
