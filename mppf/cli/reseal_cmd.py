@@ -79,18 +79,16 @@ def reseal_command(job_path, reason, press_path, output, audit_path):
     """
     from mppf.cli._common import check_db_path
     from mppf.cli.plc_ops import open_audit
-    from mppf.model.job import check_format, job_from_dict, read_job_document
-    from mppf.planning.job import save_job
+    from mppf.model.job import job_from_dict
+    from mppf.planning.job import read_checked_document, save_job
     from mppf.planning.press import machine_press
-    from mppf.planning.validate import check_job_document, validate_job
+    from mppf.planning.validate import validate_job
 
     reason = _check_reason(reason)
     if audit_path is not None:
         check_db_path(audit_path, "the audit log", "--audit")
     source = str(job_path)
-    doc = read_job_document(job_path)
-    check_format(doc, source)
-    check_job_document(doc, source)
+    doc = read_checked_document(job_path)  # checked in full but for the seal: the seal is what is renewed
     before, changed = _previous_seal(doc)
     job = job_from_dict(doc, source=source)
     press, press_source = machine_press(press_path)

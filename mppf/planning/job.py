@@ -60,14 +60,31 @@ def load_job(path, *, require_seal: bool = True) -> Job:
         Missing or unreadable file, invalid JSON, values that are not numbers, a seal that does
         not match (naming what changed), an unsealed job where one is required, an invalid job.
     """
+    source = str(path)
+    doc = read_checked_document(path)
+    check_seal(doc, source, require_seal=require_seal)
+    return job_from_dict(doc, source=source)
+
+
+def read_checked_document(path) -> dict:
+    """The JSON document of a job file, checked in everything but its seal: format, numbers, content.
+
+    The first half of :func:`load_job`; ``mppf reseal`` alone reads a job this way, since it seals
+    again a job whose content deliberately no longer matches its seal.
+
+    Raises
+    ------
+    InputError
+        Missing or unreadable file, invalid JSON, another format or version, values that are not
+        numbers where numbers belong (:func:`mppf.planning.validate.check_job_document`).
+    """
     from mppf.planning.validate import check_job_document
 
     source = str(path)
     doc = read_job_document(path)
     check_format(doc, source)
     check_job_document(doc, source)
-    check_seal(doc, source, require_seal=require_seal)
-    return job_from_dict(doc, source=source)
+    return doc
 
 
 def check_seal(doc: dict, source: str, *, require_seal: bool = True) -> None:
