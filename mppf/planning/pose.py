@@ -258,8 +258,7 @@ def _solve_rows(dev_mm, cols, low_mm, high_mm, bound: float, rows):
     ])
     b_ub = np.concatenate([-dev, dev, high - dev, dev - low])
     bounds = [(-bound, bound), (-bound, bound), (None, None), (0, None)]
-    # HiGHS's presolve costs more than it saves on a programme of 4 unknowns (a third of each call)
-    res = linprog([0, 0, 0, 1], A_ub=a_ub, b_ub=b_ub, bounds=bounds, method="highs", options={"presolve": False})
+    res = linprog([0, 0, 0, 1], A_ub=a_ub, b_ub=b_ub, bounds=bounds, method="highs")
     return tuple(float(x) for x in res.x) if res.status == 0 else None
 
 
