@@ -9,7 +9,8 @@ within 5 cycles, no section border kinked by more than the tolerance.
 
 Plates (``--plates``): the 7.5 x 2.4 m cylinder (R 20 m) and twisted plate and the 9 m KCS stern plate of
 ``mppf/examples/long/``, and two plates cut from the KCS hull by ``benchmarks/real_plates.py`` (``real0010``:
-x 55.4-64.7 m, girth 13.4-15.3 m, 9.3 x 1.9 m; ``real0013``: x 21.7-28.6 m, girth 11.3-14.1 m, 6.9 x 2.8 m).
+x 55.4-64.7 m, girth 13.4-15.3 m, 9.3 x 1.9 m; ``real0008``: x 151.7-158.4 m, girth 5.7-8.2 m, 6.7 x 2.5 m;
+``real0013``, 6.9 x 2.8 m of the stern, needs more stroke than the example press has and is not used).
 Physics (``--physics``): the finite-difference steel plate of :mod:`mppf.sim.plate` as
 :mod:`benchmarks.bench_loop` builds it (``steel``, ``yield:1.2``...). The FE plate (CalculiX) cannot be
 pressed in sections (its punch contacts are fixed to the first placement: ``FEPlate.place`` refuses), so
@@ -30,7 +31,7 @@ Resumable: every finished run is written at once to ``--results`` (JSON keyed by
 max cycles, grid and ``--label``); ``--budget-s`` (default 540) stops starting new runs after that long.
 ``--table`` prints the tables of the file only.
 
-Run:  python benchmarks/bench_loop_sectional.py [--plates cylinder twisted kcs_stern real0010 real0013]
+Run:  python benchmarks/bench_loop_sectional.py [--plates cylinder twisted kcs_stern real0010 real0008]
           [--physics steel] [--seeds 1] [--grid-mm 150] [--label before] [--results FILE.json] [--table]
 """
 
@@ -46,16 +47,25 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_loop import NOMINAL, RMS_TOL_MM, THICKNESS_MM, TOL_MM, _load, _save, _series, physics_parts  # noqa: E402
+from bench_loop import (
+    NOMINAL,
+    RMS_TOL_MM,
+    THICKNESS_MM,
+    TOL_MM,
+    _load,
+    _save,
+    _series,
+    physics_parts,
+)
 
-from mppf.core.errors import MppfError  # noqa: E402
-from mppf.core.grid import without_plane  # noqa: E402
-from mppf.core.transform import apply_tf  # noqa: E402
-from mppf.geometry.read import read_points  # noqa: E402
-from mppf.geometry.unfold import unfold  # noqa: E402
-from mppf.geometry.write import write_points  # noqa: E402
-from mppf.loop.section_steps import placement_mm  # noqa: E402
-from mppf.planning.press import example_press_path, load_press  # noqa: E402
+from mppf.core.errors import MppfError
+from mppf.core.grid import without_plane
+from mppf.core.transform import apply_tf
+from mppf.geometry.read import read_points
+from mppf.geometry.unfold import unfold
+from mppf.geometry.write import write_points
+from mppf.loop.section_steps import placement_mm
+from mppf.planning.press import example_press_path, load_press
 
 ROOT = Path(__file__).resolve().parents[1]
 LONG = ROOT / "mppf" / "examples" / "long"
@@ -65,7 +75,7 @@ PLATES = {
     "twisted": (LONG / "twisted_7500x2400.csv", LONG / "twisted_7500x2400_flat.csv"),
     "kcs_stern": (LONG / "kcs_stern_bilge_9000x2400.csv", None),
     "real0010": (REAL / "real0010.csv", None),
-    "real0013": (REAL / "real0013.csv", None),
+    "real0008": (REAL / "real0008.csv", None),
 }
 """name: (design, flat or None: unfolded here)."""
 
@@ -160,35 +170,46 @@ def border_kink(press, planned: Planned, dev) -> float:
     return worst
 
 
-CORRECTIONS = ("blend", "field")
-"""``blend``: the model-free correction of each section on its deviation, blended where sections overlap (the
-loop before issue 42); ``field``: :func:`mppf.loop.sectional.section_corrections` (one correction of the whole
-plate: each section's deviation without its best plane, through the springback model, no blend)."""
+CORRECTIONS = ("blend", "field", "secant")
+"""How the sections are corrected. ``blend``: as the loop does (:func:`mppf.loop.sectional.plan_next_sections`):
+each section's model-free correction (:func:`mppf.correct.compensate.compensate`, the secant gain per punch from
+the cycle before) on its deviation, blended where sections overlap
+(:func:`mppf.planning.sectional.apply_section_corrections`). ``field`` and ``secant``: one correction of the
+whole plate, each section's deviation without its best plane (the plane is the section's pose, not its shape),
+not blended (``blend=False``); ``field`` through the springback model (``compensate`` with the nominal material),
+``secant`` model-free with the secant gains of these plane-free deviations."""
+
+
+def section_shapes(press, job, devs) -> list:
+    """Per section, (rows, cols) mm: its deviation at its active punches without its best plane (its pose)."""
+    gx, gy = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    out = []
+    for s, dev in zip(job.sections, devs):
+        known = s.steps[-1].active & np.isfinite(dev)
+        out.append(np.where(known, without_plane(gx, gy, np.where(known, dev, 0.0), known), np.nan))
+    return out
 
 
 def correct_sections(press, job, devs, previous, how: str):
-    """The next cycle's job: every section corrected as the sectional loop does, on the true deviation.
-
-    ``previous``: per section the (lower strokes, deviation) of the cycle before, or None.
-    """
+    """The next cycle's job, every section corrected on the true deviation; the per-section mean gains; the
+    deviations the secant of the next cycle takes (``previous``: per section the (lower strokes, deviation) of
+    the cycle before, or None)."""
     from mppf.correct.compensate import compensate
     from mppf.correct.result import PreviousCycle
     from mppf.planning.sectional import apply_section_corrections
 
-    if how == "field":
-        from mppf.loop.sectional import section_corrections
-
-        deltas, gains = section_corrections(press, job, devs, NOMINAL, previous)
-        return apply_section_corrections(job, deltas, blend=False), gains
+    errors = devs if how == "blend" else section_shapes(press, job, devs)
     deltas, gains = [], []
-    for s, dev, prev in zip(job.sections, devs, previous):
+    for s, error, prev in zip(job.sections, errors, previous):
         final = s.steps[-1]
-        c = compensate(final.upper_mm, final.lower_mm, dev, press=press, thickness_mm=THICKNESS_MM,
-                       previous=None if prev is None else PreviousCycle(*prev))
+        c = compensate(final.upper_mm, final.lower_mm, error, press=press, thickness_mm=THICKNESS_MM,
+                       previous=None if prev is None else PreviousCycle(*prev),
+                       material=NOMINAL if how == "field" else None)
         deltas.append((np.where(final.active, c.upper_mm - final.upper_mm, 0.0),
                        np.where(final.active, c.lower_mm - final.lower_mm, 0.0)))
-        gains.append(float(np.nanmean(c.gain)) if np.isfinite(c.gain).any() else float("nan"))
-    return apply_section_corrections(job, deltas), gains
+        gain = np.asarray(c.gain, dtype=float)
+        gains.append(float(np.nanmean(gain)) if np.isfinite(gain).any() else float("nan"))
+    return apply_section_corrections(job, deltas, blend=how == "blend"), gains, errors
 
 
 def run_direct(press, planned: Planned, plate, max_cycles: int, how: str = "field") -> dict:
@@ -211,8 +232,8 @@ def run_direct(press, planned: Planned, plate, max_cycles: int, how: str = "fiel
             row["decisions"].append("max_cycles")
             break
         devs = section_punch_deviations(press, planned, dev)
-        corrected, gains = correct_sections(press, job, devs, previous, how)
-        previous = [(s.steps[-1].lower_mm, d) for s, d in zip(job.sections, devs)]
+        corrected, gains, errors = correct_sections(press, job, devs, previous, how)
+        previous = [(s.steps[-1].lower_mm, e) for s, e in zip(job.sections, errors)]
         row["gain"].append([round(g, 2) for g in gains])
         row["decisions"].append("continue")
         job = corrected
@@ -275,7 +296,7 @@ def main(argv=None) -> int:
     parser.add_argument("--max-cycles", type=int, default=5)
     parser.add_argument("--grid-mm", type=float, default=150.0, help="cell size of the simulated plate's grid (mm)")
     parser.add_argument("--true-yield", type=float, default=265.0, help="the simulated steel's yield stress (MPa)")
-    parser.add_argument("--correction", choices=CORRECTIONS, default="field",
+    parser.add_argument("--correction", choices=CORRECTIONS, default="blend",
                         help="how the sections are corrected (see CORRECTIONS)")
     parser.add_argument("--label", default="now", help="names the code measured (e.g. before, after)")
     parser.add_argument("--results", type=Path, default=Path("bench_loop_sectional.json"))

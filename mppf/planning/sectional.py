@@ -277,13 +277,15 @@ def _assemble(planned, border, split, zone, fitted, registration, belongs, place
                tf_press_flat=s1.tf_press_flat, layout=s1.layout, extra=extra, sections=sections)
 
 
-def apply_section_corrections(job: Job, corrections, *, steps: int | None = None) -> Job:
+def apply_section_corrections(job: Job, corrections, *, steps: int | None = None, blend: bool = True) -> Job:
     """The job with each section's final strokes corrected, blended in the transition zones as planned.
 
     The loop's per-section correction (or any other): ``corrections[k]`` = (upper, lower) (rows, cols)
     mm to add to section k+1's final strokes. Section by section in pressing order, the correction
     pressed is ``(1 - w) own + w earlier`` as in planning (``own_weight``: ``1 - w``), so the formed
-    plate keeps no step where sections meet; the strokes are held to the press's stroke limits; the steps
+    plate keeps no step where sections meet; ``blend=False``: every section's own correction at all its
+    punches (the corrections are one correction of the whole plate, the same where sections overlap up to
+    each section's rigid pose). The strokes are held to the press's stroke limits; the steps
     go again from flat to the new strokes, validated.
 
     Raises
@@ -307,7 +309,7 @@ def apply_section_corrections(job: Job, corrections, *, steps: int | None = None
             raise InputError(f"section {s.index}: corrections must be {press.rows} x {press.cols} grids")
         final, centre = s.steps[-1], -np.asarray(s.plate_centre_mm, dtype=float)
         own_up, own_lo = np.nan_to_num(c_up), np.nan_to_num(c_lo)
-        _, d_up, d_lo = _blend(press, centre, final.active, own_up, own_lo, done, zone, plate_half)
+        _, d_up, d_lo = _blend(press, centre, final.active, own_up, own_lo, done if blend else [], zone, plate_half)
         # held to the strokes the press has (a blend of two sections' corrections may reach past them)
         up = np.where(final.active, np.clip(final.upper_mm + d_up, press.upper.min_mm, press.upper.max_mm), np.nan)
         lo = np.where(final.active, np.clip(final.lower_mm + d_lo, press.lower.min_mm, press.lower.max_mm), np.nan)

@@ -325,6 +325,23 @@ def test_corrections_per_section_blend_like_the_plan(press, cylinder_job):
     assert json.loads(first.to_json())["version"] == JOB_VERSION
 
 
+def test_corrections_not_blended_are_each_sections_own(press, cylinder_job):
+    """blend=False: every section presses its own correction at all its punches, transition zones included."""
+    from mppf.planning.sectional import apply_section_corrections
+
+    zero = [(np.zeros(press.shape), np.zeros(press.shape)) for _ in cylinder_job.sections]
+    lift = (np.full(press.shape, 2.0), np.full(press.shape, 2.0))
+    own = apply_section_corrections(cylinder_job, [lift] + zero[1:], blend=False)
+    blended = apply_section_corrections(cylinder_job, [lift] + zero[1:])
+    planned = cylinder_job.sections[1]
+    act = planned.steps[-1].active
+    assert np.any(planned.own_weight[act] < 1.0)  # section 2 overlaps section 1: the blend would reach it
+    assert not np.allclose(blended.sections[1].steps[-1].upper_mm[act], planned.steps[-1].upper_mm[act])
+    assert np.allclose(own.sections[1].steps[-1].upper_mm[act], planned.steps[-1].upper_mm[act])
+    first = cylinder_job.sections[0].steps[-1]
+    assert np.allclose(own.sections[0].steps[-1].upper_mm[first.active] - first.upper_mm[first.active], 2.0)
+
+
 def test_sections_whose_over_bends_disagree_are_warned_of(press, springback_job):
     """Sections that step at their borders are warned of. A plate longer AND wider than the bed with springback
     (the 4.2 x 2.4 m cylinder in 2 x 2 sections) no longer steps: every section presses the whole plate's one
