@@ -9,6 +9,7 @@ from scipy.spatial.transform import Rotation
 
 from mppf.core.transform import apply_tf, make_tf
 from mppf.measure.compare import compare
+from mppf.measure.options import CompareOptions
 
 MARGIN_MM = 100.0
 HALF_U, HALF_V = 1500.0, 1000.0  # the net plate: 3000 x 2000 mm
@@ -68,7 +69,7 @@ def runs():
     net = ~band(u, v)
     return {
         "u": u, "v": v,
-        "gross": compare(design(), points, margin_mm=MARGIN_MM),
-        "net": compare(design(), points[net], tolerance_mm=2.5),
+        "gross": compare(design(), points, CompareOptions(margin_mm=MARGIN_MM)),
+        "net": compare(design(), points[net], CompareOptions(tolerance_mm=2.5)),
         "net_mask": net,
     }

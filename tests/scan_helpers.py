@@ -11,6 +11,7 @@ from scipy.spatial.transform import Rotation
 from mppf.core.transform import apply_tf, make_tf
 from mppf.model.material import Material
 from mppf.measure.compare import compare
+from mppf.measure.options import CompareOptions
 from mppf.model.press import example_press_path, load_press
 from mppf.sim.forming import PlateSample, form_plate
 from mppf.sim.scanner import SimulatedScanner
@@ -61,7 +62,7 @@ def measured(n=8000, with_bump=True, noise_mm=0.3, seed=1):
 def bump_result():
     """(u, v, comparison) of the bumped, noisy, moved scan of the analytic plate (compared once)."""
     u, v, points = measured()
-    return u, v, compare(design(), points, tolerance_mm=2.5)
+    return u, v, compare(design(), points, CompareOptions(tolerance_mm=2.5))
 
 
 @cache
@@ -95,5 +96,6 @@ def formed_and_scan():
     formed = form(4000.0, 9000.0)
     sample = SimulatedScanner(seed=2).sample(formed)
     plate = formed.mid_surface_points(50.0)  # the design = what was formed: deviations ~ 0
-    c = compare(plate, sample.points, offset_mm=THICKNESS_MM / 2, tf_press_design=np.eye(4), punch_xy_mm=punch_grid())
+    c = compare(plate, sample.points, CompareOptions(offset_mm=THICKNESS_MM / 2, tf_press_design=np.eye(4),
+            punch_xy_mm=punch_grid()))
     return formed, sample, c

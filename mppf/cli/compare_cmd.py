@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import click
@@ -131,6 +132,7 @@ def compare_command(design: str, measured: str, tolerance: float, rms_tolerance:
     """
     from mppf.cli._common import read_input
     from mppf.measure.compare import compare
+    from mppf.measure.options import CompareOptions
 
     # 1. options and output paths checked before the work
     check_positive("--tolerance", tolerance, unit="mm")
@@ -159,14 +161,14 @@ def compare_command(design: str, measured: str, tolerance: float, rms_tolerance:
 
         raise GeometryError(f"the scan {measured} has {measured_cloud.n_points} point(s), a comparison needs at least "
                             f"{MIN_POINTS}", hint="check the scan export (the whole plate, not a selection)")
-    options = _options(job_path, design_cloud.points, measured, skin, thickness, margin, mark_mm)
-    if options.get("reference_mark") is not None:  # --mark, the mark file or the scan's header
+    base = CompareOptions(tolerance_mm=tolerance, rms_tolerance_mm=rms_tolerance, design_faces=design_cloud.faces,
+                          gap_mm=gaps[0], max_gap_mm=gaps[1])
+    options = _options(job_path, design_cloud.points, measured, skin, thickness, margin, mark_mm, base)
+    if options.reference_mark is not None:  # --mark, the mark file or the scan's header
         what = "--mark" if mark_mm is not None else "the reference mark of the scan (its mark file or header)"
-        check_mark_on_scan(options["reference_mark"][0], measured_cloud.points, measured, what)
+        check_mark_on_scan(options.reference_mark[0], measured_cloud.points, measured, what)
     # 3. compare and decide
-    result = compare(design_cloud.points, measured_cloud.points, tolerance_mm=tolerance,
-                     rms_tolerance_mm=rms_tolerance, design_faces=design_cloud.faces, gap_mm=gaps[0],
-                     max_gap_mm=gaps[1], **options)
+    result = compare(design_cloud.points, measured_cloud.points, options)
     # 4. pictures, report, export, the result
     _outputs(result, plot, report, export_path, scale_mm, design, measured, design_cloud, measured_cloud)
     if as_json:
@@ -184,20 +186,20 @@ def compare_command(design: str, measured: str, tolerance: float, rms_tolerance:
         raise click.exceptions.Exit(result.verdict.exit_code)
 
 
-def _options(job_path, design_points, scan_path, skin, thickness, margin, mark_mm) -> dict:
-    """The compare keywords from the job (as the loop judges) and the explicit options (which win)."""
+def _options(job_path, design_points, scan_path, skin, thickness, margin, mark_mm, base):
+    """The compare options: ``base`` with the job's (as the loop judges) and the explicit options (which win)."""
     if job_path is None:
-        options = {"offset_mm": skin_offset_mm(skin or "mid", thickness), "margin_mm": 0.0,
-                   "reference_mark": _mark_without_job(design_points, scan_path, mark_mm, margin)}
+        options = replace(base, offset_mm=skin_offset_mm(skin or "mid", thickness), margin_mm=0.0,
+                          reference_mark=_mark_without_job(design_points, scan_path, mark_mm, margin))
     else:
         from mppf.measure.job_options import job_compare_options
         from mppf.planning.job import load_job
 
         job = load_job(job_path, require_seal=False)  # only read: an older unsealed job too, never a broken seal
         offset = None if skin is None else skin_offset_mm(skin, job.thickness_mm if thickness is None else thickness)
-        options = job_compare_options(job, design_points, scan_path, offset_mm=offset, mark_mm=mark_mm)
+        options = job_compare_options(job, design_points, scan_path, offset_mm=offset, mark_mm=mark_mm, base=base)
     if margin is not None:
-        options["margin_mm"] = check_number("--margin", margin, low=0.0, unit="mm", hint="")
+        options = replace(options, margin_mm=check_number("--margin", margin, low=0.0, unit="mm", hint=""))
     return options
 
 

@@ -30,8 +30,9 @@ from mppf.loop.records import CycleRecord, PlateRecord, load_cycle_job
 from mppf.loop.settings import LoopSettings
 from mppf.measure.compare import compare
 from mppf.measure.job_options import job_compare_options
-from mppf.registration.scan_start import AmbiguousStart
+from mppf.measure.options import CompareOptions
 from mppf.model.press import PressConfig
+from mppf.registration.scan_start import AmbiguousStart
 
 
 def read_checked(path, sha256: str, what: str, units: str = "mm") -> PointCloud:
@@ -142,11 +143,12 @@ def _compare(plate: PlateRecord, record: CycleRecord, design: PointCloud, settin
     scan_index = np.concatenate([np.full(c.shape[0], i) for i, c in enumerate(clouds)]) if extra else None
     job = load_cycle_job(record)
     offset_mm = plate.thickness_mm / 2.0 if settings.offset_mm is None else settings.offset_mm
-    # the same keywords as ``mppf compare --job``: the same scan gets the same verdict
-    options = job_compare_options(job, design.points, record.scan_path, offset_mm=offset_mm)
-    return compare(design.points, points, tolerance_mm=settings.tolerance_mm,
-                   rms_tolerance_mm=settings.rms_tolerance_mm, expected_points=None if extra else expected_points,
-                   scan_index=scan_index, start_from=start_from, **options)
+    # the same options as ``mppf compare --job``: the same scan gets the same verdict
+    base = CompareOptions(tolerance_mm=settings.tolerance_mm, rms_tolerance_mm=settings.rms_tolerance_mm,
+                          expected_points=None if extra else expected_points, scan_index=scan_index,
+                          start_from=start_from)
+    return compare(design.points, points,
+                   job_compare_options(job, design.points, record.scan_path, offset_mm=offset_mm, base=base))
 
 
 def comparison_summary(comparison, scans: list | None = None, rescan_stopped: str | None = None) -> dict:

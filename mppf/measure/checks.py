@@ -1,11 +1,12 @@
-"""Checks of a comparison's inputs and results: options, size, match, usable points (GeometryError, InputError)."""
+"""Checks of a comparison's inputs and results: point count, size, match, usable points (GeometryError).
+
+The options are checked when they are built (:class:`mppf.measure.options.CompareOptions`)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from mppf.core.errors import GeometryError, InputError
-from mppf.core.validate import check_number, check_positive
+from mppf.core.errors import GeometryError
 from mppf.registration.register import Registration
 
 MIN_POINTS = 30
@@ -18,24 +19,11 @@ MATCH_FRACTION = 0.5
 """At least this fraction of the measured points must lie near the design (else: wrong plate)."""
 
 
-def check_options(tolerance_mm, offset_mm, measured, punch_xy_mm, tf_press_design, margin_mm) -> float:
-    """Check the options; return the trim margin as a float."""
-    check_positive("tolerance", tolerance_mm, unit="mm")
-    check_number("skin offset", offset_mm, unit="mm")
+def check_points(measured: np.ndarray) -> None:
+    """Raise GeometryError when the scan has fewer than :data:`MIN_POINTS` points."""
     if measured.shape[0] < MIN_POINTS:
         raise GeometryError(f"the scan has {measured.shape[0]} point(s), a comparison needs at least {MIN_POINTS}",
                             hint="check the scan export")
-    if punch_xy_mm is not None:
-        grid = np.asarray(punch_xy_mm, dtype=float)
-        if grid.ndim != 3 or grid.shape[2] != 2:
-            raise InputError(f"punch positions must have shape (rows, cols, 2), got {grid.shape}")
-        if tf_press_design is None:
-            raise InputError("punch deviations need tf_press_design (design -> press)",
-                             hint="pass the job's tf_press_design")
-    if tf_press_design is not None and np.asarray(tf_press_design, dtype=float).shape != (4, 4):
-        raise InputError(f"tf_press_design must be 4x4, got {np.asarray(tf_press_design).shape}")
-    return float(check_number("trim margin", margin_mm, low=0.0, unit="mm",
-                              hint="give the width of the excess band around the design outline, 0 for a net plate"))
 
 
 def check_usable(inlier, outlier, dev) -> None:

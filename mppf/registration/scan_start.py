@@ -146,8 +146,8 @@ def choose_start(scan: Cloud, target: RegistrationTarget, rotation_hint, referen
     best fit as ``tf``): the caller checks that the scan is of this plate at all, then calls
     :meth:`StartChoice.require_settled` (:class:`AmbiguousStart`).
     """
-    hint = None if rotation_hint is None else _as_rotation(rotation_hint)
-    mark = None if reference_mark is None else _as_mark(reference_mark)
+    hint = None if rotation_hint is None else as_rotation(rotation_hint)
+    mark = None if reference_mark is None else as_mark(reference_mark)
     # 1. the four principal-axes starts, converged; their residuals on one common sample
     judge = scan.points[sample_index(scan.n_points, settings.points, seed=1)]
     starts = principal_candidates(scan.frame, target.frame)
@@ -321,14 +321,16 @@ def _nearest_rms(target: RegistrationTarget, points, tf, clip: float = np.inf) -
     return float(np.sqrt(np.mean(np.minimum(near, clip) ** 2)))
 
 
-def _as_rotation(rotation_hint) -> np.ndarray:
+def as_rotation(rotation_hint) -> np.ndarray:
+    """The (3, 3) rotation of a hint given as (3, 3) or (4, 4); InputError for another shape or NaN."""
     hint = np.asarray(rotation_hint, dtype=float)
     if hint.shape not in ((3, 3), (4, 4)) or not np.all(np.isfinite(hint)):
         raise InputError(f"rotation_hint must be a (3, 3) rotation or a (4, 4) transform, got shape {hint.shape}")
     return hint[:3, :3]
 
 
-def _as_mark(reference_mark) -> tuple[np.ndarray, np.ndarray]:
+def as_mark(reference_mark) -> tuple[np.ndarray, np.ndarray]:
+    """``(measured_xyz, design_xyz)`` of a reference mark as two (3,) float arrays, mm; InputError if malformed."""
     try:
         measured, design = (np.asarray(p, dtype=float).reshape(3) for p in reference_mark)
     except (TypeError, ValueError):

@@ -225,7 +225,7 @@ def test_job_gives_what_the_loop_uses(planned_plate, tmp_path, capsys):
     assert doc["job"] == str(job_path) and doc["margin_mm"] == job.layout.margin_mm
     assert "punch_deviation_mm" in doc  # the job's punch grid
     options = job_compare_options(job, design.points, scan, offset_mm=0.0)
-    direct = compare(design.points, read_points(scan).points, **options)
+    direct = compare(design.points, read_points(scan).points, options)
     assert doc["verdict"]["kind"] == direct.verdict.kind
     assert doc["rms_mm"] == pytest.approx(direct.rms_mm, abs=1e-6)
     assert doc["form_max_abs_mm"] == pytest.approx(direct.form_max_abs_mm, abs=1e-6)

@@ -13,6 +13,7 @@ from mppf.core.errors import GeometryError, InputError
 from mppf.core.transform import rotation_angle_deg
 from mppf.geometry.read import read_points
 from mppf.measure.compare import compare
+from mppf.measure.options import CompareOptions
 
 
 def test_compare_recovers_a_5_mm_bump():
@@ -62,13 +63,13 @@ def test_bad_inputs_are_refused():
     design = sh.design()
     _, _, measured = sh.measured(n=200, with_bump=False)
     with pytest.raises(InputError, match="tolerance"):
-        compare(design, measured, tolerance_mm=0.0)
+        compare(design, measured, CompareOptions(tolerance_mm=0.0))
     with pytest.raises(GeometryError, match="at least"):
         compare(design, measured[:10])
     with pytest.raises(InputError, match="shape"):
         compare(design, measured[:, :2])
     with pytest.raises(InputError, match="tf_press_design"):
-        compare(design, measured, punch_xy_mm=np.zeros((2, 2, 2)))
+        compare(design, measured, CompareOptions(punch_xy_mm=np.zeros((2, 2, 2))))
 
 
 def test_margin_recovers_the_pose_and_the_net_statistics():
@@ -113,5 +114,5 @@ def test_margin_recovers_the_pose_and_the_net_statistics():
 def test_bad_margin_is_refused(margin):
     _, _, scan = mh.scan(n=500)
     with pytest.raises(InputError, match="trim margin") as info:
-        compare(mh.design(), scan, margin_mm=margin)
+        compare(mh.design(), scan, CompareOptions(margin_mm=margin))
     assert info.value.hint

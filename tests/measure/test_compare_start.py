@@ -11,6 +11,7 @@ import scan_helpers as sh
 from mppf.core.errors import EXIT_PRESS
 from mppf.core.transform import rotation_angle_deg
 from mppf.measure.compare import compare
+from mppf.measure.options import CompareOptions
 from mppf.measure.mark import MARK_SUFFIX, design_mark, reference_mark
 from mppf.model.job_parts import reference_corner_xy
 from mppf.registration.scan_start import AmbiguousStart
@@ -29,7 +30,7 @@ def _symmetric_case(seed=4):
 def test_a_symmetric_plate_without_a_mark_is_not_judged():
     design, sample, _ = _symmetric_case()
     with pytest.raises(AmbiguousStart, match="ambiguous: give the reference mark") as caught:
-        compare(design, sample.points, offset_mm=sh.THICKNESS_MM / 2)
+        compare(design, sample.points, CompareOptions(offset_mm=sh.THICKNESS_MM / 2))
     assert caught.value.exit_code == EXIT_PRESS == 4
     pair = caught.value.candidates
     assert len(pair) == 2 and pair[0]["name"] != pair[1]["name"]
@@ -40,7 +41,8 @@ def test_a_symmetric_plate_without_a_mark_is_not_judged():
 
 def test_the_mark_settles_it_and_ambiguous_start_tells_the_truth():
     design, sample, mark = _symmetric_case()
-    c = compare(design, sample.points, offset_mm=sh.THICKNESS_MM / 2, reference_mark=(sample.mark_mm, mark))
+    c = compare(design, sample.points, CompareOptions(offset_mm=sh.THICKNESS_MM / 2,
+            reference_mark=(sample.mark_mm, mark)))
     assert rotation_angle_deg(c.transform @ sample.tf_scan_press) < 10.0
     assert c.registration.ambiguous_start  # the geometry alone could not tell
     assert c.registration.init["settled_by"] in ("mark", "held mark")
@@ -72,19 +74,20 @@ def test_a_scan_registered_from_a_known_start_keeps_its_turn_and_skips_the_choic
     from mppf.core.errors import InputError
 
     design, sample, mark = _symmetric_case()
-    first = compare(design, sample.points, offset_mm=sh.THICKNESS_MM / 2, reference_mark=(sample.mark_mm, mark))
-    again = compare(design, sample.points, offset_mm=sh.THICKNESS_MM / 2, start_from=first)
+    first = compare(design, sample.points, CompareOptions(offset_mm=sh.THICKNESS_MM / 2,
+            reference_mark=(sample.mark_mm, mark)))
+    again = compare(design, sample.points, CompareOptions(offset_mm=sh.THICKNESS_MM / 2, start_from=first))
     assert "shares its frame" in again.notes[0] and "settled there by the reference mark" in again.notes[0]
     init = again.registration.init
     assert init["settled_by"] == "earlier scan" and init["first_settled_by"] in ("mark", "held mark")
     # a union of three starts from the union of two: how the first scan was settled is kept
-    third = compare(design, sample.points, offset_mm=sh.THICKNESS_MM / 2, start_from=again)
+    third = compare(design, sample.points, CompareOptions(offset_mm=sh.THICKNESS_MM / 2, start_from=again))
     assert third.registration.init["first_settled_by"] == init["first_settled_by"]
-    from_tf = compare(design, sample.points, offset_mm=sh.THICKNESS_MM / 2, start_from=first.transform)
+    from_tf = compare(design, sample.points, CompareOptions(offset_mm=sh.THICKNESS_MM / 2, start_from=first.transform))
     np.testing.assert_allclose(from_tf.transform, again.transform, atol=1e-9)
     assert rotation_angle_deg(again.transform @ np.linalg.inv(first.transform)) < 0.05
     assert np.linalg.norm(again.transform[:3, 3] - first.transform[:3, 3]) < 1.0
     assert again.verdict.kind == first.verdict.kind
     assert again.rms_mm == pytest.approx(first.rms_mm, abs=0.02)
     with pytest.raises(InputError, match="start_from"):
-        compare(design, sample.points, start_from=np.eye(3))
+        compare(design, sample.points, CompareOptions(start_from=np.eye(3)))

@@ -9,6 +9,7 @@ import scan_helpers as sh
 from mppf.core.errors import InputError
 from mppf.core.transform import apply_tf
 from mppf.measure.compare import compare
+from mppf.measure.options import CompareOptions
 from mppf.measure.coverage import GAP_MM, MAX_GAP_MM, allowed_gap_mm, coverage
 
 DENT_UV = np.array([400.0, 200.0])
@@ -34,7 +35,7 @@ def _grid(spacing_mm, keep=lambda u, v: np.ones(u.shape, dtype=bool)):
 def test_an_occluded_worst_region_needs_review_and_is_named():
     """A 4 mm dent hidden by an occlusion: the measured part is in tolerance, the verdict is not."""
     hidden = lambda u, v: np.hypot(u - DENT_UV[0], v - DENT_UV[1]) > 250.0
-    c = compare(sh.design(), _scan(hidden, dent_mm=4.0), tolerance_mm=2.5)
+    c = compare(sh.design(), _scan(hidden, dent_mm=4.0), CompareOptions(tolerance_mm=2.5))
     assert c.form_max_abs_mm <= 2.5 and c.rms_mm <= 1.0  # what was measured is fine
     assert c.verdict.kind == "needs_review" and not c.in_tolerance
     (gap,) = c.coverage.regions
@@ -51,14 +52,14 @@ def test_an_occluded_worst_region_needs_review_and_is_named():
 
 def test_a_rim_band_without_points_needs_review_a_narrow_one_does_not():
     # a 300 mm band along the v = 1000 edge without points (the free best fit slides some of the way into it)
-    c = compare(sh.design(), _scan(lambda u, v: v < 1000.0 - 300.0), tolerance_mm=2.5)
+    c = compare(sh.design(), _scan(lambda u, v: v < 1000.0 - 300.0), CompareOptions(tolerance_mm=2.5))
     assert c.verdict.kind == "needs_review"
     gap = c.coverage.regions[0]  # the largest first
     assert gap.on_rim and c.coverage.allowed_gap_mm < gap.gap_mm <= 300.0 + 25.0
     assert gap.box_uv_mm[2] - gap.box_uv_mm[0] > 2500.0 and gap.box_uv_mm[1] > 600.0  # along the edge
     assert "on the rim" in c.headline
     # a band narrower than the allowed gap (100 mm) is the scanner's rim: not flagged
-    c = compare(sh.design(), _scan(lambda u, v: v < 1000.0 - 40.0), tolerance_mm=2.5)
+    c = compare(sh.design(), _scan(lambda u, v: v < 1000.0 - 40.0), CompareOptions(tolerance_mm=2.5))
     assert c.coverage.complete and c.verdict.kind == "in_tolerance"
     assert "the whole net plate measured" in c.headline
 
@@ -106,7 +107,7 @@ def test_coverage_of_a_regular_grid_with_a_hole_and_its_press_place():
     with pytest.raises(InputError, match="gap"):
         coverage(outline, lambda cells: tree.query(cells)[0], 20.0, gap_mm=0.0)
     with pytest.raises(InputError, match="largest allowed gap"):
-        compare(sh.design(), _grid(100.0), gap_mm=200.0, max_gap_mm=150.0)
+        compare(sh.design(), _grid(100.0), CompareOptions(gap_mm=200.0, max_gap_mm=150.0))
 
 
 def test_the_deviation_map_draws_the_areas_not_measured(tmp_path):

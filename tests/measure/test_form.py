@@ -13,6 +13,7 @@ import pytest
 import scan_helpers as sh
 from mppf.core.transform import apply_tf
 from mppf.measure.compare import compare
+from mppf.measure.options import CompareOptions
 from mppf.measure.form import form_field
 
 
@@ -65,7 +66,7 @@ def _sparse_scan(amplitude_mm, sigma_mm, spacing_mm=50.0, noise_mm=0.05, seed=0)
 @pytest.mark.parametrize("amplitude_mm, sigma_mm", [(10.0, 75.0), (-6.0, 100.0), (5.0, 175.0)])
 def test_compare_of_a_sparse_dented_plate_reports_the_dent_and_sets_nothing_aside(amplitude_mm, sigma_mm):
     """The issue's case: a 3 x 2 m plate measured at 50 mm spacing with a dent: never in tolerance."""
-    c = compare(sh.design(), _sparse_scan(amplitude_mm, sigma_mm), tolerance_mm=2.5)
+    c = compare(sh.design(), _sparse_scan(amplitude_mm, sigma_mm), CompareOptions(tolerance_mm=2.5))
     assert c.is_outlier.sum() == 0 and c.set_aside.count == 0
     assert c.form_max_abs_mm == pytest.approx(abs(amplitude_mm), rel=0.1)
     assert c.verdict.kind == "out_of_tolerance" and not c.in_tolerance

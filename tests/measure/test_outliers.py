@@ -8,6 +8,7 @@ import pytest
 import scan_helpers as sh
 from mppf.core.transform import rotation_angle_deg
 from mppf.measure.compare import compare
+from mppf.measure.options import CompareOptions
 
 
 def test_form_deviation_averages_out_the_scanner_noise():
@@ -34,7 +35,8 @@ def test_noise_alone_never_fails_the_tolerance_but_its_raw_extremes_would():
     """1.0 mm of scanner noise puts single points beyond a 2.5 mm tolerance; the form
     deviation of that perfectly formed plate stays well inside it."""
     _, _, measured = sh.measured(n=8000, with_bump=False, noise_mm=1.0, seed=6)
-    c = compare(sh.design(), measured, tolerance_mm=2.5, rms_tolerance_mm=1.5)  # 1 mm noise: RMS about 1 mm
+    c = compare(sh.design(), measured, CompareOptions(tolerance_mm=2.5,
+            rms_tolerance_mm=1.5))  # 1 mm noise: RMS about 1 mm
     assert c.max_abs_mm > 2.5  # raw points: noise extremes
     assert c.form_max_abs_mm < 2.0  # about 1.6: the local planes cut the noise by about 2.5x
     assert c.in_tolerance

@@ -42,6 +42,7 @@ def test_a_comparison_measures_the_curl_of_the_net_edge_beyond_the_outer_rows():
     import margin_helpers as mh
     from mppf.core.transform import apply_tf, invert_tf
     from mppf.measure.compare import compare
+    from mppf.measure.options import CompareOptions
 
     u, v, scan = mh.scan(n=30000, seed=3)
     net = ~mh.band(u, v)
@@ -50,7 +51,7 @@ def test_a_comparison_measures_the_curl_of_the_net_edge_beyond_the_outer_rows():
     curl = 2.0 * np.clip((v[net] - 960.0) / 40.0, 0.0, 1.0) ** 2
     curled = apply_tf(mh.pose(), local + curl[:, None] * mh.normals(u[net], v[net]))
     px, py = np.meshgrid(np.arange(-1440.0, 1441.0, 120.0), np.arange(-960.0, 961.0, 80.0))
-    c = compare(mh.design(), curled, tf_press_design=np.eye(4), punch_xy_mm=np.stack([px, py], axis=-1))
+    c = compare(mh.design(), curled, CompareOptions(tf_press_design=np.eye(4), punch_xy_mm=np.stack([px, py], axis=-1)))
     edge = c.punch_edge_mm
     assert edge.shape == px.shape
     assert np.all(np.isnan(edge[1:-1]))  # only the outer rows have an edge beyond them

@@ -9,6 +9,7 @@ import margin_helpers as mh
 import scan_helpers as sh
 from mppf.core.transform import rotation_angle_deg
 from mppf.measure.compare import compare
+from mppf.measure.options import CompareOptions
 
 
 def _punch_grid():
@@ -45,7 +46,7 @@ def test_punches_under_the_margin_get_deviations():
     beyond = (np.abs(px) > 1600.0) | (np.abs(py) > 1100.0)
     net = ~in_band & ~beyond
     assert in_band.sum() == 2 * 27 + 2 * 25
-    c = compare(mh.design(), scan, margin_mm=mh.MARGIN_MM, tf_press_design=np.eye(4), punch_xy_mm=grid)
+    c = compare(mh.design(), scan, CompareOptions(margin_mm=mh.MARGIN_MM, tf_press_design=np.eye(4), punch_xy_mm=grid))
     assert "outline fit (from above the press): turned" in c.notes[0]  # the outline fit ran against the grown outline
     error = c.transform @ mh.pose()
     assert rotation_angle_deg(error) < 0.05
@@ -57,5 +58,5 @@ def test_punches_under_the_margin_get_deviations():
     assert np.max(np.abs(c.punch_deviation_mm[net])) < 0.3
     assert np.max(np.abs(c.punch_deviation_mm[in_band])) < 1.0
     # without the margin those punches are off the plate
-    plain = compare(mh.design(), scan, tf_press_design=np.eye(4), punch_xy_mm=grid)
+    plain = compare(mh.design(), scan, CompareOptions(tf_press_design=np.eye(4), punch_xy_mm=grid))
     assert np.all(np.isnan(plain.punch_deviation_mm[in_band]))

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from mppf.measure.compare import compare
+from mppf.measure.options import CompareOptions
 
 TOLERANCE_MM = 2.5
 SPACING_MM = 20.0
@@ -47,19 +48,20 @@ def _union(*scans):
 
 
 def test_one_scan_with_spikes_still_needs_review(design):
-    result = compare(design, _scan(1), tolerance_mm=TOLERANCE_MM, rotation_hint=np.eye(3))
+    result = compare(design, _scan(1), CompareOptions(tolerance_mm=TOLERANCE_MM, rotation_hint=np.eye(3)))
     assert result.verdict.kind == "needs_review" and result.set_aside.beyond_tolerance > 10
     assert result.set_aside.cleared == 0 and not result.is_cleared.any()
     # a single scan given as such: the same (issue 13's rule holds exactly)
-    indexed = compare(design, _scan(1), tolerance_mm=TOLERANCE_MM, rotation_hint=np.eye(3),
-                      scan_index=np.zeros(result.n_points, int))
+    indexed = compare(design, _scan(1), CompareOptions(tolerance_mm=TOLERANCE_MM, rotation_hint=np.eye(3),
+                      scan_index=np.zeros(result.n_points, int)))
     assert indexed.verdict.kind == "needs_review"
     assert indexed.set_aside.beyond_tolerance == result.set_aside.beyond_tolerance
 
 
 def test_a_rescan_clears_the_first_scans_spikes(design):
     points, index = _union(_scan(1), _scan(2))
-    result = compare(design, points, tolerance_mm=TOLERANCE_MM, rotation_hint=np.eye(3), scan_index=index)
+    result = compare(design, points, CompareOptions(tolerance_mm=TOLERANCE_MM, rotation_hint=np.eye(3),
+            scan_index=index))
     aside = result.set_aside
     assert result.verdict.kind == "in_tolerance", result.headline
     assert aside.beyond_tolerance == 0 and aside.cleared > 20 and aside.confirmed == 0
@@ -69,18 +71,20 @@ def test_a_rescan_clears_the_first_scans_spikes(design):
     assert result.to_dict()["set_aside"]["cleared"] == aside.cleared
     assert result.verdict.to_dict()["set_aside_cleared"] == aside.cleared
     # without the scan of each point the same union is judged as one scan: needs review
-    assert compare(design, points, tolerance_mm=TOLERANCE_MM, rotation_hint=np.eye(3)).verdict.kind == "needs_review"
+    assert compare(design, points, CompareOptions(tolerance_mm=TOLERANCE_MM,
+            rotation_hint=np.eye(3))).verdict.kind == "needs_review"
 
 
 def test_a_narrow_dent_in_both_scans_is_never_passed(design):
     # one scan: the dent is one point, set aside like a spike (needs review, issue 13)
     dent = {"dent_mm": 8.0, "sigma_mm": 4.0}
-    single = compare(design, _scan(1, **dent), tolerance_mm=TOLERANCE_MM, rotation_hint=np.eye(3))
+    single = compare(design, _scan(1, **dent), CompareOptions(tolerance_mm=TOLERANCE_MM, rotation_hint=np.eye(3)))
     at_dent = np.hypot(single.measured_uv_mm[:, 0] - 150.0, single.measured_uv_mm[:, 1] - 60.0) < 10.0
     assert single.verdict.kind == "needs_review" and single.is_outlier[at_dent & (single.deviation_mm < -5.0)].all()
     # measured again at the same spot: confirmed, never cleared, never in tolerance
     points, index = _union(_scan(1, **dent), _scan(2, **dent))
-    result = compare(design, points, tolerance_mm=TOLERANCE_MM, rotation_hint=np.eye(3), scan_index=index)
+    result = compare(design, points, CompareOptions(tolerance_mm=TOLERANCE_MM, rotation_hint=np.eye(3),
+            scan_index=index))
     assert result.verdict.kind in ("needs_review", "out_of_tolerance"), result.headline
     at_dent = np.hypot(result.measured_uv_mm[:, 0] - 150.0, result.measured_uv_mm[:, 1] - 60.0) < 10.0
     deep = at_dent & (result.deviation_mm < -5.0)
@@ -99,7 +103,8 @@ def test_two_spikes_at_one_spot_by_chance_are_not_a_confirmed_defect(design):
     first = np.vstack([first, [[-200.0, -100.0, _shape(-200.0, -100.0) + 40.0]]])
     second = np.vstack([second, [[-190.0, -100.0, _shape(-190.0, -100.0) + 42.0]]])
     points, index = _union(first, second)
-    result = compare(design, points, tolerance_mm=TOLERANCE_MM, rotation_hint=np.eye(3), scan_index=index)
+    result = compare(design, points, CompareOptions(tolerance_mm=TOLERANCE_MM, rotation_hint=np.eye(3),
+            scan_index=index))
     uv = result.measured_uv_mm
     pair = (np.hypot(uv[:, 0] + 195.0, uv[:, 1] + 100.0) < 8.0) & (result.deviation_mm > 30.0)
     assert pair.sum() == 2 and result.is_outlier[pair].all() and result.is_cleared[pair].all()
@@ -117,24 +122,24 @@ def test_a_third_look_clears_a_chance_pair_but_never_a_dent(design):
     first, second = far(first), far(second)
     options = {"tolerance_mm": TOLERANCE_MM, "rotation_hint": np.eye(3)}
     points, index = _union(first, second)
-    pair = compare(design, points, scan_index=index, **options)
+    pair = compare(design, points, CompareOptions(scan_index=index, **options))
     assert pair.set_aside.confirmed == 2 and pair.verdict.kind == "needs_review", pair.headline
     # ... a third scan that measured the plain surface 2 mm beside them (a 5 mm per mm wall) clears both
     third = np.vstack([_scan(3, spikes=0.0), [[301.0, 201.0, _shape(301.0, 201.0)]]])
     points, index = _union(first, second, third)
-    looked = compare(design, points, scan_index=index, **options)
+    looked = compare(design, points, CompareOptions(scan_index=index, **options))
     assert looked.set_aside.confirmed == 0 and looked.verdict.kind == "in_tolerance", looked.headline
     # two spikes 0.7 mm apart, 30 and 23 mm high (within 30 % of each other): a 10 mm per mm wall between
     # them, no one feature
     close_first = np.vstack([_scan(1, spikes=0.0), [[300.0, 200.0, _shape(300.0, 200.0) + 30.0]]])
     close_second = np.vstack([_scan(2, spikes=0.0), [[300.7, 200.0, _shape(300.7, 200.0) + 23.0]]])
     points, index = _union(far(close_first), far(close_second))
-    steep = compare(design, points, scan_index=index, **options)
+    steep = compare(design, points, CompareOptions(scan_index=index, **options))
     assert steep.set_aside.confirmed == 0 and steep.verdict.kind == "in_tolerance", steep.headline
     # a narrow dent measured by three scans stays confirmed: no scan can show a wall beside it
     dent = {"dent_mm": 8.0, "sigma_mm": 4.0, "spikes": 0.0}
     points, index = _union(_scan(1, **dent), _scan(2, **dent), _scan(3, **dent))
-    dented = compare(design, points, scan_index=index, **options)
+    dented = compare(design, points, CompareOptions(scan_index=index, **options))
     assert dented.set_aside.confirmed >= 2 and dented.verdict.kind != "in_tolerance", dented.headline
 
 

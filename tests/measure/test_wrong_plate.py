@@ -9,6 +9,7 @@ import scan_helpers as sh
 from mppf.core.errors import GeometryError
 from mppf.model.material import Material
 from mppf.measure.compare import compare
+from mppf.measure.options import CompareOptions
 from mppf.measure.identity import Evidence
 from mppf.sim.forming import PlateSample, form_plate
 from mppf.sim.scanner import SimulatedScanner
@@ -17,8 +18,8 @@ from mppf.sim.scanner import SimulatedScanner
 def _compare(formed, seed=2, **options):
     design = sh.form(4000.0, 9000.0).mid_surface_points(50.0)
     sample = SimulatedScanner(seed=seed).sample(formed)
-    return compare(design, sample.points, offset_mm=sh.THICKNESS_MM / 2, tf_press_design=np.eye(4),
-                   punch_xy_mm=sh.punch_grid(), rotation_hint=np.linalg.inv(sample.tf_scan_press), **options)
+    return compare(design, sample.points, CompareOptions(offset_mm=sh.THICKNESS_MM / 2, tf_press_design=np.eye(4),
+                   punch_xy_mm=sh.punch_grid(), rotation_hint=np.linalg.inv(sample.tf_scan_press), **options))
 
 
 def test_this_plate_formed_twice_too_curved_is_out_of_tolerance_not_refused():

@@ -9,6 +9,7 @@ from scipy.spatial.transform import Rotation
 import scan_helpers as sh
 from mppf.core.transform import apply_tf, make_tf
 from mppf.measure.compare import compare
+from mppf.measure.options import CompareOptions
 from mppf.sim.scanner import SimulatedScanner
 
 
@@ -49,8 +50,9 @@ def test_outline_fit_places_a_badly_formed_plate():
     formed = sh.form(2500.0, 6000.0)
     design = formed.mid_surface_points(50.0, loaded=True)  # the plate as held, before springback
     sample = SimulatedScanner(seed=0, max_turn_deg=20.0).sample(formed)
-    c = compare(design, sample.points, offset_mm=t / 2, tf_press_design=np.eye(4), rotation_hint=np.eye(3),
-                fit_outline=True)
+    c = compare(design, sample.points, CompareOptions(offset_mm=t / 2, tf_press_design=np.eye(4),
+            rotation_hint=np.eye(3),
+                fit_outline=True))
     error = c.transform @ sample.tf_scan_press  # press -> design (= press): identity when placed right
     assert np.linalg.norm(error[:2, 3]) < 20.0
     assert abs(np.degrees(np.arctan2(error[1, 0], error[0, 0]))) < 0.5  # turn about the vertical
@@ -74,8 +76,8 @@ def test_outline_fit_works_from_above_the_press_on_a_plate_tilted_on_it():
     tf_press_design = np.linalg.inv(tilt)
     for seed in (1, 2):
         sample = SimulatedScanner(seed=seed).sample(formed)
-        c = compare(design, sample.points, offset_mm=t / 2, tf_press_design=tf_press_design,
-                    punch_xy_mm=np.stack([px, py], axis=-1))
+        c = compare(design, sample.points, CompareOptions(offset_mm=t / 2, tf_press_design=tf_press_design,
+                    punch_xy_mm=np.stack([px, py], axis=-1)))
         assert "outline fit (from above the press)" in c.notes[0]
         error = tf_press_design @ c.transform @ sample.tf_scan_press  # identity when placed right
         assert np.linalg.norm(error[:2, 3]) < 4.0, seed
@@ -97,8 +99,8 @@ def test_outline_fit_keeps_the_surface_turn_of_a_well_formed_bilge():
     design_mark = design[np.argmin(np.linalg.norm(design[:, :2] - corner, axis=1))]
     for seed in (7, 10):
         sample = SimulatedScanner(seed=seed, occlusion_fraction=0.3).sample(formed, corner)
-        c = compare(design, sample.points, offset_mm=t / 2, tf_press_design=np.eye(4),
-                    punch_xy_mm=np.stack([px, py], axis=-1), reference_mark=(sample.mark_mm, design_mark))
+        c = compare(design, sample.points, CompareOptions(offset_mm=t / 2, tf_press_design=np.eye(4),
+                    punch_xy_mm=np.stack([px, py], axis=-1), reference_mark=(sample.mark_mm, design_mark)))
         error = c.transform @ sample.tf_scan_press  # press -> design (= press): identity when placed right
         assert abs(np.degrees(np.arctan2(error[1, 0], error[0, 0]))) < 0.1, seed
         assert c.rms_mm < 0.45 and c.max_abs_mm < 2.5

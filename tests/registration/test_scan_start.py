@@ -10,6 +10,7 @@ import scan_helpers as sh
 from mppf.core.errors import InputError
 from mppf.core.transform import rotation_angle_deg
 from mppf.measure.compare import compare
+from mppf.measure.options import CompareOptions
 from mppf.sim.scanner import SimulatedScanner
 
 
@@ -23,16 +24,16 @@ def test_rotation_hint_picks_the_right_turn_of_a_symmetric_plate():
     turn = rotation_angle_deg(sample.tf_scan_press)
     assert turn <= 20.0 + 1e-9
     assert np.allclose(sample.tf_scan_press[2, :3], [0.0, 0.0, 1.0])
-    c = compare(design, sample.points, offset_mm=t / 2, rotation_hint=np.eye(3))
+    c = compare(design, sample.points, CompareOptions(offset_mm=t / 2, rotation_hint=np.eye(3)))
     error = c.transform @ sample.tf_scan_press
     assert rotation_angle_deg(error) < 0.1
     # the geometry alone cannot tell: a hint turned by a half turn gives the turned pose, as good a fit
     half_turn = Rotation.from_euler("z", 180, degrees=True).as_matrix()
-    turned = compare(design, sample.points, offset_mm=t / 2, rotation_hint=half_turn)
+    turned = compare(design, sample.points, CompareOptions(offset_mm=t / 2, rotation_hint=half_turn))
     assert rotation_angle_deg(turned.transform @ sample.tf_scan_press) > 179.0
     assert turned.rms_mm == pytest.approx(c.rms_mm, abs=0.05)
     with pytest.raises(InputError, match="rotation_hint"):
-        compare(design, sample.points, rotation_hint=np.eye(2))
+        compare(design, sample.points, CompareOptions(rotation_hint=np.eye(2)))
 
 
 def test_reference_mark_gives_the_right_turn_of_a_symmetric_plate_in_any_pose():
@@ -59,7 +60,8 @@ def test_reference_mark_gives_the_right_turn_of_a_symmetric_plate_in_any_pose():
     for seed in (2, 3, 4, 5, 7, 8):
         sample = SimulatedScanner(seed=seed).sample(formed, corner)
         assert rotation_angle_deg(sample.tf_scan_press) > 1.0  # an arbitrary pose
-        c = compare(design, sample.points, offset_mm=t / 2, reference_mark=(sample.mark_mm, design_mark))
+        c = compare(design, sample.points, CompareOptions(offset_mm=t / 2, reference_mark=(sample.mark_mm,
+                design_mark)))
         turns.append(rotation_angle_deg(c.transform @ sample.tf_scan_press))
         assert turns[-1] < 10.0, seed  # not the half turn
         assert "reference mark" in c.notes[0]
@@ -67,7 +69,8 @@ def test_reference_mark_gives_the_right_turn_of_a_symmetric_plate_in_any_pose():
             assert "held in place" in c.notes[0], seed
     assert np.median(turns) < 1.5
     # a mark that fits no start is reported, the best fit kept
-    c = compare(design, sample.points, offset_mm=t / 2, reference_mark=(sample.mark_mm + 1e5, design_mark))
+    c = compare(design, sample.points, CompareOptions(offset_mm=t / 2, reference_mark=(sample.mark_mm + 1e5,
+            design_mark)))
     assert "check the mark" in c.notes[0]
     with pytest.raises(InputError, match="reference_mark"):
-        compare(design, sample.points, reference_mark=(np.zeros(2), design_mark))
+        compare(design, sample.points, CompareOptions(reference_mark=(np.zeros(2), design_mark)))
