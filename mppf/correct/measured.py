@@ -30,11 +30,19 @@ ask a model how far to press; it asks the plate:
   it (:func:`reverse_bend`), integrated to heights and held at every punch to ``|e| / g_min``
   (``g_min`` the smallest response measured on this plate, 1 before any secant): never more
   stroke than the evidence supports.
+
+Three forms, selectable in ``benchmarks/bench_loop.py --correction`` and not used by the loop (they lose
+to the learned correction: ``benchmarks/results/2026-12-06-loop-correction-3.md``, docs/correction.md):
+:func:`measured_correction` (in loaded heights, as above), :func:`curvature_correction` (point by point
+in curvature, integrated to heights) and :func:`hybrid_correction` (the latter with the learned
+correction's reverse bend at the over-bent punches). Each leaves the first correction to the learned one:
+the first press leaves elastic gaps that only the model knows.
 """
 
 from __future__ import annotations
 
 import itertools
+from dataclasses import replace
 
 import numpy as np
 
@@ -274,6 +282,46 @@ def curvature_correction(press: PressConfig, design_mid_mm, thickness_mm: float,
     section = Section(thickness_mm, nominal.youngs_modulus_mpa, nominal.poisson, nominal.yield_stress_mpa)
     return _strokes(press, grid, base_upper_mm, base_lower_mm, grid.to_field(change), error, response, section,
                     reverse, share)
+
+
+def hybrid_correction(press: PressConfig, design_mid_mm, thickness_mm: float, nominal: Material, cycles,
+                      base_upper_mm, base_lower_mm, active, edge_mm=None, share: float = 1.0,
+                      noise_mm: float = DEFAULT_NOISE_MM) -> LearnedCorrection:
+    """:func:`curvature_correction` on the loading side, the learned correction's reverse bend where over-bent.
+
+    Point by point in curvature: where the wanted change presses further into the bend, the loaded change is the
+    wanted one over the measured loading-side response; where it presses against the bend (over-bent), the loaded
+    curvature change of the learned correction (its model knows the elastic stretch a reverse bend must cross),
+    held to ``2 k_e + |wanted| / g_min`` (``k_e`` the calibrated model's elastic-limit curvature, ``g_min`` the
+    smallest response measured on this plate). The field is integrated to heights. Same parameters and result as
+    :func:`measured_correction`.
+    """
+    learned = learned_correction(press, design_mid_mm, thickness_mm, nominal, cycles, base_upper_mm, base_lower_mm,
+                                 active, edge_mm=edge_mm, scale=np.full(np.shape(active), share))
+    if sum(1 for c in cycles if c.measured) < 2:  # the first correction: the model knows the elastic gaps
+        return learned
+    grid = PunchGrid(press, active)
+    ring = outer_ring(active).ravel()[grid.index]
+    noise_per_mm = noise_mm * np.sqrt(6.0) / (press.pitch_x_mm * press.pitch_y_mm)
+    response = learn_curvature_response(grid, ring, design_mid_mm, cycles, noise_per_mm)
+    error = grid.plane_free @ grid.active_values(balanced_error(cycles[-1].error_mm, edge_mm))
+    want = -share * _curvature(grid, error)
+    design = np.asarray(design_mid_mm, float)
+    spring = grid.curvature(loaded_mid(cycles[-1])) - grid.curvature(design + cycles[-1].error_mm)
+    reverse = np.sum(want * spring, axis=1) < 0.0
+    model = _curvature(grid, grid.active_values(learned.change_mm))
+    limit = 2.0 * learned.calibration.section.elastic_limit_per_mm + np.linalg.norm(want, axis=1) / response.smallest
+    size = np.linalg.norm(model, axis=1)
+    model = model * np.minimum(1.0, limit / np.maximum(size, 1e-300))[:, None]
+    step = np.where(reverse[:, None], model, want / response.per_punch()[:, None])
+    change = grid.to_field(grid.heights_matrix @ step.ravel())
+    out = _strokes(press, grid, base_upper_mm, base_lower_mm, change, error, response, learned.calibration.section,
+                   reverse, share)
+    predicted = np.where(grid.to_field(reverse.astype(float)) == 1.0, learned.predicted_mm, out.predicted_mm)
+    return replace(out, predicted_mm=predicted, calibration=learned.calibration,
+                   notes=[*learned.notes[:1], *out.notes[:1],
+                          (f"{int(reverse.sum())} over-bent punch(es): the learned reverse bend, held to 2 k_e + "
+                           f"the wanted change / {response.smallest:.2f}")])
 
 
 def _strokes(press, grid, base_upper, base_lower, change, error, response, section, reverse, share):

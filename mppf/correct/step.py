@@ -14,7 +14,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from mppf.correct.learned import LearnedCorrection, learned_correction
-from mppf.correct.measured import curvature_correction, measured_correction
+from mppf.correct.measured import (
+    curvature_correction,
+    hybrid_correction,
+    measured_correction,
+)
 from mppf.correct.policy import (
     DEFAULT_NOISE_MM,
     Outcome,
@@ -52,10 +56,11 @@ class Tolerances:
     noise_mm: float = DEFAULT_NOISE_MM
 
 
-CORRECTIONS = ("learned", "measured", "curvature")
+CORRECTIONS = ("learned", "measured", "curvature", "hybrid")
 """The corrections :func:`correct_step` can use: the learned one (a model of the plate with its memory), the
 measured one (this plate's measured response in loaded heights, :mod:`mppf.correct.measured`) and the same point by
-point in curvature (:func:`mppf.correct.measured.curvature_correction`). The loop uses the learned one; the others
+point in curvature (:func:`mppf.correct.measured.curvature_correction`), and that one with the learned
+correction's reverse bend at the over-bent punches (:func:`mppf.correct.measured.hybrid_correction`). The loop uses the learned one; the others
 are measured against it by ``benchmarks/bench_loop.py --correction`` (docs/correction.md)."""
 
 
@@ -97,8 +102,9 @@ def correct_step(press: PressConfig, design_mid_mm, thickness_mm: float, nominal
     upper, lower = strokes[plan.base]
 
     def correct(share):
-        if correction in ("measured", "curvature"):
-            chosen = measured_correction if correction == "measured" else curvature_correction
+        if correction in ("measured", "curvature", "hybrid"):
+            chosen = {"measured": measured_correction, "curvature": curvature_correction,
+                      "hybrid": hybrid_correction}[correction]
             return chosen(press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower, active,
                           edge_mm=edge_mm, share=share, noise_mm=tolerances.noise_mm)
         return learned_correction(press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower, active,

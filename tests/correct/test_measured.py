@@ -14,6 +14,7 @@ from mppf.correct.learned import steps_towards
 from mppf.correct.measured import (
     LoadedResponse,
     curvature_correction,
+    hybrid_correction,
     loading_side,
     measured_correction,
     reverse_bend,
@@ -109,3 +110,23 @@ def test_point_by_point_in_curvature_the_loading_side_step_never_overshoots(setu
     assert rms[1] < 0.5 * rms[0]
     assert rms[-1] < 0.1 * rms[0]
     assert all(b <= 1.1 * min(rms[: k + 1]) for k, b in enumerate(rms[1:]))
+
+
+def test_an_over_bent_plate_is_reverse_bent_by_the_hybrid_where_the_evidence_bound_alone_stalls(setup):
+    press, active, design, grid = setup
+    mid = np.where(active, 3.0 * design, np.nan)  # pressed far too deep: over-bent everywhere
+    ends = {}
+    for correct in (curvature_correction, hybrid_correction):
+        steps, cycles, rms = [(mid + T / 2, mid - T / 2)], [], []
+        for n in range(5):
+            mids = [0.5 * (u + lo) for u, lo in steps]
+            error = _measure(grid, design, cycles + [PressedCycle(mids, None)])
+            cycles.append(PressedCycle(mids, error))
+            rms.append(float(np.sqrt(np.mean(error[active] ** 2))))
+            upper, lower = steps[-1]
+            step = correct(press, design, T, NOMINAL, cycles, upper, lower, active)
+            steps = [(s.upper_mm, s.lower_mm) for s in steps_towards(press, (upper, lower), step, active)]
+        ends[correct.__name__] = rms
+    stalled, hybrid = ends["curvature_correction"], ends["hybrid_correction"]
+    assert stalled[-1] > 0.8 * stalled[1]  # the reverse bend held to the evidence does not cross the stretch
+    assert hybrid[-1] < 0.6 * hybrid[1] and hybrid[-1] < 0.15 * hybrid[0]
