@@ -20,8 +20,9 @@ Plate physics (``--physics``, each a name or ``effect:factor``):
 
 Two ways to run a plate:
 
-- ``--mode direct`` (default): the loop's correction (or the one named by ``--correction``) (:func:`mppf.loop.correcting.learned_step`,
-  what :mod:`mppf.loop.correcting` calls) on the plate in process, on the TRUE deviation (the
+- ``--mode direct`` (default): the loop's correction (:func:`mppf.correct.step.correct_step`, what
+  :mod:`mppf.loop.correcting` calls; ``--correction`` names one of its candidates,
+  :data:`mppf.correct.step.CORRECTIONS`) on the plate in process, on the TRUE deviation (the
   formed mid-surface against the design over the net plate, best plane removed; at the
   punches and at the net edge for the correction). No scanner, no registration.
 - ``--mode loop``: :func:`mppf.loop.cycle.run_loop` with the in-process press and the
@@ -35,7 +36,7 @@ ends within 10 minutes; call again to go on. ``--table`` prints the tables of th
 
 Run:  python benchmarks/bench_loop.py [--physics steel yield:1.2 ...] [--sweep] [--seeds 1 2 3]
           [--plates P1_midbody_bilge_smooth ...] [--mode direct|loop] [--results FILE.json]
-          [--budget-s 540] [--correction learned|measured] [--table]
+          [--budget-s 540] [--correction learned|measured|curvature|hybrid] [--table]
           [--yield-uncertainty PCT | --trial-press FRACTION]  (the first press: issue 40)
 """
 
