@@ -42,6 +42,7 @@ def register_command(source: str, target: str, method: str, init: str, robust: s
     from mppf.geometry.read import read_points
     from mppf.geometry.write import WRITE_SUFFIXES, write_points
     from mppf.registration.register import register_icp, register_paired
+    from mppf.registration.settings import RegisterOptions
 
     if method == "paired":
         ctx = click.get_current_context()
@@ -66,12 +67,10 @@ def register_command(source: str, target: str, method: str, init: str, robust: s
         if method == "paired":
             result = register_paired(src.points, tgt.points)
         else:
-            result = register_icp(
-                src.points, tgt.points, method=method, init=init, max_iterations=max_iterations,
-                robust=None if robust == "none" else robust, trim_fraction=trim_fraction,
-                pin_outline={"auto": "auto", "yes": True, "no": False}[pin_outline],
-                reporter=RichReporter(enabled=not as_json),
-            )
+            options = RegisterOptions(method=method, init=init, max_iterations=max_iterations,
+                                      robust=None if robust == "none" else robust, trim_fraction=trim_fraction,
+                                      pin_outline={"auto": "auto", "yes": True, "no": False}[pin_outline])
+            result = register_icp(src.points, tgt.points, options, reporter=RichReporter(enabled=not as_json))
     except MppfError as exc:
         _name_the_file(exc, source, target)
         raise

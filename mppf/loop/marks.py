@@ -90,6 +90,7 @@ def design_asymmetry_mm(design_points) -> float:
     design_points : (n, 3) float, mm
     """
     from mppf.registration.register import register_icp
+    from mppf.registration.settings import RegisterOptions
     from mppf.registration.starts import principal_candidates
     from mppf.registration.target import build_target
     from mppf.registration.verdict import plane_residuals, sample_index
@@ -98,8 +99,8 @@ def design_asymmetry_mm(design_points) -> float:
     sample = target.points[sample_index(target.n_points, ASYMMETRY_POINTS, seed=3)]
     misfits = []
     for start in principal_candidates(target.frame, target.frame)[1:]:  # the first is no turn
-        fit = register_icp(sample, target, method="plane", init=start, pin_outline=False,
-                           max_points=ASYMMETRY_POINTS, max_iterations=30, check_starts=False)
+        fit = register_icp(sample, target, RegisterOptions(method="plane", init=start, pin_outline=False,
+                           max_points=ASYMMETRY_POINTS, max_iterations=30, check_starts=False))
         misfits.append(float(np.sqrt(np.mean(plane_residuals(target, sample, fit.tf) ** 2))))
     return min(misfits)
 

@@ -77,7 +77,7 @@ from mppf.measure.statistics import statistics
 from mppf.registration.outline_fit import refit_outline
 from mppf.registration.register import register_icp
 from mppf.registration.scan_start import choose_start, known_start
-from mppf.registration.settings import ScanStages
+from mppf.registration.settings import RegisterOptions, ScanStages
 from mppf.registration.target import build_target, prepare
 from mppf.registration.verdict import sample_index
 
@@ -270,11 +270,12 @@ def _register(scan, target, skin: DesignSkin, init, stages: ScanStages = STAGES)
        unless it slid part of the scan off the design's edge (grossly different shapes),
        then stage 1 is used.
     """
-    point = register_icp(scan, target, method="point", init=init, pin_outline=False,
-                         max_points=stages.point_points, max_iterations=stages.point_iterations, check_starts=False)
-    plane = register_icp(scan, target, method="plane", init=point.tf, trim_fraction=stages.trim_fraction,
-                         robust=stages.robust, pin_outline="auto", max_points=stages.plane_points,
-                         max_iterations=stages.plane_iterations, check_starts=False)
+    point = register_icp(scan, target, RegisterOptions(
+        method="point", init=init, pin_outline=False, max_points=stages.point_points,
+        max_iterations=stages.point_iterations, check_starts=False))
+    plane = register_icp(scan, target, RegisterOptions(
+        method="plane", init=point.tf, trim_fraction=stages.trim_fraction, robust=stages.robust, pin_outline="auto",
+        max_points=stages.plane_points, max_iterations=stages.plane_iterations, check_starts=False))
     # the overhang of each on a seeded sample of the scan; the deviations of every point once, at the one kept
     sample = scan.points[sample_index(scan.n_points, stages.plane_points, seed=5)]
     point_out = skin.deviate(sample, point.tf).outside.mean()

@@ -20,6 +20,7 @@ from mppf.core.transform import apply_tf, make_tf
 from mppf.geometry.frame import fit_frame
 from mppf.model.press import PressConfig
 from mppf.registration.register import Registration, register_icp, register_paired
+from mppf.registration.settings import RegisterOptions
 
 FLATNESS_FRACTION = 0.01
 """A flat plate may deviate from its plane by at most this fraction of its size."""
@@ -138,4 +139,4 @@ def register_design(design_points, flat_press_mm, reporter=NULL_REPORTER) -> Reg
     flat = np.asarray(flat_press_mm, dtype=float)
     if design.shape == flat.shape:
         return register_paired(design, flat)
-    return register_icp(design, flat, method="point", init="principal", reporter=reporter)
+    return register_icp(design, flat, RegisterOptions(method="point", init="principal"), reporter=reporter)

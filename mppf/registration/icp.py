@@ -1,7 +1,7 @@
 """The ICP loop behind :func:`mppf.registration.register.register_icp`.
 
 :func:`run` iterates "match closest points of the fixed :class:`~mppf.registration.target.RegistrationTarget`,
-weight the pairs, solve one step (quaternion or linearised point-to-plane), pin the
+weight the pairs (:mod:`mppf.registration.pairs`), solve one step (quaternion or linearised point-to-plane), pin the
 outline, test the stop criteria"; :func:`evaluate` and
 :func:`mppf.registration.uncertainty.uncertainty` describe the result. How pairs are formed and weighted is a :class:`~mppf.registration.settings.Matching`.
 All lengths in mm, angles in radians unless a name says ``_deg``.
@@ -13,20 +13,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mppf.core.defaults import MAD_SCALE
 from mppf.core.errors import GeometryError
 from mppf.core.kdtree import spatial_order
 from mppf.core.progress import NULL_REPORTER, Reporter
 from mppf.core.rigid import fit_rigid
 from mppf.core.transform import apply_tf, make_tf, matrix_to_rotvec, rotvec_to_matrix
+from mppf.registration.pairs import Pairs, pair_weights
 from mppf.registration.settings import Matching
 from mppf.registration.target import RegistrationTarget
-
-HUBER_K = 1.345
-"""Huber threshold in robust scales (95 % efficiency for Gaussian residuals)."""
-
-TUKEY_C = 4.685
-"""Tukey biweight cut-off in robust scales (95 % efficiency for Gaussian residuals)."""
 
 UNOBSERVABLE = 1e-5
 """Directions of a linearised step whose information is below this fraction of the largest are held."""
@@ -37,58 +31,6 @@ MAX_EXTRAPOLATION = 25.0
 STALL_ITERATIONS = 10
 """A stage stops when its MSE has not reached a new low (by the relative tolerance) for this
 many iterations: the closest-point sets cycle (seen with point-to-plane on 4,000 points)."""
-
-
-@dataclass(frozen=True, eq=False)
-class Pairs:
-    """Matched pairs at one transform."""
-
-    moved: np.ndarray
-    matched: np.ndarray
-    index: np.ndarray
-    distance: np.ndarray
-    residual: np.ndarray
-    weight: np.ndarray
-    normal: np.ndarray | None
-
-    @property
-    def mse(self) -> float:
-        """Weighted mean squared residual, mm^2."""
-        return float(np.average(self.residual**2, weights=self.weight))
-
-    @property
-    def rms_mm(self) -> float:
-        """Weighted RMS residual, mm."""
-        return float(np.sqrt(self.mse))
-
-    @property
-    def inlier_fraction(self) -> float:
-        """Fraction of pairs with a non-zero weight."""
-        return float(np.count_nonzero(self.weight) / self.weight.size)
-
-
-def pair_weights(residual: np.ndarray, trim_fraction, robust) -> np.ndarray:
-    """Weights of pairs: trimmed (worst fraction dropped) and/or robust (Huber, Tukey).
-
-    The robust scale is 1.4826 times the median absolute residual of the kept pairs.
-    """
-    a = np.abs(residual)
-    w = np.ones_like(a)
-    if trim_fraction:
-        keep = max(3, int(np.ceil((1.0 - trim_fraction) * a.size)))
-        if keep < a.size:
-            cutoff = np.partition(a, keep - 1)[keep - 1]
-            w[a > cutoff] = 0.0
-    if robust:
-        scale = MAD_SCALE * float(np.median(a[w > 0]))
-        scale = max(scale, 1e-9 * (1.0 + float(a.max())))
-        if robust == "huber":
-            c = HUBER_K * scale
-            w *= np.where(a <= c, 1.0, c / np.maximum(a, c))
-        else:
-            c = TUKEY_C * scale
-            w *= np.where(a < c, (1.0 - (a / c) ** 2) ** 2, 0.0)
-    return w
 
 
 class Nearest:

@@ -28,7 +28,7 @@ from mppf.core.progress import NULL_REPORTER, Reporter
 from mppf.core.rigid import fit_rigid
 from mppf.core.transform import apply_tf, as_points, tf_to_list
 from mppf.registration import icp, stages
-from mppf.registration.settings import IcpSettings, PrincipalStart
+from mppf.registration.settings import RegisterOptions, PrincipalStart
 from mppf.registration.target import (
     NORMAL_NEIGHBOURS,
     Cloud,
@@ -199,20 +199,6 @@ def register_paired(source, target, weights=None) -> Registration:
     )
 
 
-def _check_init(init) -> None:
-    if isinstance(init, str):
-        if init not in ("principal", "identity"):
-            raise InputError(f"unknown init {init!r}", hint="use principal, identity or a 4x4 transform")
-        return
-    tf0 = np.asarray(init, dtype=float)
-    if tf0.shape != (4, 4) or not np.all(np.isfinite(tf0)):
-        raise InputError(f"init must be a finite 4x4 transform, got shape {tf0.shape}")
-    rot = tf0[:3, :3]
-    if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-6) or np.linalg.det(rot) < 0:
-        raise InputError("init is not a rigid transform (its 3x3 part is not a rotation)",
-                         hint="give a proper rotation and a translation")
-
-
 MIN_ICP_POINTS = 10
 """Fewest points of either cloud an ICP registration is run on (three points fit any surface: no verdict)."""
 
@@ -243,24 +229,12 @@ def _as_target(target, method: str) -> RegistrationTarget:
     return build_target(target, "target")
 
 
-def register_icp(
-    source,
-    target,
-    *,
-    method: str = "point",
-    init="principal",
-    max_iterations: int = 100,
-    trim_fraction: float | None = None,
-    robust: str | None = None,
-    max_points: int = 30000,
-    pin_outline="auto",
-    tol_translation_mm: float = 1e-3,
-    tol_rotation_rad: float = 1e-5,
-    tol_relative_mse: float = 1e-9,
-    seed: int = 0,
-    check_starts: bool = True,
-    reporter: Reporter = NULL_REPORTER,
-) -> Registration:
+DEFAULT = RegisterOptions()
+"""The default options of :func:`register_icp`."""
+
+
+def register_icp(source, target, options: RegisterOptions = DEFAULT, reporter: Reporter = NULL_REPORTER
+                 ) -> Registration:
     """Register a source cloud onto a target cloud by iterative closest points.
 
     Parameters
@@ -275,41 +249,11 @@ def register_icp(
         :class:`~mppf.registration.target.RegistrationTarget` built once
         (:func:`~mppf.registration.target.build_target`) spares its k-d tree, frame and
         normals to repeated registrations onto the same target.
-    method : {"point", "plane"}
-        Point-to-point (the paper) or point-to-plane. A plane metric is never used
-        between a flat and a curved plate: it is overridden by "point" (noted).
-    init : {"principal", "identity"} or (4, 4) float
-        Start: principal axes and centroids (the four proper sign flips are each run to
-        convergence on a subsample and scored on one common sample, the best is kept), the
-        identity, or a given source-to-target transform.
-    max_iterations : int
-        Iteration limit of each stage (coarse and fine).
-    trim_fraction : float, optional
-        Drop this fraction of the worst pairs each iteration (e.g. 0.1).
-    robust : {"huber", "tukey"}, optional
-        Robust pair weights, scale from the median absolute residual.
-    max_points : int
-        The source is registered on at most this many points (a seeded random
-        subsample); a coarse stage (unpinned, tolerances x 10) runs first, on
-        ``IcpSettings.coarse_points`` of clouds above twice that. The target is always used whole.
-    pin_outline : {"auto", True, False}
-        Let the outline (area centroid and, for elongated plates, principal axes of the
-        convex outline in the target's plate plane) have its say in the in-plane pose,
-        direction by direction as much as the surface leaves it free
-        (:mod:`mppf.registration.pin`). "auto": when both clouds cover the same plate
-        (outline areas and extents within 12 %).
-    tol_translation_mm, tol_rotation_rad : float
-        Converged when one iteration moves the source centroid less than this and
-        turns it less than this.
-    tol_relative_mse : float
-        Also converged when the mean squared residual changes by less than this
-        fraction between iterations.
-    seed : int
-        Seed of the subsampling (results are reproducible).
-    check_starts : bool
-        From the identity or a given start, also converge the four principal-axes starts
-        and continue from the best when it fits clearly better (a wrong start settles as
-        readily as the right one); off when the caller compares starts itself.
+    options : RegisterOptions
+        Metric, start, iterations, trimming and robust weights, subsampling, outline pin,
+        tolerances (:class:`mppf.registration.settings.RegisterOptions`, checked when built).
+        A plane metric is never used between a flat and a curved plate: it is overridden by
+        "point" (noted).
     reporter : Reporter
         Progress (iterations). Decisions are returned in ``Registration.notes``.
 
@@ -322,27 +266,25 @@ def register_icp(
     Raises
     ------
     InputError
-        Bad options, NaN/inf in the points.
+        NaN/inf in the points, options not given as RegisterOptions.
     GeometryError
         Fewer than 3 points or points that do not span a plane (either cloud).
     """
     from threadpoolctl import threadpool_limits
 
-    settings = IcpSettings(method=method, max_iterations=max_iterations, trim_fraction=trim_fraction, robust=robust,
-                           max_points=max_points, pin_outline=pin_outline, tol_translation_mm=tol_translation_mm,
-                           tol_rotation_rad=tol_rotation_rad, tol_relative_mse=tol_relative_mse, seed=seed,
-                           check_starts=check_starts)
-    _check_init(init)
+    if not isinstance(options, RegisterOptions):
+        raise InputError(f"register_icp takes its options as a RegisterOptions, got {type(options).__name__}",
+                         hint="build them with mppf.registration.settings.RegisterOptions(...)")
     # many (n, 3) @ (3, 3) products, and the frames' small least squares: one BLAS thread is faster than a pool
     # that spins (the bulge fit of a 20,000-point frame: 1.2 ms of CPU against 8 ms on the 2 shared cores)
     with threadpool_limits(limits=1, user_api="blas"):
         cloud = source if isinstance(source, Cloud) else prepare(source, "source")
-        tgt = _as_target(target, method)
-        return _register(cloud, tgt, init, settings, reporter)
+        tgt = _as_target(target, options.method)
+        return _register(cloud, tgt, options, reporter)
 
 
-def converge_start(cloud: Cloud, target: RegistrationTarget, start_tf, settings: IcpSettings) -> np.ndarray:
-    """A start converged (4, 4): ``register_icp(cloud, target, init=start_tf, ...).tf`` for ``settings``
+def converge_start(cloud: Cloud, target: RegistrationTarget, start_tf, settings: RegisterOptions) -> np.ndarray:
+    """A start converged (4, 4): ``register_icp(cloud, target, replace(settings, init=start_tf)).tf``
     (``pin_outline=False, check_starts=False``) without the noise floor, verdict and uncertainty a start
     fit does not use (about half of a fit on 2,000 points). ``cloud`` prepared, ``target`` built.
     """
@@ -359,7 +301,7 @@ def converge_start(cloud: Cloud, target: RegistrationTarget, start_tf, settings:
     return fit.fine.tf
 
 
-def _register(cloud: Cloud, target: RegistrationTarget, init, settings: IcpSettings, reporter: Reporter):
+def _register(cloud: Cloud, target: RegistrationTarget, settings: RegisterOptions, reporter: Reporter):
     """The steps of :func:`register_icp` on checked inputs."""
     notes: list[str] = []
     # 1. never a plane metric between a flat and a curved plate
@@ -369,11 +311,11 @@ def _register(cloud: Cloud, target: RegistrationTarget, init, settings: IcpSetti
     # 3. the noise floor: the residual the right pose leaves
     floor = stages.floor(cloud, target, points)
     # 4. the start: the best converged principal-axes candidate, the identity or the given transform
-    tf0, init_info = stages.start(init, target, cloud, points, matching, flat_vs_curved, floor, PRINCIPAL)
+    tf0, init_info = stages.start(settings.init, target, cloud, points, matching, flat_vs_curved, floor, PRINCIPAL)
     # 5. coarse stage, then the fine stage with the outline's say where the surface leaves the pose free
     fit = stages.fit(target, cloud, points, tf0, matching, settings, flat_vs_curved, floor, notes, reporter)
     # 6. from a given start that settled: converge the principal-axes starts too, go on from a clearly better one
-    if not (isinstance(init, str) and init == "principal") and settings.check_starts and fit.fine.converged:
+    if not settings.principal_start and settings.check_starts and fit.fine.converged:
         fit, init_info = stages.check_starts(target, cloud, points, fit, init_info, matching, settings,
                                              flat_vs_curved, floor, notes, PRINCIPAL)
     # 7. the verdict, final residuals and uncertainty

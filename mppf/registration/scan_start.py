@@ -24,7 +24,7 @@ from mppf.core.errors import EXIT_PRESS, InputError, MppfError
 from mppf.core.threads import worker_threads
 from mppf.core.transform import apply_tf, make_tf, rotation_angle_deg, rotvec_to_matrix
 from mppf.registration.register import converge_start, register_icp
-from mppf.registration.settings import IcpSettings, ScanStart
+from mppf.registration.settings import RegisterOptions, ScanStart
 from mppf.registration.starts import evaluate, principal_candidates, rank
 from mppf.registration.target import Cloud, RegistrationTarget
 from mppf.registration.verdict import noise_floor_mm, plane_residuals, robust_scale_mm, sample_index, tie
@@ -213,8 +213,8 @@ def start_tie(target: RegistrationTarget, best, other, floor_mm: float) -> tuple
         return False, None
     relative = other.tf @ np.linalg.inv(best.tf)  # design -> design: one pose onto the other
     sample = target.points[sample_index(target.n_points, 1500, seed=2)]
-    fit = register_icp(sample, target, method="plane", init=relative, pin_outline=False, max_points=1500,
-                       max_iterations=30, check_starts=False)
+    fit = register_icp(sample, target, RegisterOptions(method="plane", init=relative, pin_outline=False,
+                                                       max_points=1500, max_iterations=30, check_starts=False))
     asymmetry = float(np.sqrt(np.mean(plane_residuals(target, sample, fit.tf) ** 2)))
     residual = robust_scale_mm(best.normal)
     return bool(tie(best.normal, other.normal, floor_mm) or asymmetry < SYMMETRY_FACTOR * residual), asymmetry
@@ -270,7 +270,7 @@ def _map(fit, starts, settings: ScanStart) -> list:
 
 def _start_fit(scan, target, start, settings: ScanStart) -> np.ndarray:
     """A start converged by trimmed, Huber-weighted point-to-plane ICP on a subsample (measured -> design)."""
-    return converge_start(scan, target, start, IcpSettings(method="plane", trim_fraction=settings.trim_fraction,
+    return converge_start(scan, target, start, RegisterOptions(method="plane", trim_fraction=settings.trim_fraction,
                                                            robust="huber", pin_outline=False, max_points=settings.points,
                                                            max_iterations=settings.iterations, check_starts=False))
 
@@ -308,7 +308,7 @@ def _held_fit(scan, target, start, mark, sample, settings: ScanStart) -> tuple[n
     tf = np.array(start, dtype=float)
     for _ in range(settings.hold_rounds):
         tf[:3, 3] += mark[1] - apply_tf(tf, mark[0][None])[0]
-        tf = np.array(converge_start(scan, target, tf, IcpSettings(
+        tf = np.array(converge_start(scan, target, tf, RegisterOptions(
             method="point", trim_fraction=settings.trim_fraction, pin_outline=False, max_points=settings.points,
             max_iterations=max(settings.iterations // settings.hold_rounds, 1), check_starts=False)), dtype=float)
     tf[:3, 3] += mark[1] - apply_tf(tf, mark[0][None])[0]
@@ -325,7 +325,8 @@ def as_rotation(rotation_hint) -> np.ndarray:
     """The (3, 3) rotation of a hint given as (3, 3) or (4, 4); InputError for another shape or NaN."""
     hint = np.asarray(rotation_hint, dtype=float)
     if hint.shape not in ((3, 3), (4, 4)) or not np.all(np.isfinite(hint)):
-        raise InputError(f"rotation_hint must be a (3, 3) rotation or a (4, 4) transform, got shape {hint.shape}")
+        raise InputError(f"rotation_hint must be a finite (3, 3) rotation or (4, 4) transform, got shape {hint.shape}",
+                         hint="give the rough rotation measured -> design, e.g. the inverse of the job's press pose")
     return hint[:3, :3]
 
 
@@ -337,5 +338,6 @@ def as_mark(reference_mark) -> tuple[np.ndarray, np.ndarray]:
         raise InputError("reference_mark must be a pair (measured_xyz, design_xyz) of 3 coordinates each",
                          hint="give the mark's position in the scan and the corner's on the design, mm") from None
     if not (np.all(np.isfinite(measured)) and np.all(np.isfinite(design))):
-        raise InputError(f"reference_mark has NaN or infinite coordinates: {measured}, {design}")
+        raise InputError(f"reference_mark has NaN or infinite coordinates: {measured}, {design}",
+                         hint="give the mark's position in the scan and the corner's on the design, mm")
     return measured, design

@@ -1,8 +1,7 @@
 """Typed settings of the registration stages: one frozen dataclass per stage, defaults commented.
 
 - :class:`Matching`: how the ICP pairs are formed and weighted (one ICP loop).
-- :class:`IcpSettings`: one :func:`mppf.registration.register.register_icp` call (its
-  keyword arguments).
+- :class:`RegisterOptions`: the options of one :func:`mppf.registration.register.register_icp` call.
 - :class:`PrincipalStart`: the scoring of the four principal-axes starts of ``register_icp``.
 - :class:`ScanStart`: the start of a scan's registration onto its design
   (:mod:`mppf.registration.scan_start`: converged starts, rotation hint, reference mark).
@@ -18,6 +17,8 @@ lengths in mm, angles in degrees unless a name says ``_rad``.
 from __future__ import annotations
 
 from dataclasses import dataclass
+
+import numpy as np
 
 from mppf.core.errors import InputError
 from mppf.core.validate import check_number
@@ -47,26 +48,58 @@ class Matching:
             raise InputError(f"unknown robust kernel {self.robust!r}", hint=f"use one of {', '.join(ROBUST_KERNELS)}")
 
 
-@dataclass(frozen=True)
-class IcpSettings:
-    """One ICP registration (the keyword arguments of ``register_icp``)."""
+@dataclass(frozen=True, eq=False)
+class RegisterOptions:
+    """The options of one ICP registration (:func:`mppf.registration.register.register_icp`), checked once.
 
-    method: str = "point"               # error metric, see Matching.metric
-    max_iterations: int = 100           # iteration limit of each stage (coarse and fine)
-    trim_fraction: float | None = None  # see Matching.trim_fraction
-    robust: str | None = None           # see Matching.robust
-    max_points: int = 30000             # the source is registered on at most this many points (a seeded subsample)
-    coarse_points: int = 4000           # points of the coarse stage of sources above twice this many
-    pin_outline: bool | str = "auto"    # pin the in-plane position by the outline: "auto", True or False
-    tol_translation_mm: float = 1e-3    # converged when an iteration moves the source centroid less than this ...
-    tol_rotation_rad: float = 1e-5      # ... and turns it less than this
-    tol_relative_mse: float = 1e-9      # also converged when the MSE changes by less than this fraction
-    seed: int = 0                       # seed of the subsampling (results are reproducible)
-    check_starts: bool = True           # from a given or identity start, also converge the principal-axes
-    #                                     starts and keep the best (a wrong start settles as readily)
+    Attributes
+    ----------
+    method : {"point", "plane"}
+        Error metric, see :attr:`Matching.metric`. Default "point".
+    init : {"principal", "identity"} or (4, 4) float
+        Start: principal axes and centroids (the four sign flips converged, the best kept),
+        the identity, or a given rigid source-to-target transform. Default "principal".
+    max_iterations : int
+        Iteration limit of each stage (coarse and fine), >= 1. Default 100.
+    trim_fraction, robust
+        See :class:`Matching`. Default None (no trim, plain least squares).
+    max_points : int
+        The source is registered on at most this many points (a seeded subsample), >= 100.
+        Default 30000.
+    coarse_points : int
+        Points of the coarse stage of sources above twice this many. Default 4000.
+    pin_outline : {"auto", True, False}
+        Let the outline have its say in the in-plane pose where the surface leaves it free
+        (:mod:`mppf.registration.pin`); "auto": when both clouds cover the same plate.
+    tol_translation_mm, tol_rotation_rad : float
+        Converged when an iteration moves the source centroid less than this (mm) and turns
+        it less than this (rad). Defaults 1e-3 mm, 1e-5 rad.
+    tol_relative_mse : float
+        Also converged when the MSE changes by less than this fraction. Default 1e-9.
+    seed : int
+        Seed of the subsampling (results are reproducible). Default 0.
+    check_starts : bool
+        From a given or identity start, also converge the principal-axes starts and keep
+        the best (a wrong start settles as readily). Default True.
+    """
+
+    method: str = "point"
+    init: str | np.ndarray = "principal"
+    max_iterations: int = 100
+    trim_fraction: float | None = None
+    robust: str | None = None
+    max_points: int = 30000
+    coarse_points: int = 4000
+    pin_outline: bool | str = "auto"
+    tol_translation_mm: float = 1e-3
+    tol_rotation_rad: float = 1e-5
+    tol_relative_mse: float = 1e-9
+    seed: int = 0
+    check_starts: bool = True
 
     def __post_init__(self):
         Matching(self.method, self.trim_fraction, self.robust)  # checks those three
+        check_init(self.init)
         check_number("max_iterations", self.max_iterations, low=1, integer=True,
                      hint="give the iteration limit per stage, e.g. 100")
         check_number("max_points", self.max_points, low=100, integer=True)
@@ -74,6 +107,11 @@ class IcpSettings:
             raise InputError(f"pin_outline must be 'auto', True or False, got {self.pin_outline!r}")
         for name in ("tol_translation_mm", "tol_rotation_rad", "tol_relative_mse"):
             check_number(name, getattr(self, name), low=0.0)
+
+    @property
+    def principal_start(self) -> bool:
+        """Whether the start is the principal axes' (not the identity or a given transform)."""
+        return isinstance(self.init, str) and self.init == "principal"
 
     @property
     def matching(self) -> Matching:
@@ -152,3 +190,18 @@ class OutlineFit:
     #                                   a piece is used: it narrows from the first to the second value
     slope_floor: float = 0.2          # the normal's z component is held at least this when a deviation along the
     #                                   normal is turned into a height along z
+
+
+def check_init(init) -> None:
+    """Refuse a start that is neither "principal", "identity" nor a finite rigid (4, 4) transform (InputError)."""
+    if isinstance(init, str):
+        if init not in ("principal", "identity"):
+            raise InputError(f"unknown init {init!r}", hint="use principal, identity or a 4x4 transform")
+        return
+    tf0 = np.asarray(init, dtype=float)
+    if tf0.shape != (4, 4) or not np.all(np.isfinite(tf0)):
+        raise InputError(f"init must be a finite 4x4 transform, got shape {tf0.shape}")
+    rot = tf0[:3, :3]
+    if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-6) or np.linalg.det(rot) < 0:
+        raise InputError("init is not a rigid transform (its 3x3 part is not a rotation)",
+                         hint="give a proper rotation and a translation")

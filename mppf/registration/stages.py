@@ -16,8 +16,9 @@ import numpy as np
 
 from mppf.core.progress import NULL_REPORTER, Reporter
 from mppf.registration import icp
+from mppf.registration.pairs import Pairs
 from mppf.registration.pin import outline_candidates, outline_pin, surface_covariance
-from mppf.registration.settings import IcpSettings, Matching, PrincipalStart
+from mppf.registration.settings import RegisterOptions, Matching, PrincipalStart
 from mppf.registration.starts import (
     Candidate,
     compared,
@@ -41,7 +42,7 @@ class Points:
     Attributes
     ----------
     fine : (k, 3) float
-        At most ``IcpSettings.max_points``: the fine stage.
+        At most ``RegisterOptions.max_points``: the fine stage.
     coarse : (j, 3) float
         The coarse stage (``fine`` itself for small clouds).
     fit : (i, 3) float
@@ -71,7 +72,7 @@ class Fit:
     nearest: icp.Nearest
 
 
-def matching(cloud: Cloud, target: RegistrationTarget, settings: IcpSettings, notes: list) -> tuple[Matching, bool]:
+def matching(cloud: Cloud, target: RegistrationTarget, settings: RegisterOptions, notes: list) -> tuple[Matching, bool]:
     """The pairing of the registration and whether a flat plate faces a curved one (notes: an overridden metric)."""
     flat_vs_curved = cloud.flat != target.flat
     method = settings.method
@@ -88,7 +89,7 @@ def _subsample(n: int, count: int, rng: np.random.Generator) -> np.ndarray:
     return np.sort(rng.choice(n, size=count, replace=False))
 
 
-def subsamples(cloud: Cloud, settings: IcpSettings, principal: PrincipalStart = PrincipalStart()) -> Points:
+def subsamples(cloud: Cloud, settings: RegisterOptions, principal: PrincipalStart = PrincipalStart()) -> Points:
     """The seeded subsamples of the source (see :class:`Points`)."""
     rng = np.random.default_rng(settings.seed)
     src = cloud.points
@@ -123,7 +124,7 @@ def start(init, target: RegistrationTarget, cloud: Cloud, points: Points, matchi
 
 
 def fit(target: RegistrationTarget, cloud: Cloud, points: Points, tf0: np.ndarray, matching: Matching,
-        settings: IcpSettings, flat_vs_curved: bool, floor_mm: float, notes: list, reporter: Reporter) -> Fit:
+        settings: RegisterOptions, flat_vs_curved: bool, floor_mm: float, notes: list, reporter: Reporter) -> Fit:
     """Coarse stage (unpinned), the outline pin at its result, the fine stage."""
     tol = settings.tolerances
     nearest = icp.Nearest(target)  # the fine points' closest target points, kept from loop to loop
@@ -170,7 +171,7 @@ def _outline_pin(target, cloud, points, tf, matching, pin_outline, flat_vs_curve
     return pin
 
 
-def same_sampling(pairs: icp.Pairs) -> bool:
+def same_sampling(pairs: Pairs) -> bool:
     """Whether the pairs' in-plane offsets are noise (clouds sampled alike: a moved copy), not the sampling
     (:func:`mppf.registration.starts.sampled_alike`)."""
     normal = np.einsum("ij,ij->i", pairs.moved - pairs.matched, pairs.normal)
@@ -178,7 +179,7 @@ def same_sampling(pairs: icp.Pairs) -> bool:
 
 
 def check_starts(target: RegistrationTarget, cloud: Cloud, points: Points, result: Fit, info: dict,
-                 matching: Matching, settings: IcpSettings, flat_vs_curved: bool, floor_mm: float, notes: list,
+                 matching: Matching, settings: RegisterOptions, flat_vs_curved: bool, floor_mm: float, notes: list,
                  principal: PrincipalStart) -> tuple[Fit, dict]:
     """From a given (or identity) start: converge the principal-axes starts too, go on from a clearly better one.
 

@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from mppf.registration.icp import UNOBSERVABLE, Pairs
+from mppf.registration.icp import UNOBSERVABLE
+from mppf.registration.pairs import Pairs
 from mppf.registration.target import RegistrationTarget
 
 

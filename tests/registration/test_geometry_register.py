@@ -10,6 +10,7 @@ from scipy.spatial.transform import Rotation
 from mppf.geometry.frame import fit_frame
 from mppf.geometry.read import read_points
 from mppf.registration.register import register_icp
+from mppf.registration.settings import RegisterOptions
 from mppf.core.transform import apply_tf, make_tf
 from mppf.geometry.unfold import unfold
 
@@ -23,7 +24,8 @@ def test_identical_hull_patch_in_two_positions_registers_exactly(hull_dir, name,
     src = read_points(hull_dir / name).points
     rng = np.random.default_rng(HULL.index(name))
     tf_true = make_tf(Rotation.random(random_state=rng.integers(1 << 30)).as_matrix(), rng.uniform(-3000, 3000, 3))
-    result = register_icp(src, apply_tf(tf_true, src), method=method)  # defaults: principal start, pin auto
+    # defaults: principal start, pin auto
+    result = register_icp(src, apply_tf(tf_true, src), RegisterOptions(method=method))
     assert result.converged
     assert result.rms_mm < 1e-6
     assert np.abs(apply_tf(result.tf, src) - apply_tf(tf_true, src)).max() < 1e-6
@@ -36,7 +38,7 @@ def test_unfolded_flat_plate_lands_centred_on_its_design(hull_dir, name):
     curved = read_points(hull_dir / name).points
     flat = unfold(curved).flat
     moved_flat = apply_tf(make_tf(Rotation.random(random_state=11).as_matrix(), [3000, -200, 900]), flat)
-    result = register_icp(moved_flat, curved, method="plane")
+    result = register_icp(moved_flat, curved, RegisterOptions(method="plane"))
     assert result.method == "point" and result.outline_pinned
     frame = fit_frame(curved)
     landed = frame.to_local(apply_tf(result.tf, moved_flat))

@@ -7,7 +7,7 @@ import pytest
 
 from mppf.core.errors import InputError
 from mppf.registration.register import register_icp
-from mppf.registration.settings import IcpSettings, Matching
+from mppf.registration.settings import Matching, RegisterOptions
 from registration_helpers import asymmetric_surface
 
 
@@ -27,15 +27,15 @@ from registration_helpers import asymmetric_surface
 def test_icp_bad_options(kwargs, words):
     pts = asymmetric_surface(6, 5)
     with pytest.raises(InputError, match=words):
-        register_icp(pts, pts, **kwargs)
+        register_icp(pts, pts, RegisterOptions(**kwargs))
 
 def test_settings_are_frozen_and_give_the_matching():
-    settings = IcpSettings(method="plane", trim_fraction=0.1, robust="huber")
+    settings = RegisterOptions(method="plane", trim_fraction=0.1, robust="huber")
     assert settings.matching == Matching("plane", 0.1, "huber")
     assert settings.tolerances == (1e-3, 1e-5, 1e-9)
     with pytest.raises(AttributeError):
         settings.method = "point"
     with pytest.raises(InputError, match="max_points"):
-        IcpSettings(max_points=50)
+        RegisterOptions(max_points=50)
     with pytest.raises(InputError, match="tol_translation_mm"):
-        IcpSettings(tol_translation_mm=float("nan"))
+        RegisterOptions(tol_translation_mm=float("nan"))

@@ -32,6 +32,7 @@ from mppf.core.transform import (
 from mppf.geometry.frame import fit_frame
 from mppf.geometry.read import read_points
 from mppf.registration.register import register_icp, register_paired
+from mppf.registration.settings import RegisterOptions
 
 HULL_FILES = [
     "P1_midbody_bilge.csv", "P1_midbody_bilge_smooth.csv", "P2_bow_flare.csv",
@@ -140,7 +141,7 @@ def test_icp_identical_surfaces_register_exactly(init):
     tf_true = random_motion(3) if init == "principal" else make_tf(
         Rotation.from_euler("xyz", [4, -3, 6], degrees=True).as_matrix(), [40, -25, 30])
     # unpinned: the paper's quaternion steps land exactly once the closest points are right
-    result = register_icp(src, apply_tf(tf_true, src), init=init, pin_outline=False)
+    result = register_icp(src, apply_tf(tf_true, src), RegisterOptions(init=init, pin_outline=False))
     assert result.converged
     assert result.rms_mm < 1e-6
     assert np.abs(result.tf - tf_true).max() <= 1e-9 * max(1.0, np.abs(tf_true).max())
@@ -154,7 +155,7 @@ def test_icp_property_random_rotations_principal_start(seed):
     src = asymmetric_surface(30, 20)
     tf_true = random_motion(seed)
     target = apply_tf(tf_true, src)
-    exact = register_icp(src, target, pin_outline=False)
+    exact = register_icp(src, target, RegisterOptions(pin_outline=False))
     assert np.abs(exact.tf - tf_true).max() <= 1e-9 * max(1.0, np.abs(tf_true).max())
     assert not exact.ambiguous_start
     # with the outline pin (default) the iterations stop at the increment tolerance
@@ -176,7 +177,7 @@ def test_each_hull_patch_registers_to_a_moved_noisy_copy(hull, name):
     src = hull[name]
     tf_true = random_motion(seed)
     tgt = apply_tf(tf_true, src) + rng.normal(scale=0.5, size=src.shape)
-    result = register_icp(src, tgt, method="point")
+    result = register_icp(src, tgt, RegisterOptions(method="point"))
     rot_err, shift_err = motion_error(result.tf, tf_true, src.mean(axis=0))
     if name in HALF_TURN_SYMMETRIC:
         # the two turns tie: flagged, and the result is one of them
@@ -198,7 +199,7 @@ def test_point_to_point_turn_on_a_differently_sampled_100k_scan():
     # the point spacing and follow the sampling, not the shape; point-to-point left the turn
     # about the normal to them and ended 0.097 degree off here (0.24 - 0.40 at 10k points)
     design, scan = sampled_scan(100_000, 100_000, seed=2)
-    result = register_icp(scan, design, method="point")
+    result = register_icp(scan, design, RegisterOptions(method="point"))
     rot_err, shift_err = motion_error(result.tf, PLATE_POSE, scan.mean(axis=0))
     assert result.outline_pinned and result.converged
     assert rot_err < 0.025, result.stop_reason
@@ -208,7 +209,7 @@ def test_point_to_point_turn_on_a_differently_sampled_100k_scan():
 def test_icp_reports_iteration_limit_and_history():
     src = asymmetric_surface()
     tf_true = make_tf(Rotation.from_euler("z", 8, degrees=True).as_matrix(), [60, 0, 0])
-    result = register_icp(src, apply_tf(tf_true, src), init="identity", max_iterations=2)
+    result = register_icp(src, apply_tf(tf_true, src), RegisterOptions(init="identity", max_iterations=2))
     assert not result.converged
     assert result.stop_reason == "iteration limit reached"
     assert result.iterations == 4  # the limit holds for each stage, coarse and fine
@@ -218,7 +219,7 @@ def test_icp_reports_iteration_limit_and_history():
 
 def test_to_dict_is_json(hull):
     src = hull["P3_stern_saddle.csv"]
-    result = register_icp(src, apply_tf(random_motion(4), src), method="plane")
+    result = register_icp(src, apply_tf(random_motion(4), src), RegisterOptions(method="plane"))
     data = json.loads(json.dumps(result.to_dict()))
     for key in ("rms_mm", "iterations", "transform", "method", "converged", "stop_reason",
                 "inlier_fraction", "uncertainty", "init", "ambiguous_start", "outline_pinned"):

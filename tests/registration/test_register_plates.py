@@ -9,6 +9,7 @@ from scipy.spatial.transform import Rotation
 from mppf.geometry.frame import fit_frame
 from mppf.geometry.read import read_points
 from mppf.registration.register import register_icp
+from mppf.registration.settings import RegisterOptions
 from mppf.core.transform import apply_tf, invert_tf, make_tf, rotation_angle_deg
 
 SADDLE_RADIUS_MM = 8000.0
@@ -48,7 +49,7 @@ def saddle_case():
 
 def test_saddle_outline_pins_the_in_plane_position(saddle_case):
     design, scan, tf_true, start = saddle_case
-    result = register_icp(scan, design, method="plane", init=start)
+    result = register_icp(scan, design, RegisterOptions(method="plane", init=start))
     rot_err, in_plane, normal = in_plane_error(result.tf, tf_true, design)
     assert result.outline_pinned and result.converged
     assert in_plane <= 1.0
@@ -59,7 +60,7 @@ def test_saddle_outline_pins_the_in_plane_position(saddle_case):
 
 def test_saddle_without_pin_reports_the_in_plane_uncertainty(saddle_case):
     design, scan, tf_true, start = saddle_case
-    result = register_icp(scan, design, method="plane", init=start, pin_outline=False)
+    result = register_icp(scan, design, RegisterOptions(method="plane", init=start, pin_outline=False))
     unc = result.uncertainty
     assert not result.outline_pinned and result.converged
     assert unc["in_plane"] == "from the surface shape"
@@ -74,7 +75,7 @@ def test_saddle_without_pin_reports_the_in_plane_uncertainty(saddle_case):
 def test_saddle_principal_start_is_flagged_ambiguous(saddle_case):
     # a saddle is symmetric under a half turn about its normal: both answers fit equally
     design, scan, tf_true, _ = saddle_case
-    result = register_icp(scan, design, method="plane")
+    result = register_icp(scan, design, RegisterOptions(method="plane"))
     assert result.ambiguous_start
     frame = fit_frame(design)
     half_turn = frame.tf_world_local @ make_tf(np.diag([-1.0, -1.0, 1.0])) @ frame.tf_local_world
@@ -93,7 +94,7 @@ def test_flat_plate_lands_centred_on_the_curved_one(hull_dir, name, method):
     local[:, 2] = 0.0  # the plate projected onto its best-fit plane: a flat stand-in
     flat = apply_tf(make_tf(Rotation.random(random_state=7).as_matrix(), [5000, 300, -800]),
                     frame.to_world(local))
-    result = register_icp(flat, curved, method=method)
+    result = register_icp(flat, curved, RegisterOptions(method=method))
     assert result.method == "point"  # never a plane metric between flat and curved
     if method == "plane":
         assert any("overridden" in note for note in result.notes)
@@ -114,7 +115,7 @@ def test_curved_plate_lands_centred_on_the_flat_one(hull_dir, name):
     local[:, 2] = 0.0
     tf_flat = make_tf(Rotation.random(random_state=8).as_matrix(), [-3000, 700, 200])
     flat = apply_tf(tf_flat, frame.to_world(local))
-    result = register_icp(curved, flat, method="plane")
+    result = register_icp(curved, flat, RegisterOptions(method="plane"))
     assert result.method == "point" and result.outline_pinned
     back = frame.to_local(apply_tf(invert_tf(tf_flat) @ result.tf, curved))
     assert np.hypot(*back[:, :2].mean(axis=0)) < 1.0
@@ -136,7 +137,7 @@ def test_partial_scan_with_outliers_robust(hull_dir, name, outliers):
     low, high = scan.min(axis=0) - 200, scan.max(axis=0) + 200
     scan = np.vstack([scan, rng.uniform(low, high, size=(n_out, 3))])
     tf_true = make_tf(Rotation.random(random_state=11).as_matrix(), [100, 2000, -50])
-    result = register_icp(apply_tf(invert_tf(tf_true), scan), design, method="plane", robust="tukey")
+    result = register_icp(apply_tf(invert_tf(tf_true), scan), design, RegisterOptions(method="plane", robust="tukey"))
     assert rotation_angle_deg(result.tf @ invert_tf(tf_true)) < 0.5
     assert not result.outline_pinned  # the scan does not cover the plate
     assert 0.6 < result.inlier_fraction < 0.98

@@ -8,6 +8,7 @@ import pytest
 
 from mppf.core.errors import GeometryError, InputError
 from mppf.registration.register import register_icp
+from mppf.registration.settings import RegisterOptions
 from mppf.registration.target import build_target
 from registration_helpers import PLATE_POSE, motion_error, sampled_scan
 
@@ -17,8 +18,8 @@ def test_a_prebuilt_target_gives_the_registration_of_the_array(method):
     design, scan = sampled_scan(4000, 1500, seed=3)
     target = build_target(design)
     for _ in range(2):  # built once, used twice: the second run sees the normals of the first
-        from_target = register_icp(scan, target, method=method)
-        from_array = register_icp(scan, design, method=method)
+        from_target = register_icp(scan, target, RegisterOptions(method=method))
+        from_array = register_icp(scan, design, RegisterOptions(method=method))
         np.testing.assert_array_equal(from_target.tf, from_array.tf)
         assert from_target.rms_history == from_array.rms_history
         assert from_target.uncertainty == from_array.uncertainty
@@ -55,7 +56,7 @@ def test_target_checks_its_points():
     # a point-to-plane registration needs enough target points for the normals
     target = build_target(np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.1]]))
     with pytest.raises(GeometryError, match="at least 10"):
-        register_icp(np.random.default_rng(0).normal(size=(20, 3)), target, method="plane")
+        register_icp(np.random.default_rng(0).normal(size=(20, 3)), target, RegisterOptions(method="plane"))
 
 
 def test_a_target_of_the_same_points_is_built_once_and_kept_for_the_latest_few(monkeypatch):
@@ -73,11 +74,11 @@ def test_a_target_of_the_same_points_is_built_once_and_kept_for_the_latest_few(m
     rebuilt = build_target(design, "the design skin")
     assert rebuilt is not first  # the oldest was let go
     # a kept target (normals of earlier registrations filled in) registers as a new one
-    register_icp(scan[::2], rebuilt, method="plane")  # fills in the normals of the points it met
+    register_icp(scan[::2], rebuilt, RegisterOptions(method="plane"))  # fills in the normals of the points it met
     assert np.isfinite(rebuilt._normals).all(axis=1).any()
-    warm = register_icp(scan, build_target(design, "the design skin"), method="plane")
+    warm = register_icp(scan, build_target(design, "the design skin"), RegisterOptions(method="plane"))
     monkeypatch.setattr(target_module, "_kept", type(target_module._kept)())
-    cold = register_icp(scan, build_target(design, "the design skin"), method="plane")
+    cold = register_icp(scan, build_target(design, "the design skin"), RegisterOptions(method="plane"))
     np.testing.assert_array_equal(warm.tf, cold.tf)
     assert warm.rms_history == cold.rms_history
 

@@ -8,6 +8,7 @@ import pytest
 from mppf.core.transform import apply_tf
 from mppf.geometry.read import read_points
 from mppf.registration.register import register_icp
+from mppf.registration.settings import RegisterOptions
 from registration_helpers import motion_error, random_motion, sampled_scan
 
 
@@ -28,7 +29,7 @@ def moved_noisy_copy(seed: int, n: int = 10000, noise_mm: float = 0.3):
 @pytest.mark.parametrize("seed", range(6))
 def test_identity_start_never_reports_a_wrong_pose_as_converged(seed):
     source, target, tf_true = moved_noisy_copy(seed)
-    result = register_icp(source, target, method="plane", init="identity")
+    result = register_icp(source, target, RegisterOptions(method="plane", init="identity"))
     rot_err, shift_err = motion_error(result.tf, tf_true, source.mean(axis=0))
     right = rot_err < 0.05 and shift_err < 1.0
     assert right or not result.converged, (seed, rot_err, shift_err, result.verdict)
@@ -40,15 +41,15 @@ def test_identity_start_never_reports_a_wrong_pose_as_converged(seed):
 def test_curved_plate_surface_decides_exact_copy_accuracy():
     """A moved noisy copy: the anchors (Open3D, small_gicp) reach 0.0004 deg / 0.010 mm; the pin must not cost."""
     source, target, tf_true = moved_noisy_copy(11)
-    result = register_icp(source, target, method="point")
+    result = register_icp(source, target, RegisterOptions(method="point"))
     rot_err, shift_err = motion_error(result.tf, tf_true, source.mean(axis=0))
     assert rot_err < 0.001 and shift_err < 0.010, (rot_err, shift_err)
     share = result.uncertainty.get("outline_share", {})
     assert all(weight < 0.01 for weight in share.values()), share  # the surface decides
     assert not result.ambiguous_start and result.converged
     # point-to-plane (normals of the noisy copy): the outline's say stays small, it costs nothing
-    pinned = register_icp(source, target, method="plane")
-    free = register_icp(source, target, method="plane", pin_outline=False)
+    pinned = register_icp(source, target, RegisterOptions(method="plane"))
+    free = register_icp(source, target, RegisterOptions(method="plane", pin_outline=False))
     pinned_err = motion_error(pinned.tf, tf_true, source.mean(axis=0))
     free_err = motion_error(free.tf, tf_true, source.mean(axis=0))
     assert all(w < 0.5 for w in pinned.uncertainty["outline_share"].values())
@@ -62,7 +63,7 @@ def test_shallow_plate_is_pinned_and_does_not_slide():
     u, v = rng.uniform(-1500, 1500, 10000), rng.uniform(-1000, 1000, 10000)
     scan = np.column_stack([u, v, u**2 / 2e6 - v**2 / 3e6]) + rng.normal(scale=0.3, size=(10000, 3))
     tf_true = random_motion(3, shift_mm=500.0)
-    result = register_icp(scan, apply_tf(tf_true, design), method="plane")
+    result = register_icp(scan, apply_tf(tf_true, design), RegisterOptions(method="plane"))
     rot_err, shift_err = motion_error(result.tf, tf_true, scan.mean(axis=0))
     assert result.outline_pinned and "outline" in result.uncertainty["in_plane"]
     assert shift_err < 5.0, shift_err  # pinned by the outline: no sliding along the shallow plate
@@ -71,7 +72,7 @@ def test_shallow_plate_is_pinned_and_does_not_slide():
 
 def test_asymmetric_differently_sampled_scan_is_not_a_tie():
     design, scan = sampled_scan(40000, 20000, seed=7)
-    result = register_icp(scan, design, method="plane")
+    result = register_icp(scan, design, RegisterOptions(method="plane"))
     assert not result.ambiguous_start, result.init
     assert result.converged
 
@@ -79,7 +80,7 @@ def test_asymmetric_differently_sampled_scan_is_not_a_tie():
 def test_other_shapes_fail_with_the_figures(hull_dir):
     design = read_points(hull_dir / "K3_stern_saddle.csv").points
     other = read_points(hull_dir / "K1_midbody_bilge.csv").points
-    result = register_icp(other, design, method="plane")
+    result = register_icp(other, design, RegisterOptions(method="plane"))
     assert not result.converged and result.verdict.startswith("failed")
     assert "noise floor" in result.verdict and "mm" in result.verdict
     doc = result.to_dict()
