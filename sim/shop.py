@@ -126,6 +126,8 @@ class SimulatedPlateScanner:
         The net plate's outline (without the trim margin); default ``outline_xy_mm``.
     """
 
+    folder = None  # no station folder: its scans are made here (the Scanner protocol)
+
     def __init__(self, press, thickness_mm: float, outline_xy_mm, *, seed: int = 0,
                  material: Material = Material(), plate_model: str = "steel", steel=None,
                  plate_options: dict | None = None, noise_mm: float = 0.3, occlusion_fraction: float = 0.2,

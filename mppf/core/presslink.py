@@ -10,7 +10,7 @@ demo) take a :class:`PressLink` as an argument and never import a driver themsel
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 from mppf.core.progress import NULL_REPORTER, Reporter
 
@@ -87,8 +87,18 @@ class StepResult:
     duration_s: float
 
 
+@runtime_checkable
 class PressLink(Protocol):
-    """A connected press (context manager: closing it stops heartbeats, not the press)."""
+    """A connected press (context manager: closing it stops heartbeats, not the press).
+
+    Attributes
+    ----------
+    job_sha256 : str or None
+        The seal (sha256) of the job being pressed, written with every audit log entry; the
+        loop sets it before it presses a cycle's job. None: no job named.
+    """
+
+    job_sha256: str | None
 
     def status(self) -> PressStatus:
         """Read the PLC status."""

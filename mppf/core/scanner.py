@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -88,8 +88,20 @@ class ScanContext:
     wait_s: float | None = None
 
 
+@runtime_checkable
 class Scanner(Protocol):
-    """A source of scans of the formed plate."""
+    """A source of scans of the formed plate.
+
+    Attributes
+    ----------
+    folder : Path or None
+        The scanner station's folder: where its scan files arrive and the loop posts its scan
+        requests (:mod:`mppf.loop.scan_request`), and whether a missing reference mark is worth
+        waiting for. None for a scanner that makes its scans itself (the simulated plate's): the
+        requests then go to the plate's work folder.
+    """
+
+    folder: Path | None
 
     def acquire(self, cycle: int, context: ScanContext) -> Path:
         """Return the path of the scan of the plate after press cycle ``cycle``.
@@ -98,4 +110,17 @@ class Scanner(Protocol):
         ------
         InputError
             No usable scan arrived (the message says where it was expected).
+        """
+
+    def rescan(self, cycle: int, number: int, context: ScanContext) -> Path:
+        """Return the path of the ``number``-th rescan (1, 2, ...) of the plate after cycle ``cycle``.
+
+        The rescan is in the frame of the cycle's first scan (the plate not moved);
+        ``context.regions`` lists the areas asked for, ``context.used_paths`` the scans taken
+        before (never returned again).
+
+        Raises
+        ------
+        InputError
+            No rescan arrived in the wait (``context.wait_s``).
         """

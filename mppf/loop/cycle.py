@@ -140,7 +140,7 @@ class _Run:
     @property
     def scan_folder(self) -> Path:
         """Where the scans arrive: the scanner's folder, else the plate's work folder (the simulated scanner)."""
-        return Path(getattr(self.scanner, "folder", None) or self.plate.settings["work_dir"])
+        return Path(self.scanner.folder or self.plate.settings["work_dir"])
 
 
 def run_loop(
@@ -268,7 +268,7 @@ def _on_pressed(run: _Run, record: CycleRecord) -> int:
 
 def _request(run: _Run, record: CycleRecord) -> PostedRequest:
     """The pressed cycle's scan request; whether the mark is required is worked out for a scanner station only."""
-    required = run.mark_need().required if hasattr(run.scanner, "folder") else None
+    required = run.mark_need().required if run.scanner.folder is not None else None
     return post_request(run.plate, record, run.job(record), run.settings, run.scan_folder, run.reporter,
                         mark_required=required)
 

@@ -140,12 +140,16 @@ class MarkedScanner:
 
     def __init__(self, scanner: Scanner, need: Callable[[], MarkNeed], plausible: Callable[[Path], bool], *,
                  settle_s: float, timeout_s: float, poll_s: float = 0.25):
-        self.scanner = scanner
+        self.scanner, self.folder = scanner, scanner.folder
         self.need = need
         self.plausible = plausible
         self.settle_s = float(settle_s)
         self.timeout_s = float(timeout_s)
         self.poll_s = float(poll_s)
+
+    def rescan(self, cycle: int, number: int, context: ScanContext) -> Path:
+        """The scanner's rescan (placed by the first scan's mark: none is waited for)."""
+        return self.scanner.rescan(cycle, number, context)
 
     def acquire(self, cycle: int, context: ScanContext) -> Path:
         """The scanner's scan file, once its mark is there (or known not to be needed)."""

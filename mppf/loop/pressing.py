@@ -38,8 +38,7 @@ def press_cycle(history: History, record: CycleRecord, press: PressConfig, link:
     LinkError, PlcError, PressFault, Cancelled
         From the press during a step: the cycle stays "pressing" (never pressed again).
     """
-    if hasattr(link, "job_sha256"):  # the press driver writes it into the audit log
-        link.job_sha256 = record.job_sha256
+    link.job_sha256 = record.job_sha256  # the press driver writes it into the audit log
     for index in range(1, len(record.steps) + 1):
         press_step(history, record, press, link, reporter, index)
     history.mark_pressed(record.plate_id, record.cycle)

@@ -272,9 +272,6 @@ def rescan_uncovered(cycle_run, record, comparison) -> Measured:
             reporter.info(f"cycle {record.cycle}: no rescan asked: the station did not answer a rescan request "
                           f"earlier in this run ({run.known[UNANSWERED]}); the cycle is decided on the scan taken")
             return Measured(comparison, scans)
-        if not hasattr(run.scanner, "rescan"):
-            reporter.info(f"cycle {record.cycle}: the scanner cannot rescan; the cycle needs review")
-            return Measured(comparison, scans)
         # 1. say what happens; ask the station for the areas and spots (request file, --on-pressed), take the rescan
         spots = _spots(comparison, job.tf_press_design)
         regions = [region_doc(g, comparison, job.tf_press_design) for g in comparison.coverage.regions]

@@ -36,6 +36,11 @@ class _StationScanner:
         local[:, 2] *= self.factor
         return self.scale * apply_tf(self.job.tf_press_design, frame.to_world(local))
 
+    folder = None  # the scans are made here (the Scanner protocol)
+
+    def rescan(self, cycle, number, context) -> Path:
+        return self.acquire(cycle, context)
+
     def acquire(self, cycle, context) -> Path:
         path = Path(context.work_dir) / f"station-scan-{cycle}.csv"
         path.parent.mkdir(parents=True, exist_ok=True)

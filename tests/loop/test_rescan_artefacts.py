@@ -36,6 +36,8 @@ def _mid(x, y):
 class SpikyStation:
     """A fixed station in process: the plate as designed, each take with its own noise and spikes, one frame."""
 
+    folder = None  # no station folder (the Scanner protocol)
+
     def __init__(self, job_path: Path, spikes: float = 0.01):
         self.job_path, self.spikes, self.takes = job_path, spikes, []
 
