@@ -77,7 +77,7 @@ def _predicted_scan(job_path: Path, flat_path: Path, out_dir: Path, seed: int, o
     from mppf.core.scanner import PressedStep, ScanContext
     from mppf.geometry.read import read_points
     from mppf.planning.job import load_job
-    from mppf.sim.shop import SimulatedPlateScanner
+    from mppf.sim.shop import STATE_FILE, SimulatedPlateScanner
 
     job = load_job(job_path)
     if job.sections:
@@ -88,6 +88,11 @@ def _predicted_scan(job_path: Path, flat_path: Path, out_dir: Path, seed: int, o
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"cannot create the output folder {out_dir}: {exc.strerror}") from None
+    try:  # a try-out presses a new plate: the state an earlier try-out left in the folder is not taken up
+        (out_dir / STATE_FILE).unlink(missing_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot remove the earlier try-out's plate {out_dir / STATE_FILE}: {exc.strerror}",
+                         hint="give another output folder (-o)") from None
     scanner = SimulatedPlateScanner.for_job(job.press, job.thickness_mm, job, flat.points, seed=seed,
                                             plate_model="fe", plate_options=options, noise_mm=0.0,
                                             occlusion_fraction=0.0, outlier_fraction=0.0)

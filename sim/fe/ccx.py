@@ -147,7 +147,11 @@ def _children_cpu_s() -> float:
 
 
 def sta_summary(sta_path: Path) -> dict:
-    """Per analysis step of a ccx status file: ``{step: (increments, cutbacks, iterations)}``."""
+    """Per analysis step of a ccx status file: ``{step: (increments, cutbacks, iterations)}``.
+
+    A line of the file is one attempt of an increment (``1U``: the first attempt, not converged, cut
+    back); the iterations are those of every attempt, the converged increments are counted once.
+    """
     summary: dict = {}
     try:
         lines = sta_path.read_text().splitlines()[2:]
@@ -157,8 +161,8 @@ def sta_summary(sta_path: Path) -> dict:
         if len(row) < 7 or not row[0].isdigit():
             continue
         increments, cutbacks, iterations = summary.get(int(row[0]), (0, 0, 0))
-        attempts = int(row[2].rstrip("U") or 1)
-        summary[int(row[0])] = (increments + 1, cutbacks + attempts - 1, iterations + int(row[3]))
+        failed = row[2].endswith("U")
+        summary[int(row[0])] = (increments + (not failed), cutbacks + failed, iterations + int(row[3]))
     return summary
 
 

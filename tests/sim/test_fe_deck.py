@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from mppf.sim.fe import ccx
-from mppf.sim.fe.deck import RETRACT_MM, flow_curve, history_deck, hold_nodes, model_lines, step_count
+from mppf.sim.fe.deck import (LATER_LOAD_INCREMENT, RELEASE_INCREMENT, RETRACT_MM, flow_curve, history_deck,
+                               hold_nodes, model_lines, step_count)
 from mppf.sim.fe.mesh import build_mesh
 from mppf.sim.fe.results import last_of_steps, read_dat_forces, read_frd
 from mppf.sim.plate.material import PlateSteel
@@ -87,6 +88,28 @@ def test_history_deck_replays_every_press_step_and_holds_each_release_by_fresh_n
     frozen = release[release.index("*BOUNDARY, FIXED"):].split("\n")[1:4]
     assert frozen == [f"{int(n)},3,3" for n in holds[1]]
     assert approach[approach.index("*BOUNDARY, FIXED"):].split("\n")[1:4] == [f"{int(n)},3,3" for n in holds[0]]
+
+
+def test_the_release_starts_with_the_whole_step_and_a_later_load_with_a_small_increment(press):
+    mesh = build_mesh(press, OUTLINE, thickness, cells_per_pitch=1, layers=2)
+    m = len(mesh.bottom)
+    tips = np.concatenate([np.zeros(m), mesh.thickness_mm])
+    deck = history_deck(mesh, ["*NODE"], [(tips, None), (tips - 10.0, tips + 5.0)])
+    first = [line for line in deck.split("\n") if line.endswith(",1.,1e-6,0.5") or line.endswith(",1.,1e-6,1")]
+    # LOAD1, RELEASE1, APPROACH, LOAD2, RELEASE2: first increment, step 1, smallest 1e-6, largest
+    assert first == ["0.25,1.,1e-6,0.5", f"{RELEASE_INCREMENT:g},1.,1e-6,1", "1,1.,1e-6,0.5",
+                     f"{LATER_LOAD_INCREMENT:g},1.,1e-6,0.5", f"{RELEASE_INCREMENT:g},1.,1e-6,1"]
+    assert RELEASE_INCREMENT == 1.0 and LATER_LOAD_INCREMENT < 0.25
+
+
+def test_status_summary_counts_increments_cutbacks_and_iterations(tmp_path):
+    sta = tmp_path / "plate.sta"
+    sta.write_text("SUMMARY OF JOB INFORMATION\n  STEP      INC     ATT  ITRS     TOT TIME     STEP TIME      INC TIME\n"
+                   "     1          1     1     8  0.25  0.25  0.25\n     1          2     1     5  0.5  0.5  0.25\n"
+                   "     2          1     1U   10  1.0  0.0  0.05\n     2          1     2U    6  1.0  0.0  0.0125\n"
+                   "     2          1     3     4  1.0  0.0125  0.0125\n")
+    assert ccx.sta_summary(sta) == {1: (2, 0, 13), 2: (1, 2, 20)}
+    assert ccx.sta_summary(tmp_path / "missing.sta") == {}
 
 
 FRD = """    1C
