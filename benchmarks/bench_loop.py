@@ -37,7 +37,7 @@ ends within 10 minutes; call again to go on. ``--table`` prints the tables of th
 Run:  python benchmarks/bench_loop.py [--physics steel yield:1.2 ...] [--sweep] [--seeds 1 2 3]
           [--plates P1_midbody_bilge_smooth ...] [--mode direct|loop] [--results FILE.json]
           [--budget-s 540] [--correction learned|measured|curvature|hybrid] [--table]
-          [--yield-uncertainty PCT | --trial-press FRACTION]  (the first press: issue 40)
+          [--yield-uncertainty PCT]  (the first press under-bent: issue 40)
 """
 
 from __future__ import annotations
@@ -67,7 +67,6 @@ from mppf.geometry.unfold import unfold
 from mppf.geometry.write import write_points
 from mppf.measure.punches import edge_deviations
 from mppf.planning.press import example_press_path, load_press
-from trial_press import run_trial
 
 HULL = Path(__file__).resolve().parents[1] / "mppf" / "examples" / "hull"
 PLATES = ["P1_midbody_bilge_smooth", "P2_bow_flare_smooth", "P3_stern_saddle_smooth",
@@ -295,17 +294,15 @@ def run_part(args, results: dict, path: Path) -> bool:
             if time.monotonic() - started > args.budget_s:
                 print(f"budget of {args.budget_s:.0f} s spent: call again with the same --results to go on")
                 return False
-            if name not in planned:  # a trial press is a fraction of the nominal plan
-                planned[name] = Planned(press, name, work, 0.0 if args.trial_press else args.yield_uncertainty)
+            if name not in planned:
+                planned[name] = Planned(press, name, work, args.yield_uncertainty)
             p, t0 = planned[name], time.monotonic()
             try:
                 if args.mode == "loop":
                     row = run_loop_mode(press, p, seed, args.max_cycles, args.true_yield, work, physics)
                 else:
                     plate = direct_plate(press, p, physics, seed, args.true_yield)
-                    row = run_direct(press, p, plate, args.max_cycles, not args.no_policy, args.correction) \
-                        if not args.trial_press else run_trial(press, p, plate, args.max_cycles, args.trial_press,
-                                                               sys.modules[__name__], args.correction)
+                    row = run_direct(press, p, plate, args.max_cycles, not args.no_policy, args.correction)
                     row["correction"] = args.correction
             except MppfError as exc:  # a failed run counts as not in tolerance
                 row = {"max": [], "rms": [], "decisions": ["error"], "ok_at": None,
@@ -337,10 +334,8 @@ def main(argv=None) -> int:
                         help="direct mode: the correction measured (keep each one's runs in its own --results file)")
     parser.add_argument("--table", action="store_true", help="only print the tables of --results")
     parser.add_argument("--yield-uncertainty", type=float, default=None,
-                        help="the first press planned for yield x (1 - PCT/100) (default: the loop's default)")
-    parser.add_argument("--trial-press", type=float, default=None, metavar="FRACTION",
-                        help="direct mode: a trial press at FRACTION of the nominal plan's travel first, the yield "
-                             "stress fitted to it, then the full first press for it (trial_press.py)")
+                        help="the first press planned for yield x (1 - PCT/100) (default: the loop's default; "
+                             "benchmarks/results/2026-12-06-loop-first-press.md)")
     args = parser.parse_args(argv)
     threadpool_limits(1, "blas")
     results = _load(args.results)
