@@ -94,3 +94,25 @@ def test_loop_refuses_bad_values_before_anything_is_recorded(cylinder_files, tmp
     assert code == 2
     assert "--yield-uncertainty" in err and f"got {value}" in err and "Traceback" not in err
     assert not history.exists()
+
+
+@pytest.mark.slow  # one simulated cycle of a hull plate, compared on a dense scan: 5-15 s
+def test_loop_plans_its_first_press_for_the_weakest_plate_and_records_it(hull_dir, tmp_path, capsys):
+    from mppf.geometry.read import read_points
+    from mppf.geometry.unfold import unfold
+    from mppf.loop.history import History
+
+    design = hull_dir / "P2_bow_flare_smooth.csv"
+    flat = write_points(tmp_path / "P2_flat.csv", unfold(read_points(design).points).flat)
+    history_path = tmp_path / "history.sqlite"
+    code = main(["loop", str(design), str(flat), "--press", str(example_press_path()), "--thickness", "20",
+                 "--history", str(history_path), "--time-scale", "200", "--max-cycles", "1", "--json",
+                 "--no-report", "--plate-id", "P2-U10", "--yield-uncertainty", "10"])
+    doc = json.loads(capsys.readouterr().out)
+    assert code == 5 and doc["status"] == "max_cycles"  # one press: not in tolerance
+    with History(history_path) as history:
+        assert history.plate("P2-U10").settings["loop"]["yield_uncertainty_pct"] == 10.0
+        job = load_job(history.cycle("P2-U10", 1).job_path)
+    first = job.extra["springback"]["first_press"]
+    assert first["yield_uncertainty_pct"] == 10.0 and first["planned_yield_mpa"] == pytest.approx(211.5)
+    assert job.layout.material.yield_stress_mpa == 235.0
