@@ -242,9 +242,35 @@ def increment(tf_old: np.ndarray, tf_new: np.ndarray, centre: np.ndarray) -> tup
     return rotvec, shift
 
 
-def run(target: RegistrationTarget, source: np.ndarray, tf0: np.ndarray, matching: Matching, *,
-        max_iterations: int, tol: tuple[float, float, float], pin=None, accelerate: bool = True,
-        nearest: Nearest | None = None, reporter: Reporter = NULL_REPORTER) -> Stage:
+@dataclass(frozen=True)
+class Stop:
+    """When an ICP loop stops (:func:`run`).
+
+    Attributes
+    ----------
+    max_iterations : int
+        Iteration limit.
+    translation_mm, rotation_rad : float
+        Converged when one iteration moves the source centroid less than this and turns it
+        less than this.
+    relative_mse : float
+        Also converged when the MSE changes by less than this fraction; and when it has not
+        fallen below its lowest value by more than this for ``STALL_ITERATIONS`` iterations.
+    """
+
+    max_iterations: int
+    translation_mm: float
+    rotation_rad: float
+    relative_mse: float
+
+    def coarse(self, factor: float = 10.0) -> Stop:
+        """The same limit with every tolerance ``factor`` times looser (a coarse stage)."""
+        return Stop(self.max_iterations, factor * self.translation_mm, factor * self.rotation_rad,
+                    factor * self.relative_mse)
+
+
+def run(target: RegistrationTarget, source: np.ndarray, tf0: np.ndarray, matching: Matching, stop: Stop, *,
+        pin=None, nearest: Nearest | None = None, reporter: Reporter = NULL_REPORTER) -> Stage:
     """The ICP loop: match, weight, step, pin, test; from ``tf0``.
 
     Parameters
@@ -257,82 +283,100 @@ def run(target: RegistrationTarget, source: np.ndarray, tf0: np.ndarray, matchin
         Start, source -> target.
     matching : Matching
         Metric and pair weights.
-    max_iterations : int
-    tol : (translation mm, rotation rad, relative MSE change)
-        Also: when the MSE has not fallen below its lowest value by more than the relative
-        tolerance for ``STALL_ITERATIONS`` iterations, the lowest-MSE transform is returned
-        (with a soft pin: the last one).
+    stop : Stop
+        Iteration limit and tolerances. When the MSE stalls (:class:`Stop`), the lowest-MSE
+        transform is returned (with a soft pin: the last one).
     pin : mppf.registration.pin.OutlinePin, optional
         The outline's say in every step; a hard pin is also applied to the start and
         after every step.
-    accelerate : bool
-        When successive increments keep their direction and shrink (slow, linear
-        convergence), jump ahead by the geometric remainder of the series (at most
-        ``MAX_EXTRAPOLATION`` steps); the jump is undone if it raises the MSE. Not with a
-        soft pin (its steps do not descend the metric's MSE alone; it removes the slow
-        in-plane crawl anyway).
     nearest : Nearest, optional
         The closest points of ``source`` kept from an earlier loop on the same points
         (default: a new one).
+
+    When successive increments keep their direction and shrink (slow, linear convergence),
+    the loop jumps ahead by the geometric remainder of the series (at most
+    ``MAX_EXTRAPOLATION`` steps); the jump is undone if it raises the MSE. Not with a soft
+    pin (its steps do not descend the metric's MSE alone; it removes the slow in-plane crawl
+    anyway).
     """
-    metric = matching.metric
-    tol_t, tol_r, tol_mse = tol
-    centre = source.mean(axis=0)
-    radius = max(float(np.sqrt(((source - centre) ** 2).sum(axis=1).mean())), 1e-9)
     hard = pin is not None and pin.hard
     soft = pin is not None and not pin.hard
-    tf = pin.apply(tf0) if hard else tf0.copy()
-    history: list[float] = []
-    prev_mse = None
-    last = None  # previous increment as a scaled 6-vector
-    fallback = None  # transform before an extrapolation, and the MSE it had to beat
-    cooldown = 0
-    best_mse, best_tf, stalled = np.inf, tf, 0
     nearest = Nearest(target) if nearest is None else nearest
-    normals = pin is not None and not hard and metric == "point" and not pin.tangential  # the step asks the surface
-    for it in range(max_iterations):
-        pairs = match(target, source, tf, matching, nearest, normals)  # closest points and weights
+    normals = pin is not None and not hard and matching.metric == "point" and not pin.tangential  # asks the surface
+    pair = lambda tf: match(target, source, tf, matching, nearest, normals)  # noqa: E731
+    walk = _Walk(source, pin.apply(tf0) if hard else tf0.copy())
+    for it in range(stop.max_iterations):
+        pairs = walk.undo_a_worse_jump(pair)  # closest points and weights
         mse = pairs.mse
-        if fallback is not None:
-            if mse > fallback[1]:  # the jump made it worse: undo it
-                tf, cooldown, last = fallback[0], 5, None
-                pairs = match(target, source, tf, matching, nearest, normals)
-                mse = pairs.mse
-            fallback = None
-        history.append(float(np.sqrt(mse)))
-        if prev_mse is not None and abs(prev_mse - mse) <= tol_mse * prev_mse:
-            return Stage(tf, it, history, True, "relative change of the MSE below tolerance")
-        if mse < best_mse * (1.0 - tol_mse):
-            best_mse, best_tf, stalled = mse, tf, 0
+        walk.history.append(float(np.sqrt(mse)))
+        if walk.prev_mse is not None and abs(walk.prev_mse - mse) <= stop.relative_mse * walk.prev_mse:
+            return Stage(walk.tf, it, walk.history, True, "relative change of the MSE below tolerance")
+        if mse < walk.best_mse * (1.0 - stop.relative_mse):
+            walk.best_mse, walk.best_tf, walk.stalled = mse, walk.tf, 0
         else:
-            stalled += 1
-            if stalled >= STALL_ITERATIONS:
+            walk.stalled += 1
+            if walk.stalled >= STALL_ITERATIONS:
                 # a soft pin's steps do not descend the metric's MSE alone: its last transform is the answer
-                return Stage(tf if soft else best_tf, it, history, True,
+                return Stage(walk.tf if soft else walk.best_tf, it, walk.history, True,
                              f"no lower MSE in {STALL_ITERATIONS} iterations (the closest points cycle)")
-        tf_new = step(pairs, metric, pin, tf) @ tf  # quaternion or linearised step
+        tf_new = step(pairs, matching.metric, pin, walk.tf) @ walk.tf  # quaternion or linearised step
         if hard:
             tf_new = pin.apply(tf_new)  # flat against curved: the outline alone fixes the in-plane pose
-        rotvec, shift_vec = increment(tf, tf_new, centre)
+        rotvec, shift_vec = increment(walk.tf, tf_new, walk.centre)
         reporter.advance(1)
-        if np.linalg.norm(shift_vec) < tol_t and np.linalg.norm(rotvec) < tol_r:
-            return Stage(tf_new, it + 1, history, True, "transform increment below tolerance")
-        vec = np.concatenate([rotvec * radius, shift_vec])
-        tf = tf_new
-        cooldown = max(cooldown - 1, 0)
-        if accelerate and not soft and last is not None and cooldown == 0:
-            ratio = np.linalg.norm(vec) / max(np.linalg.norm(last), 1e-300)
-            cos = vec @ last / max(np.linalg.norm(vec) * np.linalg.norm(last), 1e-300)
+        if np.linalg.norm(shift_vec) < stop.translation_mm and np.linalg.norm(rotvec) < stop.rotation_rad:
+            return Stage(tf_new, it + 1, walk.history, True, "transform increment below tolerance")
+        walk.advance(tf_new, rotvec, shift_vec, mse, pin)
+    return Stage(walk.tf, stop.max_iterations, walk.history, False, "iteration limit reached")
+
+
+class _Walk:
+    """The state of one ICP loop: transform, MSE history, best so far, the last increment and a pending jump."""
+
+    def __init__(self, source: np.ndarray, tf: np.ndarray):
+        self.centre = source.mean(axis=0)
+        self.radius = max(float(np.sqrt(((source - self.centre) ** 2).sum(axis=1).mean())), 1e-9)
+        self.tf = tf
+        self.history: list[float] = []
+        self.prev_mse = None
+        self.last = None  # previous increment as a scaled 6-vector
+        self.fallback = None  # transform before an extrapolation, and the MSE it had to beat
+        self.cooldown = 0
+        self.best_mse, self.best_tf, self.stalled = np.inf, tf, 0
+
+    def undo_a_worse_jump(self, pair) -> Pairs:
+        """The pairs at the current transform; a jump that raised the MSE is undone first (5 quiet iterations)."""
+        pairs = pair(self.tf)
+        if self.fallback is not None:
+            if pairs.mse > self.fallback[1]:  # the jump made it worse: undo it
+                self.tf, self.cooldown, self.last = self.fallback[0], 5, None
+                pairs = pair(self.tf)
+            self.fallback = None
+        return pairs
+
+    def advance(self, tf_new: np.ndarray, rotvec: np.ndarray, shift_vec: np.ndarray, mse: float, pin) -> None:
+        """Take the step to ``tf_new``; jump ahead when the increments keep their direction and shrink.
+
+        ``pin``: the loop's outline pin or None; no jump under a soft one (see :func:`run`), a hard
+        one applied to the jump.
+        """
+        hard = pin is not None and pin.hard
+        jumps = pin is None or hard
+        vec = np.concatenate([rotvec * self.radius, shift_vec])
+        self.tf = tf_new
+        self.cooldown = max(self.cooldown - 1, 0)
+        if jumps and self.last is not None and self.cooldown == 0:
+            ratio = np.linalg.norm(vec) / max(np.linalg.norm(self.last), 1e-300)
+            cos = vec @ self.last / max(np.linalg.norm(vec) * np.linalg.norm(self.last), 1e-300)
             if cos > 0.99 and ratio < 0.999:
                 factor = min(ratio / (1.0 - ratio), MAX_EXTRAPOLATION)
-                fallback = (tf, mse)
-                tf = _extrapolate(tf, centre, rotvec, shift_vec, factor)
+                self.fallback = (self.tf, mse)
+                self.tf = _extrapolate(self.tf, self.centre, rotvec, shift_vec, factor)
                 if hard:
-                    tf = pin.apply(tf)
+                    self.tf = pin.apply(self.tf)
                 vec = None
-        last = vec
-        prev_mse = mse
-    return Stage(tf, max_iterations, history, False, "iteration limit reached")
+        self.last = vec
+        self.prev_mse = mse
 
 
 def evaluate(target: RegistrationTarget, source: np.ndarray, tf: np.ndarray, matching: Matching,

@@ -294,10 +294,10 @@ def converge_start(cloud: Cloud, target: RegistrationTarget, start_tf, settings:
         raise ValueError("converge_start fits without the outline pin: give pin_outline=False")
     notes: list[str] = []
     matching, flat_vs_curved = stages.matching(cloud, target, settings, notes)
-    points = stages.subsamples(cloud, settings)
+    problem = stages.Problem(target, cloud, stages.subsamples(cloud, settings), matching, settings, flat_vs_curved,
+                             0.0, notes)
     with threadpool_limits(limits=1, user_api="blas"):
-        fit = stages.fit(target, cloud, points, np.asarray(start_tf, dtype=float).copy(), matching, settings,
-                         flat_vs_curved, 0.0, notes, NULL_REPORTER)
+        fit = stages.fit(problem, np.asarray(start_tf, dtype=float).copy(), NULL_REPORTER)
     return fit.fine.tf
 
 
@@ -310,20 +310,22 @@ def _register(cloud: Cloud, target: RegistrationTarget, settings: RegisterOption
     points = stages.subsamples(cloud, settings)
     # 3. the noise floor: the residual the right pose leaves
     floor = stages.floor(cloud, target, points)
+    problem = stages.Problem(target, cloud, points, matching, settings, flat_vs_curved, floor, notes)
     # 4. the start: the best converged principal-axes candidate, the identity or the given transform
-    tf0, init_info = stages.start(settings.init, target, cloud, points, matching, flat_vs_curved, floor, PRINCIPAL)
+    tf0, init_info = stages.start(problem, PRINCIPAL)
     # 5. coarse stage, then the fine stage with the outline's say where the surface leaves the pose free
-    fit = stages.fit(target, cloud, points, tf0, matching, settings, flat_vs_curved, floor, notes, reporter)
+    fit = stages.fit(problem, tf0, reporter)
     # 6. from a given start that settled: converge the principal-axes starts too, go on from a clearly better one
     if not settings.principal_start and settings.check_starts and fit.fine.converged:
-        fit, init_info = stages.check_starts(target, cloud, points, fit, init_info, matching, settings,
-                                             flat_vs_curved, floor, notes, PRINCIPAL)
+        fit, init_info = stages.check_starts(problem, fit, init_info, PRINCIPAL)
     # 7. the verdict, final residuals and uncertainty
-    return _result(target, points, fit, matching, init_info, floor, flat_vs_curved, notes)
+    return _result(problem, fit, init_info)
 
 
-def _result(target, points, fit, matching, init_info, floor, flat_vs_curved, notes) -> Registration:
+def _result(problem: stages.Problem, fit: stages.Fit, init_info: dict) -> Registration:
     """The Registration of the fine stage's transform: residuals, verdict, uncertainty, notes."""
+    target, points, matching, floor = problem.target, problem.points, problem.matching, problem.floor_mm
+    flat_vs_curved, notes = problem.flat_vs_curved, problem.notes
     final = icp.evaluate(target, points.fine, fit.fine.tf, matching, fit.nearest)
     uncertainty = dof_uncertainty(target, final)
     uncertainty["in_plane"] = stages.in_plane(fit.pin)

@@ -72,6 +72,40 @@ class Fit:
     nearest: icp.Nearest
 
 
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """One registration's fixed inputs, shared by its stages.
+
+    Attributes
+    ----------
+    target : RegistrationTarget
+        The fixed side.
+    cloud : Cloud
+        The source, prepared.
+    points : Points
+        The source's subsamples.
+    matching : Matching
+        The pairing (the metric possibly overridden: :func:`matching`).
+    settings : RegisterOptions
+        The options of the registration.
+    flat_vs_curved : bool
+        A flat plate faces a curved one.
+    floor_mm : float
+        The noise floor (mm; 0 where none is measured).
+    notes : list of str
+        Decisions, appended to as the stages run.
+    """
+
+    target: RegistrationTarget
+    cloud: Cloud
+    points: Points
+    matching: Matching
+    settings: RegisterOptions
+    flat_vs_curved: bool
+    floor_mm: float
+    notes: list
+
+
 def matching(cloud: Cloud, target: RegistrationTarget, settings: RegisterOptions, notes: list) -> tuple[Matching, bool]:
     """The pairing of the registration and whether a flat plate faces a curved one (notes: an overridden metric)."""
     flat_vs_curved = cloud.flat != target.flat
@@ -112,36 +146,33 @@ def _size_mm(target: RegistrationTarget) -> float:
     return 2.0 * spreads(target.frame, target.points)[0]
 
 
-def start(init, target: RegistrationTarget, cloud: Cloud, points: Points, matching: Matching, flat_vs_curved: bool,
-          floor_mm: float, principal: PrincipalStart) -> tuple[np.ndarray, dict]:
-    """The start transform and how it was chosen (``Registration.init``)."""
-    if isinstance(init, str) and init == "principal":
-        return principal_start(target, points.fit, points.judge, cloud.frame, matching.metric, matching, floor_mm,
-                               _size_mm(target), principal)
+def start(problem: Problem, principal: PrincipalStart) -> tuple[np.ndarray, dict]:
+    """The start transform (``settings.init``) and how it was chosen (``Registration.init``)."""
+    init, target, points, matching = problem.settings.init, problem.target, problem.points, problem.matching
+    if problem.settings.principal_start:
+        return principal_start(target, points.fit, points.judge, problem.cloud.frame, matching.metric, matching,
+                               problem.floor_mm, _size_mm(target), principal)
     if isinstance(init, str):
         return np.eye(4), {"kind": "identity"}
     return np.asarray(init, dtype=float).copy(), {"kind": "given"}
 
 
-def fit(target: RegistrationTarget, cloud: Cloud, points: Points, tf0: np.ndarray, matching: Matching,
-        settings: RegisterOptions, flat_vs_curved: bool, floor_mm: float, notes: list, reporter: Reporter) -> Fit:
-    """Coarse stage (unpinned), the outline pin at its result, the fine stage."""
-    tol = settings.tolerances
+def fit(problem: Problem, tf0: np.ndarray, reporter: Reporter) -> Fit:
+    """Coarse stage (unpinned) from ``tf0`` (4, 4), the outline pin at its result, the fine stage."""
+    target, points, matching, settings = problem.target, problem.points, problem.matching, problem.settings
+    stop = icp.Stop(settings.max_iterations, *settings.tolerances)
     nearest = icp.Nearest(target)  # the fine points' closest target points, kept from loop to loop
     reporter.start("registering", total=None)
-    coarse = icp.run(target, points.coarse, tf0, matching, max_iterations=settings.max_iterations,
-                     tol=(10 * tol[0], 10 * tol[1], 10 * tol[2]), nearest=None if points.has_coarse else nearest,
-                     reporter=reporter)
-    pin = _outline_pin(target, cloud, points, coarse.tf, matching, settings.pin_outline, flat_vs_curved, floor_mm,
-                       notes, nearest)
-    fine = icp.run(target, points.fine, coarse.tf, matching, max_iterations=settings.max_iterations, tol=tol, pin=pin,
-                   nearest=nearest, reporter=reporter)
+    coarse = icp.run(target, points.coarse, tf0, matching, stop.coarse(),
+                     nearest=None if points.has_coarse else nearest, reporter=reporter)
+    pin = _outline_pin(problem, coarse.tf, nearest)
+    fine = icp.run(target, points.fine, coarse.tf, matching, stop, pin=pin, nearest=nearest, reporter=reporter)
     reporter.finish()
     return Fit(coarse, fine, pin, nearest)
 
 
-def _outline_pin(target, cloud, points, tf, matching, pin_outline, flat_vs_curved, floor_mm, notes, nearest):
-    """The outline pin at ``tf``, or None (the reason added to ``notes``).
+def _outline_pin(problem: Problem, tf: np.ndarray, nearest: icp.Nearest):
+    """The outline pin at ``tf``, or None (the reason added to the problem's ``notes``).
 
     Flat against curved the outline decides the in-plane pose alone. Otherwise its share in
     each direction follows from the information of the pairs at ``tf`` and their normal
@@ -149,6 +180,8 @@ def _outline_pin(target, cloud, points, tf, matching, pin_outline, flat_vs_curve
     point metric on clouds sampled alike (:func:`same_sampling`) the point-to-point one,
     whose in-plane offsets are then noise, not the sampling pattern.
     """
+    target, points, matching, floor_mm = problem.target, problem.points, problem.matching, problem.floor_mm
+    pin_outline, flat_vs_curved = problem.settings.pin_outline, problem.flat_vs_curved
     if pin_outline is False:
         return None
     pairs = None if flat_vs_curved else icp.evaluate(target, points.fine, tf, matching, nearest)
@@ -163,11 +196,12 @@ def _outline_pin(target, cloud, points, tf, matching, pin_outline, flat_vs_curve
             information = icp.plane_information(pairs, target.frame.axes, centre)
         return surface_covariance(information, sigma)
 
+    cloud = problem.cloud
     candidates = outline_candidates(cloud.frame, cloud.points, points.fine)
     pin, coverage = outline_pin(target, candidates, cloud.n_points, tf, require_coverage=pin_outline == "auto",
                                 covariance=covariance, hard=flat_vs_curved, tangential=tangential)
     if pin is None:
-        notes.append(f"outline not pinned: {coverage}")
+        problem.notes.append(f"outline not pinned: {coverage}")
     return pin
 
 
@@ -178,18 +212,17 @@ def same_sampling(pairs: Pairs) -> bool:
     return sampled_alike(Candidate("pairs", np.eye(4), normal, pairs.distance))
 
 
-def check_starts(target: RegistrationTarget, cloud: Cloud, points: Points, result: Fit, info: dict,
-                 matching: Matching, settings: RegisterOptions, flat_vs_curved: bool, floor_mm: float, notes: list,
-                 principal: PrincipalStart) -> tuple[Fit, dict]:
+def check_starts(problem: Problem, result: Fit, info: dict, principal: PrincipalStart) -> tuple[Fit, dict]:
     """From a given (or identity) start: converge the principal-axes starts too, go on from a clearly better one.
 
     The given start's result and the four converged candidates are scored on the same
     sample; when the best is a principal-axes candidate in another pose that does not tie
     with the given start's result, the registration is run again from it (noted).
     """
+    target, points, matching, floor_mm = problem.target, problem.points, problem.matching, problem.floor_mm
     metric = matching.metric
     names = ["+++", "--+", "-+-", "+--"]
-    starts = dict(zip(names, principal_candidates(cloud.frame, target.frame)))
+    starts = dict(zip(names, principal_candidates(problem.cloud.frame, target.frame)))
     candidates = compared([evaluate(info["kind"], target, points.judge, result.fine.tf),
                            *converge_candidates(target, points.fit, points.judge, starts, metric, matching, principal)],
                           metric)
@@ -202,11 +235,10 @@ def check_starts(target: RegistrationTarget, cloud: Cloud, points: Points, resul
     if (best == 0 or same_pose(given.tf, candidates[best].tf, points.judge.mean(axis=0), _size_mm(target))
             or tie(candidates[best].residual, given.residual, floor_mm, level)):
         return result, info  # the given start's pose is (as good as) the best one
-    notes.append(f"the {info['kind']} start settled at a residual of {given.score_mm(level):.3g} mm; the "
+    problem.notes.append(f"the {info['kind']} start settled at a residual of {given.score_mm(level):.3g} mm; the "
                  f"principal-axes start {candidates[best].name} fits better ({candidates[best].score_mm(level):.3g} "
                  "mm): registered again from it")
-    again = fit(target, cloud, points, candidates[best].tf, matching, settings, flat_vs_curved, floor_mm, notes,
-                NULL_REPORTER)
+    again = fit(problem, candidates[best].tf, NULL_REPORTER)
     info["chosen"] = best
     info["runner_up"] = 0
     return again, info

@@ -123,8 +123,7 @@ def converge_candidates(target: RegistrationTarget, fit_src: np.ndarray, score_s
     fit = Matching(metric, matching.trim_fraction, matching.robust)
     out = []
     for name, tf in starts.items():
-        stage = icp.run(target, fit_src, tf, fit, max_iterations=settings.iterations,
-                        tol=settings.tolerances)
+        stage = icp.run(target, fit_src, tf, fit, icp.Stop(settings.iterations, *settings.tolerances))
         out.append(evaluate(name, target, score_src, stage.tf))
     return out
 

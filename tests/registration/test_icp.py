@@ -22,7 +22,7 @@ def test_icp_stage_stops_when_the_closest_points_cycle():
     plane = Matching("plane")
     start = min(principal_candidates(fit_frame(scan), fit_frame(design)),
                 key=lambda tf: rotation_angle_deg(tf @ invert_tf(PLATE_POSE)))
-    stage = icp.run(target, scan, start, plane, max_iterations=150, tol=(1e-2, 1e-4, 1e-8))
+    stage = icp.run(target, scan, start, plane, icp.Stop(150, 1e-2, 1e-4, 1e-8))
     assert stage.converged and stage.iterations <= 3 * icp.STALL_ITERATIONS
     assert "cycle" in stage.stop_reason
     # the lowest-MSE transform comes back; its tilt and turn are as good as after 150 iterations
