@@ -118,10 +118,16 @@ def make_plate(press, planned: Planned, physics: str, seed: int, grid_mm: float,
                       grid_spacing_mm=grid_mm, **parts)
 
 
-def press_cycle(press, plate, job) -> None:
-    """Every section's steps in order, the plate shifted under the press for each."""
+def press_cycle(press, plate, job, weightless: bool = False) -> None:
+    """Every section's steps in order, the plate shifted under the press for each.
+
+    ``weightless``: the plate's own weight taken off (as if a crane or roller tables carried all of it): an
+    experiment that isolates what the weight of the part beyond the bed does.
+    """
     for s in job.sections:
         plate.place(placement_mm(job, s.index))
+        if weightless:
+            plate.model.weight_n[:] = 0.0
         for step in s.steps:
             upper, lower = step.setpoints_mm(press)
             plate.press_step(upper, lower, step.active)
@@ -212,14 +218,14 @@ def correct_sections(press, job, devs, previous, how: str):
     return apply_section_corrections(job, deltas, blend=how == "blend"), gains, errors
 
 
-def run_direct(press, planned: Planned, plate, max_cycles: int, how: str = "field") -> dict:
+def run_direct(press, planned: Planned, plate, max_cycles: int, how: str = "blend", weightless: bool = False) -> dict:
     """Press, measure the true deviation, correct every section; up to ``max_cycles`` cycles."""
     job = planned.job
     row = {"max": [], "rms": [], "kink": [], "decisions": [], "ok_at": None, "verdict": None, "gain": [],
            "steps": [], "sections": len(job.sections), "plan_cpu_s": round(planned.plan_cpu_s, 2)}
     previous = [None] * len(job.sections)
     for cycle in range(1, max_cycles + 1):
-        press_cycle(press, plate, job)
+        press_cycle(press, plate, job, weightless)
         dev = true_deviation(planned, plate.formed)
         row["max"].append(float(np.nanmax(np.abs(dev)))), row["rms"].append(float(np.sqrt(np.nanmean(dev ** 2))))
         row["kink"].append(border_kink(press, planned, dev))
@@ -271,7 +277,7 @@ def run_part(args, results: dict) -> bool:
             try:
                 planned.setdefault(name, Planned(press, name, Path(tmp)))
                 plate = make_plate(press, planned[name], physics, seed, args.grid_mm, args.true_yield)
-                row = run_direct(press, planned[name], plate, args.max_cycles, args.correction)
+                row = run_direct(press, planned[name], plate, args.max_cycles, args.correction, args.weightless)
             except MppfError as exc:  # a failed run counts as not in tolerance
                 row = {"max": [], "rms": [], "kink": [], "decisions": ["error"], "ok_at": None,
                        "verdict": f"{type(exc).__name__}: {exc.message[:200]}"}
@@ -285,6 +291,7 @@ def run_part(args, results: dict) -> bool:
 
 
 def _key(physics: str, name: str, seed: int, args) -> str:
+    physics = physics + ("-weightless" if args.weightless else "")
     return f"{physics}|{name}|{seed}|{args.max_cycles}|{args.grid_mm:g}|{args.correction}|{args.label}"
 
 
@@ -298,6 +305,8 @@ def main(argv=None) -> int:
     parser.add_argument("--true-yield", type=float, default=265.0, help="the simulated steel's yield stress (MPa)")
     parser.add_argument("--correction", choices=CORRECTIONS, default="blend",
                         help="how the sections are corrected (see CORRECTIONS)")
+    parser.add_argument("--weightless", action="store_true",
+                        help="take the plate's own weight off (as if all of it were carried beside the press)")
     parser.add_argument("--label", default="now", help="names the code measured (e.g. before, after)")
     parser.add_argument("--results", type=Path, default=Path("bench_loop_sectional.json"))
     parser.add_argument("--budget-s", type=float, default=540.0, help="start no new run after this long (s)")
