@@ -58,6 +58,11 @@ REACH_ELASTIC_LIMITS = 4.0
 """Trust region of one correction: the loaded curvature may change by at most this many
 elastic-limit curvatures at any punch (the model is trusted that far from what was pressed)."""
 
+SHORT_SPREAD = 2.0
+"""A short first correction (``short=True``) aims at ``1 / (1 + SHORT_SPREAD sigma)`` of the way: two standard
+deviations of the plate's response short of the design, so that an answer that large still leaves the plate
+under-bent (on the loading side of its memory)."""
+
 MIN_REACH_ELASTIC_LIMITS = 2.5
 """The smallest reach, however small the trust region: a reverse bend must cross the elastic
 stretch of the plate's memory (two elastic-limit curvatures) to change anything at all."""
@@ -107,7 +112,7 @@ class LearnedCorrection:
 
 def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, nominal: Material, cycles,
                        base_upper_mm, base_lower_mm, active, trust: float = 1.0, edge_mm=None,
-                       scale=None) -> LearnedCorrection:
+                       scale=None, short: bool = False) -> LearnedCorrection:
     """The next strokes from every pressed and measured cycle of the plate.
 
     Parameters
@@ -132,6 +137,9 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
     scale : (rows, cols) float, optional
         Share of the wanted change asked for at each punch (:attr:`mppf.correct.policy.StepPlan.share`);
         default 1.
+    short : bool
+        The first correction aimed short of the design by the measured uncertainty of the plate's response
+        (:func:`short_aim`) instead of :data:`AIM` [0]; later ones as usual.
 
     Returns
     -------
@@ -154,7 +162,8 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
     # 4. the change wanted of the plate, and what to ask of the model for it
     error = grid.flat(np.where(grid.active, balanced_error(cycles[-1].error_mm, edge_mm), np.nan))
     error = np.where(grid.active & np.isfinite(error), error, 0.0)
-    aim = (AIM[1] if gain.updates else AIM[0]) * (0.5 + 0.5 * trust)
+    first = short_aim(calibration, error[grid.active]) if short and not gain.updates else AIM[0]
+    aim = (AIM[1] if gain.updates else first) * (0.5 + 0.5 * trust)
     wanted = error if scale is None else error * np.where(grid.active, np.asarray(scale, dtype=float), 1.0)
     request = gain.model_request(-aim * wanted)
     # 5. the loaded curvature for it, through the model with its memory, in virtual cycles
@@ -169,6 +178,33 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
     # 7. the strokes, held to the limits, and the steps they need
     return _strokes(press, grid, base_upper_mm, base_lower_mm, change + direct, error, gain, section, model,
                     calibration, unreached, aim, direct)
+
+
+def short_aim(calibration: Calibration, error_mm) -> float:
+    """Share of the way a short first correction aims at: ``1 / (1 + SHORT_SPREAD sigma)``, at most :data:`AIM` [0].
+
+    ``sigma``, the relative uncertainty of the plate's response, is what the calibrated model does not explain
+    of the first cycle: its shape misfit (``calibration.misfit_mm``) over the RMS deviation at the punches.
+
+    Parameters
+    ----------
+    calibration : Calibration
+        The model fitted to the measured cycle(s).
+    error_mm : (m,) float
+        The deviation at the active punches (mm).
+
+    Returns
+    -------
+    float
+        In [0.5, AIM[0]].
+    """
+    error = np.asarray(error_mm, dtype=float)
+    error = error[np.isfinite(error)]
+    rms = float(np.sqrt(np.mean(error**2))) if error.size else 0.0
+    if rms <= 0.0 or not np.isfinite(calibration.misfit_mm):
+        return AIM[0]
+    sigma = calibration.misfit_mm / rms
+    return float(np.clip(1.0 / (1.0 + SHORT_SPREAD * sigma), 0.5, AIM[0]))
 
 
 def _direct_part(grid: PunchGrid, section: Section, model, base_mid, change, request, misfit: float) -> np.ndarray:

@@ -56,12 +56,14 @@ class Tolerances:
     noise_mm: float = DEFAULT_NOISE_MM
 
 
-CORRECTIONS = ("learned", "measured", "curvature", "hybrid")
+CORRECTIONS = ("learned", "measured", "curvature", "hybrid", "short", "short-curvature")
 """The corrections :func:`correct_step` can use: the learned one (a model of the plate with its memory), the
 measured one (this plate's measured response in loaded heights, :mod:`mppf.correct.measured`) and the same point by
 point in curvature (:func:`mppf.correct.measured.curvature_correction`), and that one with the learned
-correction's reverse bend at the over-bent punches (:func:`mppf.correct.measured.hybrid_correction`). The loop uses the learned one; the others
-are measured against it by ``benchmarks/bench_loop.py --correction`` (docs/correction.md)."""
+correction's reverse bend at the over-bent punches (:func:`mppf.correct.measured.hybrid_correction`); ``short`` and
+``short-curvature``: the learned and the curvature correction with the first correction aimed short of the design by
+the measured uncertainty of the plate's response (:func:`mppf.correct.learned.short_aim`). The loop uses the learned
+one; the others are measured against it by ``benchmarks/bench_loop.py --correction`` (docs/correction.md)."""
 
 
 def correct_step(press: PressConfig, design_mid_mm, thickness_mm: float, nominal: Material, cycles, outcomes,
@@ -102,13 +104,16 @@ def correct_step(press: PressConfig, design_mid_mm, thickness_mm: float, nominal
     upper, lower = strokes[plan.base]
 
     def correct(share):
+        if correction == "short-curvature":
+            return curvature_correction(press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower, active,
+                                        edge_mm=edge_mm, share=share, noise_mm=tolerances.noise_mm, short=True)
         if correction in ("measured", "curvature", "hybrid"):
             chosen = {"measured": measured_correction, "curvature": curvature_correction,
                       "hybrid": hybrid_correction}[correction]
             return chosen(press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower, active,
                           edge_mm=edge_mm, share=share, noise_mm=tolerances.noise_mm)
         return learned_correction(press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower, active,
-                                  edge_mm=edge_mm, scale=np.full(ring.shape, share))
+                                  edge_mm=edge_mm, scale=np.full(ring.shape, share), short=correction == "short")
 
     learned = correct(plan.share)
     if len(outcomes) > 1:
