@@ -95,7 +95,7 @@ def test_the_release_starts_with_the_whole_step_and_a_later_load_with_a_small_in
     m = len(mesh.bottom)
     tips = np.concatenate([np.zeros(m), mesh.thickness_mm])
     deck = history_deck(mesh, ["*NODE"], [(tips, None), (tips - 10.0, tips + 5.0)])
-    first = [line for line in deck.split("\n") if line.endswith(",1.,1e-6,0.5") or line.endswith(",1.,1e-6,1")]
+    first = [line for line in deck.split("\n") if line.endswith((",1.,1e-6,0.5", ",1.,1e-6,1"))]
     # LOAD1, RELEASE1, APPROACH, LOAD2, RELEASE2: first increment, step 1, smallest 1e-6, largest
     assert first == ["0.25,1.,1e-6,0.5", f"{RELEASE_INCREMENT:g},1.,1e-6,1", "1,1.,1e-6,0.5",
                      f"{LATER_LOAD_INCREMENT:g},1.,1e-6,0.5", f"{RELEASE_INCREMENT:g},1.,1e-6,1"]
