@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from station_helpers import asymmetric_points, planned_plate
 
-from mppf.core.errors import InputError
+from mppf.core.errors import InputError, PressFault
 from mppf.drivers.audit import AuditLog
 from mppf.geometry.read import read_points
 from mppf.loop.cycle import run_loop
@@ -114,3 +114,28 @@ def test_parked_pairs_do_not_act_and_bad_requests_are_refused_with_a_message(tmp
                       "(see docs/scanner-station.md for its keys)")]
     with pytest.raises(InputError, match="unknown plate physics 'xx'"):
         ScanStation(tmp_path / "scans", press, MotionLog(press), physics="xx")
+
+
+def test_the_motion_log_keeps_each_motion_where_the_tips_came_to_rest_complete_or_cut_short():
+    from driver_helpers import small_press, step_setpoints
+
+    press = small_press()
+    upper, lower = step_setpoints(press)
+    upper[0, 0], lower[0, 0] = press.upper.park_mm, press.lower.park_mm  # one pair parked
+    log = MotionLog(press)
+    with InProcessPress(press) as link:
+        log.follow(link.program)
+        link.run_step(upper, lower)
+        (done,) = log.take()
+        assert done.complete and log.take() == []
+        assert np.abs(done.upper_mm - upper).max() <= press.position_tolerance_mm
+        assert np.abs(done.lower_mm - lower).max() <= press.position_tolerance_mm
+        assert not done.active[0, 0] and done.active.sum() == press.rows * press.cols - 1
+        link.program.inject("overpressure", after_s=0.5)  # the PLC halts the next motion on its way
+        with pytest.raises(PressFault):
+            link.run_step(np.where(done.active, upper + 20.0, upper), np.where(done.active, lower + 20.0, lower))
+        (cut,) = log.take()
+        halted_upper, _ = link.program.actual_positions_mm()
+    assert not cut.complete and np.array_equal(cut.upper_mm, halted_upper)
+    moved = cut.upper_mm[cut.active] - upper[cut.active]
+    assert 0.0 < np.median(moved) < 20.0 - press.position_tolerance_mm  # part of the way
