@@ -38,3 +38,11 @@ def test_tryout_predicts_the_first_cycle_and_writes_the_deviation_map_and_report
     assert "FE plate: the first cycle's" in text and "form max" in text
     assert (out / "deviation.png").stat().st_size > 0 and (out / "report.html").stat().st_size > 0
     assert (out / "scan-cycle-01.ply").exists()
+    assert text.count("ccx: press step ") == 2  # the job's two steps, one ccx run each
+    # again into the same folder, the last step only: a new plate pressed, not the first try-out's taken up
+    first = (out / "scan-cycle-01.ply").read_bytes()
+    code = main(["tryout", str(job), "--design", str(design), "--flat", str(flat), "-o", str(out), "--steps", "last"])
+    assert code in (0, 5, 6)
+    again = capsys.readouterr().out
+    assert again.count("ccx: press step 1 done") == 1 and "ccx: press step 2" not in again
+    assert (out / "scan-cycle-01.ply").read_bytes() != first
