@@ -14,7 +14,7 @@ def write_report(history, plate_id: str, comparisons: dict, *, operator: str | N
     from mppf.loop.measuring import compare_recorded, read_checked
     from mppf.loop.settings import LoopSettings
     from mppf.planning.job import load_job
-    from mppf.report.plate_report import write_plate_report
+    from mppf.report.plate_report import Signature, write_plate_report
 
     plate = history.plate(plate_id)
     cycles = history.cycles(plate_id)
@@ -30,5 +30,5 @@ def write_report(history, plate_id: str, comparisons: dict, *, operator: str | N
     out = Path(plate.settings["work_dir"])
     files = write_plate_report(out, plate, cycles, comparisons, load_job(cycles[0].job_path, require_seal=False),
                                tolerance_mm=settings.tolerance_mm, rms_tolerance_mm=settings.rms_tolerance_mm,
-                               operator=operator, press_name=str(plate.press.get("name", "press")))
+                               signed=Signature(operator, str(plate.press.get("name", "press"))))
     return files[-1]

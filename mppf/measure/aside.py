@@ -12,14 +12,30 @@ import numpy as np
 
 from mppf.core.errors import InputError
 from mppf.core.transform import apply_tf
+from mppf.measure.options import CompareOptions
 from mppf.measure.outliers import SetAside
 from mppf.measure.punches import nearest_punch
 
 
-def set_aside_report(mask, dev, artefacts, tolerance_mm: float, tf_press_design, punch_xy_mm, label_base: int,
-               clearing, net) -> SetAside:
+def set_aside_report(mask, dev, artefacts, options: CompareOptions, clearing) -> SetAside:
     """The report of the set-aside points of the net plate: count, largest, where (press, nearest punch), how many
-    a rescan cleared (by which scan) and how many another scan confirmed."""
+    a rescan cleared (by which scan) and how many another scan confirmed.
+
+    Parameters
+    ----------
+    mask : (n,) bool
+        The set-aside points of the net plate.
+    dev : mppf.measure.deviations.Deviation
+        Every measured point's deviation.
+    artefacts : mppf.measure.outliers.ArtefactTest
+        The artefact test's result (point spacing, dense share).
+    options : CompareOptions
+        The tolerance, the press pose, the punch grid and how punches are named.
+    clearing : mppf.measure.outliers.Clearing
+        Which points a rescan cleared (by which scan) or confirmed.
+    """
+    tolerance_mm, tf_press_design = options.tolerance_mm, options.tf_press_design
+    punch_xy_mm, label_base = options.punch_xy_mm, options.punch_label_base
     share, spacing = artefacts.dense_fraction, artefacts.spacing_mm
     confirmed = int((clearing.confirmed & mask).sum())
     if not mask.any():

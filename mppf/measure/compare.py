@@ -211,14 +211,12 @@ def _judge(design: np.ndarray, placed: _Placed, parts: _Parts, options: CompareO
     stats = statistics(dev.deviation_mm[parts.inlier], tol, options.bins)
     within_pct = float(100.0 * np.mean(np.abs(dev.deviation_mm[parts.net]) <= tol))
     form, field = form_of(dev.uv, dev.deviation_mm, parts.inlier, parts.measured_ok, dev.in_margin)
-    aside = set_aside_report(parts.set_aside & parts.net, dev, parts.artefacts, tol, options.tf_press_design,
-                             options.punch_xy_mm, options.punch_label_base, parts.clearing, parts.net)
+    aside = set_aside_report(parts.set_aside & parts.net, dev, parts.artefacts, options, parts.clearing)
     notes = placed.notes + [field.describe(), aside.describe(tol),
                             *left_out_notes(parts.set_aside, dev, options.margin_mm)]
     # what of the net plate was not measured (occlusions, rim bands): gaps wider than allowed
     covered = coverage(skin.outline, _nearest(parts.artefacts, dev), parts.artefacts.spacing_mm, options.gap_mm,
-                       options.max_gap_mm, _on_press(skin, options.tf_press_design, options.punch_xy_mm,
-                                                     options.punch_label_base))
+                       options.max_gap_mm, _on_press(skin, options))
     notes.append(covered.describe())
     punch = _punches(design, placed, parts, options, notes)
     # the one decision rule: form max, RMS, set-aside points beyond the tolerance, coverage, badly formed
@@ -300,11 +298,11 @@ def _nearest(artefacts, dev):
     return lambda cells: spatial_query(tree, cells, 1)[0][:, 0]
 
 
-def _on_press(skin: DesignSkin, tf_press_design, punch_xy_mm, label_base: int):
+def _on_press(skin: DesignSkin, options: CompareOptions):
     """``where(uv) -> (press xy, nearest punch)`` of a place on the design plane, or None without the press pose."""
-    if tf_press_design is None:
+    if options.tf_press_design is None:
         return None
-    tf = np.asarray(tf_press_design, dtype=float)
+    tf, punch_xy_mm, label_base = options.tf_press_design, options.punch_xy_mm, options.punch_label_base
 
     def where(uv):
         press_xy = apply_tf(tf, skin.at(np.asarray(uv, dtype=float)[None]))[0, :2]

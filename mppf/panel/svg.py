@@ -97,8 +97,12 @@ def scale_of(*grids, symmetric: bool = False, at_least: float = 0.0) -> tuple[fl
     return lo, hi
 
 
-def heat_map(values, *, lo: float, hi: float, cmap=VIRIDIS, id_prefix: str = "", flags=None, text: bool = True,
-             title: str = "", base: int = 1, cell: float = 40.0) -> str:
+CELL = 40.0
+"""The size of a heat map's cell in SVG units (the picture scales to its box)."""
+
+
+def heat_map(values, *, lo: float, hi: float, cmap=VIRIDIS, id_prefix: str = "", flags=None, title: str = "",
+             base: int = 1) -> str:
     """A punch matrix as an SVG heat map, row 1 at the bottom, with row and column numbers.
 
     Parameters
@@ -115,14 +119,12 @@ def heat_map(values, *, lo: float, hi: float, cmap=VIRIDIS, id_prefix: str = "",
         update them; cells carry ``data-name``.
     flags : (rows, cols) array of str, optional
         "" or a key of :data:`FLAG_COLOURS` per punch: the punch is outlined (and crossed when faulted).
-    text : bool
-        Print each punch's value in its cell.
     title : str
         Caption above the matrix.
     base : int
         First row / column number.
-    cell : float
-        Cell size in SVG units (the picture scales to its box).
+
+    Each punch's value is printed in its cell (:data:`CELL` units square).
 
     Returns
     -------
@@ -131,6 +133,7 @@ def heat_map(values, *, lo: float, hi: float, cmap=VIRIDIS, id_prefix: str = "",
     """
     grid = np.asarray(values, dtype=float)
     rows, cols = grid.shape
+    cell = CELL
     pad_l, pad_b, pad_t = 1.3 * cell, 0.9 * cell, (0.9 * cell if title else 0.25 * cell)
     width, height = pad_l + cols * cell + 0.25 * cell, pad_t + rows * cell + pad_b
     out = [f'<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {width:.0f} {height:.0f}" class="heat" '
@@ -138,31 +141,35 @@ def heat_map(values, *, lo: float, hi: float, cmap=VIRIDIS, id_prefix: str = "",
     if title:
         out.append(f'<text x="{pad_l:.1f}" y="{0.65 * cell:.1f}" class="map-title" font-size="{0.6 * cell:.1f}" '
                    f'font-weight="bold">{esc(title)}</text>')
-    font = 0.34 * cell
     for r in range(rows):
         y = pad_t + (rows - 1 - r) * cell
         out.append(f'<text x="{pad_l - 0.15 * cell:.1f}" y="{y + 0.62 * cell:.1f}" text-anchor="end" '
                    f'font-size="{0.4 * cell:.1f}" class="axis">R{r + base}</text>')
         for c in range(cols):
-            x = pad_l + c * cell
-            v = grid[r, c]
-            fill = colour(v, lo, hi, cmap)
-            name = punch_name(r, c, base)
-            rid = f' id="{esc(id_prefix)}-r{r + base}-c{c + base}"' if id_prefix else ""
-            vtext = value_text(v)
-            out.append(f'<rect{rid} x="{x:.1f}" y="{y:.1f}" width="{cell:.1f}" height="{cell:.1f}" fill="{fill}" '
-                       f'stroke="#fff" stroke-width="{0.04 * cell:.1f}" class="cell" data-name="{name}" '
-                       f'data-mm="{f"{v:.2f}" if math.isfinite(v) else ""}"><title>{name}: {vtext} mm</title></rect>')
-            if text:
-                tid = f' id="{esc(id_prefix)}-v-r{r + base}-c{c + base}"' if id_prefix else ""
-                out.append(f'<text{tid} x="{x + 0.5 * cell:.1f}" y="{y + 0.62 * cell:.1f}" text-anchor="middle" '
-                           f'font-size="{font:.1f}" fill="{ink(fill)}" class="val">{vtext}</text>')
+            fill = colour(grid[r, c], lo, hi, cmap)
+            ids = ((f"{esc(id_prefix)}-r{r + base}-c{c + base}", f"{esc(id_prefix)}-v-r{r + base}-c{c + base}")
+                   if id_prefix else ("", ""))
+            out.append(_cell(grid[r, c], fill, (pad_l + c * cell, y), punch_name(r, c, base), ids))
     for c in range(cols):
         out.append(f'<text x="{pad_l + (c + 0.5) * cell:.1f}" y="{pad_t + rows * cell + 0.6 * cell:.1f}" '
                    f'text-anchor="middle" font-size="{0.4 * cell:.1f}" class="axis">{c + base}</text>')
     out.append(_flag_marks(flags, rows, cell, pad_l, pad_t, id_prefix))
     out.append("</svg>")
     return "".join(out)
+
+
+def _cell(v: float, fill: str, xy: tuple[float, float], name: str, ids: tuple[str, str]) -> str:
+    """One punch's cell at ``xy`` (its top left, SVG units) with its value; ``ids`` of the cell and the value
+    ("": none)."""
+    x, y = xy
+    cell = CELL
+    vtext = value_text(v)
+    rect_id, text_id = (f' id="{i}"' if i else "" for i in ids)
+    return (f'<rect{rect_id} x="{x:.1f}" y="{y:.1f}" width="{cell:.1f}" height="{cell:.1f}" fill="{fill}" '
+            f'stroke="#fff" stroke-width="{0.04 * cell:.1f}" class="cell" data-name="{name}" '
+            f'data-mm="{f"{v:.2f}" if math.isfinite(v) else ""}"><title>{name}: {vtext} mm</title></rect>'
+            f'<text{text_id} x="{x + 0.5 * cell:.1f}" y="{y + 0.62 * cell:.1f}" text-anchor="middle" '
+            f'font-size="{0.34 * cell:.1f}" fill="{ink(fill)}" class="val">{vtext}</text>')
 
 
 def _flag_marks(flags, rows: int, cell: float, pad_l: float, pad_t: float, id_prefix: str) -> str:

@@ -11,15 +11,34 @@ the punch maps carry their values.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
 from mppf.loop.records import CycleRecord, PlateRecord
 
 
+@dataclass(frozen=True)
+class Signature:
+    """Who made a plate's record, on which press, when.
+
+    Attributes
+    ----------
+    operator, press_name : str, optional
+        Who ran the plate and on which press (printed as given; default: "not given", the
+        plate's press).
+    made_utc : datetime, optional
+        When the report is made (default: now).
+    """
+
+    operator: str | None = None
+    press_name: str | None = None
+    made_utc: datetime | None = None
+
+
 def write_plate_report(out_dir, plate: PlateRecord, cycles: Sequence[CycleRecord], comparisons: Mapping[int, object],
-                       job, *, tolerance_mm: float, rms_tolerance_mm: float, operator: str | None = None,
-                       press_name: str | None = None, made_utc: datetime | None = None) -> list[Path]:
+                       job, *, tolerance_mm: float, rms_tolerance_mm: float,
+                       signed: Signature = Signature()) -> list[Path]:
     """Write the pictures and ``report.html`` of a plate into ``out_dir``; return the files written.
 
     Parameters
@@ -35,10 +54,8 @@ def write_plate_report(out_dir, plate: PlateRecord, cycles: Sequence[CycleRecord
         The first cycle's job (its strokes picture).
     tolerance_mm, rms_tolerance_mm : float
         The loop's limits.
-    operator, press_name : str, optional
-        Who ran the plate and on which press (printed as given).
-    made_utc : datetime, optional
-        When the report is made (default: now).
+    signed : Signature
+        The operator, the press and when the report is made.
 
     Returns
     -------
@@ -51,15 +68,15 @@ def write_plate_report(out_dir, plate: PlateRecord, cycles: Sequence[CycleRecord
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    made = made_utc or datetime.now(UTC)
+    made = signed.made_utc or datetime.now(UTC)
     limits = {"tolerance_mm": tolerance_mm, "rms_tolerance_mm": rms_tolerance_mm}
     files, cycle_pictures = draw_pictures(
         [(plot_strokes, (job, out / "strokes.png"))], comparisons, job, out, cycles, limits,
         lambda n: (f"plate {plate.plate_id}, cycle {n}: deviation of the scan from the design",
                    f"cycle {n}: deviation at the punches (mm)"))
     details = [("report made (UTC)", made.strftime("%Y-%m-%d %H:%M:%S")),
-               ("operator", operator or "(not given: --operator)"),
-               ("press", press_name or str(plate.press.get("name", "press"))),
+               ("operator", signed.operator or "(not given: --operator)"),
+               ("press", signed.press_name or str(plate.press.get("name", "press"))),
                *[(f"job of cycle {c.cycle} (SHA-256)", c.job_sha256) for c in cycles]]
     page = loop_report(plate, cycles, **limits, cycle_pictures=cycle_pictures, details=details,
                        pictures=[("strokes of the first cycle's last step", (out / "strokes.png").read_bytes())],
