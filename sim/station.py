@@ -199,6 +199,8 @@ class ScanStation:
             except MppfError as exc:
                 hint = f" ({exc.hint})" if getattr(exc, "hint", None) else ""
                 self.say(f"station: request {path.name} not answered: {exc.message}{hint}")
+            except (OSError, KeyError, TypeError, ValueError) as exc:  # a request's paths or values the station
+                self.say(f"station: request {path.name} not answered: {type(exc).__name__}: {exc}")  # cannot use
         return done
 
     def run(self, stop: threading.Event) -> None:
@@ -301,8 +303,11 @@ def _request_keys(request: dict) -> tuple[str, int, int]:
     try:
         plate_id, cycle, number = request["plate_id"], int(request["cycle"]), int(request.get("rescan", 0))
         request["scan"]["path"], request["mark"]["path"], request["job"]["path"]
-    except (KeyError, TypeError, ValueError) as exc:
+    except KeyError as exc:
         raise InputError(f"a scan request without {exc}", hint="see docs/scanner-station.md for its keys") from None
+    except (TypeError, ValueError):
+        raise InputError(f"a scan request with cycle {request.get('cycle')!r}, rescan {request.get('rescan', 0)!r}",
+                         hint="the cycle and the rescan are whole numbers (docs/scanner-station.md)") from None
     if not isinstance(plate_id, str) or not SAFE_ID.match(plate_id):
         raise InputError(f"a scan request for plate id {plate_id!r}", hint="plate ids are letters, digits, _ . -")
     return plate_id, cycle, number

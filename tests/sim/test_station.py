@@ -112,6 +112,16 @@ def test_parked_pairs_do_not_act_and_bad_requests_are_refused_with_a_message(tmp
     assert station.poll() == 0
     assert lines == [("station: request X-cycle-01.scan-request.json not answered: a scan request without 'scan' "
                       "(see docs/scanner-station.md for its keys)")]
+    (tmp_path / "scans" / "X-cycle-01.scan-request.json").unlink()
+    paths = {"scan": {"path": "a.ply"}, "mark": {"path": "a.ply.mark.json"}, "job": {"path": str(tmp_path / "no.json")}}
+    (tmp_path / "scans" / "Y-cycle-01.scan-request.json").write_text(json.dumps({"plate_id": "Y", "cycle": "x", **paths}))
+    (tmp_path / "scans" / "Z-cycle-01.scan-request.json").write_text(json.dumps({"plate_id": "Z", "cycle": 1, **paths}))
+    assert station.poll() == 0 and station.poll() == 0  # each said once
+    assert lines[1:] == [
+        ("station: request Y-cycle-01.scan-request.json not answered: a scan request with cycle 'x', rescan 0 (the "
+         "cycle and the rescan are whole numbers (docs/scanner-station.md))"),
+        (f"station: request Z-cycle-01.scan-request.json not answered: job file {tmp_path / 'no.json'} does not "
+         "exist (make one with 'mppf plan')")]
     with pytest.raises(InputError, match="unknown plate physics 'xx'"):
         ScanStation(tmp_path / "scans", press, MotionLog(press), physics="xx")
 
