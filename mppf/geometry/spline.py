@@ -244,7 +244,8 @@ def fit_spline(u, v, z, smoothing: float | None = None) -> SplineSurface:
             try:
                 if counts.min() < SPLINE_MIN_POINTS_IN_CELL:
                     raise GeometryError(f"a {nu}x{nv} knot grid has cells with {int(counts.min())} points")
-                spline = _fitpack(lambda: LSQBivariateSpline(u, v, z, tx, ty, kx=3, ky=3), f"{nu}x{nv} knot intervals")
+                spline = _fitpack(lambda tx=tx, ty=ty: LSQBivariateSpline(u, v, z, tx, ty, kx=3, ky=3),
+                                  f"{nu}x{nv} knot intervals")
                 break
             except GeometryError:
                 if nu == 1 and nv == 1:
