@@ -74,7 +74,7 @@ from mppf.measure.outliers import clear_by_rescans, find_outliers_by_scan
 from mppf.measure.punches import edge_at_punches, nearest_punch, punch_deviations
 from mppf.measure.result import Comparison
 from mppf.measure.statistics import statistics
-from mppf.registration.outline_fit import refit_outline
+from mppf.registration.outline_fit import OutlineDesign, refit_outline
 from mppf.registration.register import register_icp
 from mppf.registration.scan_start import choose_start, known_start
 from mppf.registration.settings import RegisterOptions, ScanStages
@@ -180,9 +180,8 @@ def _place(design: np.ndarray, measured: np.ndarray, options: CompareOptions) ->
     # 4. on the press the outline places the plate in the plane, the deviations out of it
     transform = reg.tf
     if options.outline_fitted:
-        transform, note = refit_outline(measured, transform, frame=fitted.frame, design_uv=skin.uv,
-                                        skin_world=skin.at(skin.uv), tf_press_design=tf_press,
-                                        margin_mm=options.margin_mm, heights=skin.heights(measured))
+        outline = OutlineDesign(fitted.frame, skin.uv, skin.at(skin.uv), tf_press, options.margin_mm)
+        transform, note = refit_outline(measured, transform, outline, skin.heights(measured))
         notes[0] = f"{notes[0]}; {note}"
         dev = skin.deviate(measured, transform)
     # another plate or other units: refused; this plate far from its design: judged (badly formed)

@@ -21,6 +21,7 @@ of the strokes, so the punch deviations come out where the punches are. The math
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -38,16 +39,12 @@ points (design coordinates, pointing "up": the side of positive deviations) and 
 normal deviations (k,), mm."""
 
 
-def refit_outline(measured, tf, *, frame, design_uv, skin_world, tf_press_design, margin_mm: float,
-                  heights: Heights, settings: OutlineFit = OutlineFit()) -> tuple[np.ndarray, str]:
-    """The measured -> design transform re-placed by the outline, and a note (see the module docstring).
+@dataclass(frozen=True, eq=False)
+class OutlineDesign:
+    """The design side of an outline fit.
 
-    Parameters
+    Attributes
     ----------
-    measured : (n, 3) float, mm
-        The scan.
-    tf : (4, 4) float
-        Its registration, measured -> design.
     frame : LocalFrame
         The design's frame.
     design_uv : (m, 2) float, mm
@@ -58,6 +55,27 @@ def refit_outline(measured, tf, *, frame, design_uv, skin_world, tf_press_design
         Design -> press; None: seen along the design's normal.
     margin_mm : float
         Trim margin the scan still carries: the outline is grown by it.
+    """
+
+    frame: object
+    design_uv: np.ndarray
+    skin_world: np.ndarray
+    tf_press_design: np.ndarray | None
+    margin_mm: float
+
+
+def refit_outline(measured, tf, design: OutlineDesign, heights: Heights,
+                  settings: OutlineFit = OutlineFit()) -> tuple[np.ndarray, str]:
+    """The measured -> design transform re-placed by the outline, and a note (see the module docstring).
+
+    Parameters
+    ----------
+    measured : (n, 3) float, mm
+        The scan.
+    tf : (4, 4) float
+        Its registration, measured -> design.
+    design : OutlineDesign
+        The design's frame, points, measured skin, press pose and trim margin.
     heights : Heights
         The net plate's deviations at a transform.
     settings : OutlineFit
@@ -69,9 +87,9 @@ def refit_outline(measured, tf, *, frame, design_uv, skin_world, tf_press_design
         wants an implausible move (the note says so).
     note : str
     """
-    view, corners = _view(frame, design_uv, skin_world, tf_press_design, margin_mm)
+    view, corners = _view(design)
     unview = np.linalg.inv(view)
-    size_mm = float(np.ptp(design_uv, axis=0).max())
+    size_mm = float(np.ptp(design.design_uv, axis=0).max())
     turns, shifts = [], []
     for _ in range(settings.rounds):
         # in the plane: the scan's edge fitted to the outline
@@ -92,21 +110,22 @@ def refit_outline(measured, tf, *, frame, design_uv, skin_world, tf_press_design
             a, b, c = best_plane(at[:, 0], at[:, 1], deviation / np.maximum(n_z, settings.slope_floor), robust=True)
             lift = make_tf(rotvec_to_matrix([-c, b, 0.0]), [0.0, 0.0, -a])
             tf = unview @ lift @ view @ tf
-    seen = "from above the press" if tf_press_design is not None else "along the design's normal"
+    seen = "from above the press" if design.tf_press_design is not None else "along the design's normal"
     return tf, (f"outline fit ({seen}): turned {sum(turns):+.2f} deg and shifted {shifts[0]:.1f} mm in the plane"
                 + (f", then {', '.join(f'{s:.1f}' for s in shifts[1:])} mm" if len(shifts) > 1 else ""))
 
 
-def _view(frame, design_uv, skin_world, tf_press_design, margin_mm) -> tuple[np.ndarray, np.ndarray]:
+def _view(design: OutlineDesign) -> tuple[np.ndarray, np.ndarray]:
     """(4, 4) design -> view transform ("z" the viewing direction) and the outline's corners (k, 2) in it.
 
     Seen from above the press the view is centred on the skin (turns and tilts about the
     plate's centre); the outline is the skin's convex outline grown by the margin.
     """
+    tf_press_design, margin_mm = design.tf_press_design, design.margin_mm
     if tf_press_design is None:
-        return frame.tf_local_world, offset_convex(convex_outline(design_uv), margin_mm)
+        return design.frame.tf_local_world, offset_convex(convex_outline(design.design_uv), margin_mm)
     press_design = np.asarray(tf_press_design, dtype=float)
-    skin = apply_tf(press_design, skin_world)
+    skin = apply_tf(press_design, design.skin_world)
     centre = np.eye(4)
     centre[:3, 3] = -skin.mean(axis=0)
     xy = skin[:, :2] + centre[:2, 3]

@@ -148,22 +148,17 @@ def choose_start(scan: Cloud, target: RegistrationTarget, rotation_hint, referen
     """
     hint = None if rotation_hint is None else as_rotation(rotation_hint)
     mark = None if reference_mark is None else as_mark(reference_mark)
-    # 1. the four principal-axes starts, converged; their residuals on one common sample
-    judge = scan.points[sample_index(scan.n_points, settings.points, seed=1)]
-    starts = principal_candidates(scan.frame, target.frame)
-    fits = _map(lambda start: _start_fit(scan, target, start, settings), starts, settings)
-    candidates = [evaluate(name, target, judge, tf) for name, tf in zip(("+++", "--+", "-+-", "+--"), fits)]
-    # 2. the best, the best different pose, and whether the scan tells them apart
+    # 1-2. the four principal-axes starts converged and ranked; whether the scan tells the best two apart
     floor = noise_floor_mm(scan, target)
-    order, second, _ = rank(candidates, floor, judge.mean(axis=0), length_mm)
+    converged = _converged(scan, target, floor, length_mm, settings)
+    fits, candidates, order, second = converged.fits, converged.candidates, converged.order, converged.second
     tied, asymmetry = start_tie(target, candidates[order[0]], None if second is None else candidates[second], floor)
     best = order[0]
     summary = lambda chosen: _summary(candidates, chosen)  # noqa: E731
     scored = ", ".join(f"{robust_scale_mm(c.normal):.2f}" for c in candidates)
     # 3. the mark settles the turn; a hint breaks a tie; a tie without either is not judged
     if mark is not None:
-        tf, note, how = _mark_start(scan, target, starts, fits, [robust_scale_mm(c.normal) for c in candidates],
-                                    order, mark, length_mm, settings)
+        tf, note, how = _mark_start(scan, target, converged, mark, length_mm, settings)
         chosen = min(range(4), key=lambda i: rotation_angle_deg(fits[i][:3, :3] @ tf[:3, :3].T))
         return StartChoice(tf, note, tied, how, summary(chosen), floor, asymmetry)
     if tied and hint is not None:
@@ -227,9 +222,33 @@ def _summary(candidates, chosen: int) -> list[dict]:
              "turn_deg": rotation_angle_deg(c.tf[:3, :3] @ ref.T)} for c in candidates]
 
 
-def _mark_start(scan, target, candidates, fits, scores, order, mark, length_mm, settings):
+@dataclass(frozen=True, eq=False)
+class _Converged:
+    """The four principal-axes starts (4, 4) each, converged (``fits``), their evaluations on one sample,
+    the ranking (best first) and the best different pose (or None)."""
+
+    starts: list
+    fits: list
+    candidates: list
+    order: list
+    second: int | None
+
+
+def _converged(scan: Cloud, target: RegistrationTarget, floor_mm: float, length_mm: float,
+               settings: ScanStart) -> _Converged:
+    """The four principal-axes starts, converged; their residuals on one common sample; ranked."""
+    judge = scan.points[sample_index(scan.n_points, settings.points, seed=1)]
+    starts = principal_candidates(scan.frame, target.frame)
+    fits = _map(lambda start: _start_fit(scan, target, start, settings), starts, settings)
+    candidates = [evaluate(name, target, judge, tf) for name, tf in zip(("+++", "--+", "-+-", "+--"), fits)]
+    order, second, _ = rank(candidates, floor_mm, judge.mean(axis=0), length_mm)
+    return _Converged(starts, fits, candidates, order, second)
+
+
+def _mark_start(scan, target, converged: _Converged, mark, length_mm: float, settings: ScanStart):
     """The start settled by the reference mark: the best start that agrees with it, else a start held at it."""
-    scored = ", ".join(f"{s:.2f}" for s in scores)
+    candidates, fits, order = converged.starts, converged.fits, converged.order
+    scored = ", ".join(f"{robust_scale_mm(c.normal):.2f}" for c in converged.candidates)
     miss = [float(np.linalg.norm(apply_tf(tf, mark[0][None])[0] - mark[1])) for tf in fits]
     agree = [i for i in order if miss[i] <= settings.mark_radius_fraction * length_mm]
     if agree:

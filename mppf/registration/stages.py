@@ -150,8 +150,8 @@ def start(problem: Problem, principal: PrincipalStart) -> tuple[np.ndarray, dict
     """The start transform (``settings.init``) and how it was chosen (``Registration.init``)."""
     init, target, points, matching = problem.settings.init, problem.target, problem.points, problem.matching
     if problem.settings.principal_start:
-        return principal_start(target, points.fit, points.judge, problem.cloud.frame, matching.metric, matching,
-                               problem.floor_mm, _size_mm(target), principal)
+        return principal_start(target, points.fit, points.judge, problem.cloud.frame, matching, problem.floor_mm,
+                               _size_mm(target), principal)
     if isinstance(init, str):
         return np.eye(4), {"kind": "identity"}
     return np.asarray(init, dtype=float).copy(), {"kind": "given"}

@@ -151,9 +151,12 @@ def rank(candidates: list[Candidate], floor_mm: float, centre: np.ndarray,
 
 
 def principal_start(target: RegistrationTarget, fit_src: np.ndarray, score_src: np.ndarray, source_frame,
-                    metric: str, matching: Matching, floor_mm: float, size_mm: float,
+                    matching: Matching, floor_mm: float, size_mm: float,
                     settings: PrincipalStart = PrincipalStart()) -> tuple[np.ndarray, dict]:
     """The best principal-axes start, converged, and how it was chosen (``Registration.init``).
+
+    The candidates converge and are compared with ``matching`` (its metric: distances for
+    "point", normal residuals for "plane").
 
     Returns
     -------
@@ -164,6 +167,7 @@ def principal_start(target: RegistrationTarget, fit_src: np.ndarray, score_src: 
         clipped residuals of ``score_src``), the chosen one, the runner-up (the best
         different pose) and whether they tie (``ambiguous``).
     """
+    metric = matching.metric
     names = ["".join("+" if s > 0 else "-" for s in flip) for flip in SIGN_FLIPS]
     starts = dict(zip(names, principal_candidates(source_frame, target.frame)))
     candidates = compared(converge_candidates(target, fit_src, score_src, starts, metric, matching, settings),
