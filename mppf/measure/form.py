@@ -120,7 +120,7 @@ def noise_mm(uv: np.ndarray, values: np.ndarray, tree: cKDTree) -> float:
     if sample.size > NOISE_SAMPLE:
         sample = np.sort(np.random.default_rng(0).choice(sample.size, NOISE_SAMPLE, replace=False))
     dist, nb = spatial_query(tree, uv[sample], k)
-    fits = fit(uv, values, uv[sample], nb, dist, k)
+    fits = fit(uv, values, uv[sample], (dist, nb), k)
     spread = np.sqrt(np.maximum(1.0 - 2.0 * fits.leverage + fits.variance, 1e-3))
     return float(MAD_SCALE * np.median(np.abs(values[sample] - fits.value) / spread))
 
@@ -173,7 +173,7 @@ def _level_fits(uv, values, centres, nb, dist, ks: list[int], terms: list[int]) 
     out: list = [None] * len(ks)
     for k in dict.fromkeys(ks):
         mine = [i for i, kk in enumerate(ks) if kk == k]
-        for i, f in zip(mine, shared_fits(uv, values, centres, nb, dist, k, tuple(terms[i] for i in mine), hat=True)):
+        for i, f in zip(mine, shared_fits(uv, values, centres, (dist, nb), k, tuple(terms[i] for i in mine), hat=True)):
             out[i] = f
     return out
 

@@ -125,8 +125,8 @@ def solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         return cholesky_solve(a, b)
 
 
-def fit(uv: np.ndarray, values: np.ndarray, centres: np.ndarray, neighbours: np.ndarray, distances: np.ndarray,
-        k: int, terms: int = 6, weight: np.ndarray | None = None, hat: bool = False) -> LocalFits:
+def fit(uv: np.ndarray, values: np.ndarray, centres: np.ndarray, near: tuple[np.ndarray, np.ndarray], k: int,
+        terms: int = 6, weight: np.ndarray | None = None, hat: bool = False) -> LocalFits:
     """Tricube-weighted local fits at ``centres`` over their ``k`` nearest points.
 
     Parameters
@@ -137,8 +137,9 @@ def fit(uv: np.ndarray, values: np.ndarray, centres: np.ndarray, neighbours: np.
         Their deviations.
     centres : (m, 2) float, mm
         Where the fits are centred.
-    neighbours, distances : (m, K) int, float
-        The centres' nearest points (sorted by distance), K >= k.
+    near : ((m, K) float, (m, K) int)
+        The centres' nearest points, sorted by distance, K >= k: (distances mm, indices), as
+        :func:`spatial_query` returns them.
     k : int
         Points in each fit.
     terms : int
@@ -148,11 +149,11 @@ def fit(uv: np.ndarray, values: np.ndarray, centres: np.ndarray, neighbours: np.
     hat : bool
         Also return the neighbours' weights in the values (:attr:`LocalFits.hat`).
     """
-    return fits(uv, values, centres, neighbours, distances, k, (terms,), weight, hat)[0]
+    return fits(uv, values, centres, near, k, (terms,), weight, hat)[0]
 
 
-def fits(uv: np.ndarray, values: np.ndarray, centres: np.ndarray, neighbours: np.ndarray, distances: np.ndarray,
-         k: int, terms=(6,), weight: np.ndarray | None = None, hat: bool = False) -> list[LocalFits]:
+def fits(uv: np.ndarray, values: np.ndarray, centres: np.ndarray, near: tuple[np.ndarray, np.ndarray], k: int,
+         terms=(6,), weight: np.ndarray | None = None, hat: bool = False) -> list[LocalFits]:
     """:func:`fit` for several term counts over the same ``k`` neighbours (one :class:`LocalFits` per entry of
     ``terms``): the neighbourhood, its weights and its terms are computed once and shared.
 
@@ -161,6 +162,7 @@ def fits(uv: np.ndarray, values: np.ndarray, centres: np.ndarray, neighbours: np
     whose squares sum to the variance and whose first entry (the nearest point) is the
     leverage.
     """
+    distances, neighbours = near
     m = centres.shape[0]
     widest = max(terms)
     out = [(np.empty((m, t)), np.empty(m), np.empty(m), np.empty((m, k)) if hat else None) for t in terms]

@@ -57,7 +57,7 @@ def test_local_fits_and_foot_points_are_the_same_on_one_thread_and_on_two(monkey
     answers = []
     for count in ("1", "2"):
         monkeypatch.setenv("MPPF_THREADS", count)
-        fitted = localfit.fits(uv, values, uv, idx, dist, 20, terms=(3, 6))
+        fitted = localfit.fits(uv, values, uv, (dist, idx), 20, terms=(3, 6))
         feet = deviations._foot_points(surface, near)
         answers.append((fitted[0].coef, fitted[1].variance, feet.uv, feet.distance_mm))
     for one, two in zip(*answers):
