@@ -83,13 +83,13 @@ def test_the_default_worker_count_is_the_cores_this_process_may_run_on(designs, 
     # os.cpu_count() workers fighting over it, the plates are planned in this process
     import os
 
-    from mppf.planning import batch
+    from mppf.planning import batch_pool
 
     def no_pool(*args, **kwargs):
         raise AssertionError("a process pool was started on a process that may run on one core")
 
     monkeypatch.setattr(os, "cpu_count", lambda: 8)
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0}, raising=False)
-    monkeypatch.setattr(batch, "ProcessPoolExecutor", no_pool)
+    monkeypatch.setattr(batch_pool, "ProcessPoolExecutor", no_pool)
     assert main(["batch", str(designs[0]), "--thickness", "20", "-o", str(tmp_path / "out")]) == 0
     assert "1 plate(s): 1 planned" in capsys.readouterr().out
