@@ -191,6 +191,20 @@ class Clearing:
     confirmed: np.ndarray
 
 
+def _scan_parts(uv: np.ndarray, valid: np.ndarray, scan_index: np.ndarray, scans: np.ndarray) -> dict:
+    """``{scan: (its measured points (k,) int, their k-d tree, clear radius mm, confirm radius mm)}``, the radii from
+    the scan's own point spacing; a scan with too few points is left out."""
+    parts = {}
+    for scan in scans:
+        own = np.flatnonzero(valid & (scan_index == scan))
+        if own.size > MIN_NEIGHBOURS:
+            tree = cKDTree(uv[own])
+            spacing = float(np.median(local_spacing_mm(spatial_query(tree, uv[own], MIN_NEIGHBOURS + 1)[0])))
+            parts[scan] = (own, tree, max(CLEAR_RADIUS_SPACINGS * spacing, CLEAR_RADIUS_FLOOR_MM),
+                           max(CONFIRM_RADIUS_SPACINGS * spacing, CLEAR_RADIUS_FLOOR_MM))
+    return parts
+
+
 def clear_by_rescans(uv: np.ndarray, deviation: np.ndarray, set_aside: np.ndarray, valid: np.ndarray,
                      scan_index: np.ndarray, tolerance_mm: float) -> Clearing:
     """Which set-aside points beyond the tolerance other scans clear or confirm (see the module docstring).
@@ -215,15 +229,7 @@ def clear_by_rescans(uv: np.ndarray, deviation: np.ndarray, set_aside: np.ndarra
     scans = np.unique(scan_index[valid])
     if scans.size < 2 or not beyond.any():
         return Clearing(cleared, cleared_by, confirmed)
-    # each scan's points, k-d tree and radii (clear, confirm) from its own point spacing
-    parts = {}
-    for scan in scans:
-        own = np.flatnonzero(valid & (scan_index == scan))
-        if own.size > MIN_NEIGHBOURS:
-            tree = cKDTree(uv[own])
-            spacing = float(np.median(local_spacing_mm(spatial_query(tree, uv[own], MIN_NEIGHBOURS + 1)[0])))
-            parts[scan] = (own, tree, max(CLEAR_RADIUS_SPACINGS * spacing, CLEAR_RADIUS_FLOOR_MM),
-                           max(CONFIRM_RADIUS_SPACINGS * spacing, CLEAR_RADIUS_FLOOR_MM))
+    parts = _scan_parts(uv, valid, scan_index, scans)
 
     def walled(point: int) -> bool:
         """Whether a scan other than the point's own measured a plain surface (within the tolerance, not set aside)

@@ -177,11 +177,7 @@ def fit_outline_2d(points, seg_a, seg_b, turn: bool, spacing_mm: float,
         The scan's point spacing.
     settings : OutlineFit
     """
-    inward = inward_normals(seg_a, seg_b, counter_clockwise=area(seg_a) > 0)
-    lengths = np.linalg.norm(seg_b - seg_a, axis=1)
-    piece_mm = max(settings.piece_spacings * spacing_mm, 1e-6)
-    pieces_per_seg = np.maximum(np.ceil(lengths / piece_mm).astype(int), 1)
-    first_piece = np.concatenate([[0], np.cumsum(pieces_per_seg)[:-1]])
+    inward, lengths, pieces_per_seg, first_piece = _cut(seg_a, seg_b, spacing_mm, settings)
     total = np.eye(3)
     rough, fine = True, 0
     for _ in range(settings.iterations):
@@ -200,22 +196,13 @@ def fit_outline_2d(points, seg_a, seg_b, turn: bool, spacing_mm: float,
         # further in or out than most (their outer row of points missing, a hidden stretch, a
         # stray point) are left out, with a band that narrows from a few spacings to about
         # half a spacing around the outer quartile of the pieces' edges
-        if rough:
-            keep = np.ones(len(depth), dtype=bool)
-        else:
-            band = spacing_mm * max(settings.band_spacings[1], settings.band_spacings[0] * 0.7 ** fine)
-            keep = np.abs(depth - float(np.quantile(depth, 0.25))) <= band
-            fine += 1
+        keep = _within_band(depth, None if rough else spacing_mm * max(settings.band_spacings[1],
+                                                                      settings.band_spacings[0] * 0.7 ** fine))
+        fine += 0 if rough else 1
         if keep.sum() < 4:
             break
-        centre = float(np.median(depth[keep]))
-        target = dst + centre * normal  # remove the sampling's common inset
-        if turn:
-            step = fit_rigid(src[keep], target[keep], weight[keep])
-        else:
-            step = np.eye(3)
-            w = weight[keep] / weight[keep].sum()
-            step[:2, 2] = ((target[keep] - src[keep]) * w[:, None]).sum(axis=0)
+        target = dst + float(np.median(depth[keep])) * normal  # remove the sampling's common inset
+        step = _move(src[keep], target[keep], weight[keep], turn)
         total = step @ total
         small = np.hypot(*step[:2, 2]) < 1e-3 and abs(np.arctan2(step[1, 0], step[0, 0])) < 1e-7
         if rough and (small or np.hypot(*step[:2, 2]) < 0.05 * spacing_mm):
@@ -223,6 +210,33 @@ def fit_outline_2d(points, seg_a, seg_b, turn: bool, spacing_mm: float,
         elif small and fine > 6:
             break
     return total
+
+
+def _cut(seg_a, seg_b, spacing_mm: float, settings: OutlineFit) -> tuple:
+    """The outline's edges cut into pieces: inward normals (k, 2), lengths (k,) mm, pieces per edge (k,) and the
+    index of each edge's first piece (k,)."""
+    inward = inward_normals(seg_a, seg_b, counter_clockwise=area(seg_a) > 0)
+    lengths = np.linalg.norm(seg_b - seg_a, axis=1)
+    piece_mm = max(settings.piece_spacings * spacing_mm, 1e-6)
+    pieces_per_seg = np.maximum(np.ceil(lengths / piece_mm).astype(int), 1)
+    return inward, lengths, pieces_per_seg, np.concatenate([[0], np.cumsum(pieces_per_seg)[:-1]])
+
+
+def _within_band(depth: np.ndarray, band_mm: float | None) -> np.ndarray:
+    """(p,) bool: the pieces whose edge lies within ``band_mm`` of the outer quartile of all (None: every piece)."""
+    if band_mm is None:
+        return np.ones(len(depth), dtype=bool)
+    return np.abs(depth - float(np.quantile(depth, 0.25))) <= band_mm
+
+
+def _move(src: np.ndarray, target: np.ndarray, weight: np.ndarray, turn: bool) -> np.ndarray:
+    """(3, 3) weighted least-squares turn and shift of ``src`` (p, 2) onto ``target`` (p, 2), or the shift only."""
+    if turn:
+        return fit_rigid(src, target, weight)
+    step = np.eye(3)
+    w = weight / weight.sum()
+    step[:2, 2] = ((target - src) * w[:, None]).sum(axis=0)
+    return step
 
 
 def _pieces(piece, index, foot, inset, along, quantile: float):
