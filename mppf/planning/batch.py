@@ -335,8 +335,21 @@ def _task(plate: Plate, options: BatchOptions) -> dict:
 def run_batch(plates: list[Plate], options: BatchOptions, reporter=NULL_REPORTER, *, pool=None) -> list[dict]:
     """Plan every plate (skipping finished ones), ``options.workers`` at a time; the rows in the plates' order.
 
-    Each finished plate is reported as a progress line ``[k/n] name: ...``. ``pool`` (from
-    :func:`planning_pool`) plans them in running workers instead of a pool of the batch's own.
+    Each finished plate is reported as a progress line ``[k/n] name: ...``.
+
+    Parameters
+    ----------
+    plates : list of Plate
+    options : BatchOptions
+    reporter : Reporter
+    pool : concurrent.futures.Executor, optional
+        Running workers (:func:`planning_pool`) to plan in instead of a pool of the batch's own
+        (then ``options.workers`` is not used).
+
+    Returns
+    -------
+    list of dict
+        One summary row per plate, in the plates' order.
     """
     Path(options.out_dir).mkdir(parents=True, exist_ok=True)
     rows: dict[str, dict] = {}

@@ -33,6 +33,16 @@ def planning_pool(workers: int):
     :func:`mppf.planning.batch.run_batch` starts one per batch; a caller planning several batches
     in a row (the benchmark's parts) passes one to each, so the workers start and import once. Each
     worker imports the planning when it starts (:func:`_import_planning`), not in its first plate.
+
+    Parameters
+    ----------
+    workers : int
+        Processes of the pool.
+
+    Yields
+    ------
+    concurrent.futures.ProcessPoolExecutor
+        Stopped (its workers joined) when the ``with`` block ends.
     """
     with _one_blas_thread_each(), ProcessPoolExecutor(max_workers=workers, initializer=_import_planning,
                                                       mp_context=multiprocessing.get_context("spawn")) as pool:
