@@ -194,18 +194,23 @@ def run_loop(
         pressed again, on resume.
     """
     run = _start_run(history, plate_id, link, scanner, reporter, on_cycle, place or report_placement(reporter))
-    cycles = history.cycles(plate_id)
+    last = history.cycles(plate_id)[-1]
     ran_before = any(e.state != CycleState.PLANNED for e in history.events(plate_id) if e.cycle is not None)
-    resumed = cycles[-1].state if ran_before else None
-    number = cycles[-1].cycle
+    resumed, number = (last.state if ran_before else None), last.cycle
     while True:
         record = history.cycle(plate_id, number)
         if record.state == CycleState.DONE:
-            detail = run.verdicts[-1] if run.verdicts else None
-            cycles = history.cycles(plate_id)
-            end = ending(record.decision, cycles, run.settings, detail, reach=run.plate.settings.get("reach"))
-            return LoopResult(plate_id, record.decision, cycles, resumed, end.text, end)
+            return _result(run, record, resumed)
         number = _HANDLERS[record.state](run, record)
+
+
+def _result(run: _Run, record: CycleRecord, resumed) -> LoopResult:
+    """The loop's result once its last cycle is done: the decision, every cycle, how it ended and why."""
+    plate_id = record.plate_id
+    detail = run.verdicts[-1] if run.verdicts else None
+    cycles = run.history.cycles(plate_id)
+    end = ending(record.decision, cycles, run.settings, detail, reach=run.plate.settings.get("reach"))
+    return LoopResult(plate_id, record.decision, cycles, resumed, end.text, end)
 
 
 def _start_run(history, plate_id, link, scanner, reporter, on_cycle, place) -> _Run:

@@ -305,13 +305,18 @@ def rescan_uncovered(cycle_run, record, comparison) -> Measured:
         reporter.info(f"cycle {record.cycle}: rescan {number} merged ({agreement.describe()}); the union of "
                       f"{merged} scans: {comparison.verdict.headline if comparison.verdict else ''}")
     if _rescannable(comparison.verdict) and settings.rescans:
-        points = sum(s["count"] for s in _spots(comparison, None))
-        areas = len(comparison.coverage.regions) if comparison.coverage is not None else 0
-        still = [f"{points} set-aside point(s) beyond the tolerance still not re-measured within it"] if points else []
-        still += [f"{areas} area(s) still not measured"] if areas else []
-        reporter.info(f"cycle {record.cycle}: {' and '.join(still)} after {settings.rescans} rescan(s): "
+        reporter.info(f"cycle {record.cycle}: {_still(comparison)} after {settings.rescans} rescan(s): "
                       "the cycle needs review")
     return Measured(comparison, scans)
+
+
+def _still(comparison) -> str:
+    """What the rescans left: set-aside points beyond the tolerance not re-measured, areas not measured."""
+    points = sum(s["count"] for s in _spots(comparison, None))
+    areas = len(comparison.coverage.regions) if comparison.coverage is not None else 0
+    still = [f"{points} set-aside point(s) beyond the tolerance still not re-measured within it"] if points else []
+    still += [f"{areas} area(s) still not measured"] if areas else []
+    return " and ".join(still)
 
 
 def _take_rescan(run, record, job, number: int, regions: list, scans: list, spots: int) -> Path:
