@@ -170,7 +170,8 @@ def compare_command(design: str, measured: str, tolerance: float, rms_tolerance:
     # 3. compare and decide
     result = compare(design_cloud.points, measured_cloud.points, options)
     # 4. pictures, report, export, the result
-    _outputs(result, plot, report, export_path, scale_mm, design, measured, design_cloud, measured_cloud)
+    _outputs(result, plot, report, export_path, scale_mm, (f"{design} (sha256 {design_cloud.sha256[:12]})",
+                                                           f"{measured} (sha256 {measured_cloud.sha256[:12]})"))
     if as_json:
         doc = result.to_dict()
         doc.update({"design": design, "measured": measured, "design_sha256": design_cloud.sha256,
@@ -210,8 +211,9 @@ def _mark_without_job(design_points, scan_path, mark_mm, margin=None):
     return reference_mark(scan_path, design_points, None, mark_mm, margin_mm=max(float(margin or 0.0), 0.0))
 
 
-def _outputs(result, plot, report, export_path, scale_mm, design, measured, design_cloud, measured_cloud) -> None:
-    """Write the deviation map, the HTML report and the per-point export that were asked for."""
+def _outputs(result, plot, report, export_path, scale_mm, names: tuple[str, str]) -> None:
+    """Write the deviation map, the HTML report and the per-point export that were asked for (``names``: the
+    design's and the scan's file, with their sha256, as the report names them)."""
     if plot:
         from mppf.report.deviation import plot_deviation
 
@@ -219,12 +221,7 @@ def _outputs(result, plot, report, export_path, scale_mm, design, measured, desi
     if report:
         from mppf.report.html import comparison_report
 
-        page = comparison_report(
-            result,
-            design_name=f"{design} (sha256 {design_cloud.sha256[:12]})",
-            measured_name=f"{measured} (sha256 {measured_cloud.sha256[:12]})",
-            scale_mm=scale_mm,
-        )
+        page = comparison_report(result, design_name=names[0], measured_name=names[1], scale_mm=scale_mm)
         _writing(report, lambda: Path(report).write_text(page, encoding="utf-8"))
     if export_path:
         from mppf.report.export import export_points
