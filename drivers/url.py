@@ -124,20 +124,7 @@ def parse_plc_url(url: str) -> PlcUrl:
         raise InputError(f"PLC URL {url!r}: unknown scheme {parts.scheme!r} (expected tcp or rtu)", hint=_HINT)
     if parts.fragment:
         raise InputError(f"PLC URL {url!r}: unexpected '#{parts.fragment}'", hint=_HINT)
-    try:
-        query = parse_qs(parts.query, keep_blank_values=True, strict_parsing=bool(parts.query))
-    except ValueError:
-        raise InputError(f"PLC URL {url!r}: malformed query {parts.query!r}", hint=_HINT) from None
-    allowed = _TCP_KEYS if scheme == "tcp" else _RTU_KEYS
-    unknown = sorted(set(query) - allowed)
-    if unknown:
-        raise InputError(
-            f"PLC URL {url!r}: unknown option(s) {unknown} for {scheme}", hint=f"{scheme} takes {sorted(allowed)}"
-        )
-    repeated = sorted(k for k, v in query.items() if len(v) > 1)
-    if repeated:
-        raise InputError(f"PLC URL {url!r}: option(s) {repeated} given more than once", hint=_HINT)
-    q = {k: v[0] for k, v in query.items()}
+    q = _query(url, parts.query, scheme)
     common = {
         "unit": _number(url, "unit", q.get("unit", "1"), int, 1, 247),
         "timeout_s": _number(url, "timeout", q.get("timeout", "1.0"), float, 0.01, 60.0),
@@ -152,6 +139,29 @@ def parse_plc_url(url: str) -> PlcUrl:
         if port == 0:
             raise InputError(f"PLC URL {url!r}: port 0 is not a valid TCP port", hint=_HINT)
         return PlcUrl("tcp", host=parts.hostname, port=port or DEFAULT_TCP_PORT, **common)
+    return _rtu(url, parts, q, common)
+
+
+def _query(url: str, text: str, scheme: str) -> dict[str, str]:
+    """The URL's query as ``{key: value}``: only the scheme's keys, each at most once (else InputError)."""
+    try:
+        query = parse_qs(text, keep_blank_values=True, strict_parsing=bool(text))
+    except ValueError:
+        raise InputError(f"PLC URL {url!r}: malformed query {text!r}", hint=_HINT) from None
+    allowed = _TCP_KEYS if scheme == "tcp" else _RTU_KEYS
+    unknown = sorted(set(query) - allowed)
+    if unknown:
+        raise InputError(
+            f"PLC URL {url!r}: unknown option(s) {unknown} for {scheme}", hint=f"{scheme} takes {sorted(allowed)}"
+        )
+    repeated = sorted(k for k, v in query.items() if len(v) > 1)
+    if repeated:
+        raise InputError(f"PLC URL {url!r}: option(s) {repeated} given more than once", hint=_HINT)
+    return {k: v[0] for k, v in query.items()}
+
+
+def _rtu(url: str, parts, q: dict[str, str], common: dict) -> PlcUrl:
+    """The serial link of an ``rtu:///dev/PORT?...`` URL: device, baud, parity, stop bits, byte size checked."""
     if parts.netloc:
         raise InputError(
             f"PLC URL {url!r}: rtu takes a device path, not a host ({parts.netloc!r})",
