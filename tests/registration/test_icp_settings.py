@@ -39,3 +39,11 @@ def test_settings_are_frozen_and_give_the_matching():
         RegisterOptions(max_points=50)
     with pytest.raises(InputError, match="tol_translation_mm"):
         RegisterOptions(tol_translation_mm=float("nan"))
+
+
+def test_register_icp_takes_only_its_options_object():
+    pts = asymmetric_surface(6, 5)
+    with pytest.raises(InputError, match="RegisterOptions"):
+        register_icp(pts, pts, {"method": "plane"})
+    assert RegisterOptions().principal_start and not RegisterOptions(init="identity").principal_start
+    assert not RegisterOptions(init=np.eye(4)).principal_start
