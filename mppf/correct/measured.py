@@ -287,7 +287,7 @@ def curvature_correction(press: PressConfig, design_mid_mm, thickness_mm: float,
 
 def hybrid_correction(press: PressConfig, design_mid_mm, thickness_mm: float, nominal: Material, cycles,
                       base_upper_mm, base_lower_mm, active, edge_mm=None, share: float = 1.0,
-                      noise_mm: float = DEFAULT_NOISE_MM) -> LearnedCorrection:
+                      noise_mm: float = DEFAULT_NOISE_MM, short: bool = False) -> LearnedCorrection:
     """:func:`curvature_correction` on the loading side, the learned correction's reverse bend where over-bent.
 
     Point by point in curvature: where the wanted change presses further into the bend, the loaded change is the
@@ -295,10 +295,10 @@ def hybrid_correction(press: PressConfig, design_mid_mm, thickness_mm: float, no
     curvature change of the learned correction (its model knows the elastic stretch a reverse bend must cross),
     held to ``2 k_e + |wanted| / g_min`` (``k_e`` the calibrated model's elastic-limit curvature, ``g_min`` the
     smallest response measured on this plate). The field is integrated to heights. Same parameters and result as
-    :func:`measured_correction`.
+    :func:`measured_correction`; ``short`` as in :func:`curvature_correction`.
     """
     learned = learned_correction(press, design_mid_mm, thickness_mm, nominal, cycles, base_upper_mm, base_lower_mm,
-                                 active, edge_mm=edge_mm, scale=np.full(np.shape(active), share))
+                                 active, edge_mm=edge_mm, scale=np.full(np.shape(active), share), short=short)
     if sum(1 for c in cycles if c.measured) < 2:  # the first correction: the model knows the elastic gaps
         return learned
     grid = PunchGrid(press, active)

@@ -56,14 +56,15 @@ class Tolerances:
     noise_mm: float = DEFAULT_NOISE_MM
 
 
-CORRECTIONS = ("learned", "measured", "curvature", "hybrid", "short", "short-curvature")
+CORRECTIONS = ("learned", "measured", "curvature", "hybrid", "short", "short-curvature", "short-hybrid")
 """The corrections :func:`correct_step` can use: the learned one (a model of the plate with its memory), the
 measured one (this plate's measured response in loaded heights, :mod:`mppf.correct.measured`) and the same point by
 point in curvature (:func:`mppf.correct.measured.curvature_correction`), and that one with the learned
-correction's reverse bend at the over-bent punches (:func:`mppf.correct.measured.hybrid_correction`); ``short`` and
-``short-curvature``: the learned and the curvature correction with the first correction aimed short of the design by
-the measured uncertainty of the plate's response (:func:`mppf.correct.learned.short_aim`). The loop uses the learned
-one; the others are measured against it by ``benchmarks/bench_loop.py --correction`` (docs/correction.md)."""
+correction's reverse bend at the over-bent punches (:func:`mppf.correct.measured.hybrid_correction`); ``short``,
+``short-curvature`` and ``short-hybrid``: the learned, the curvature and the hybrid correction with the first
+correction aimed short of the design by the measured uncertainty of the plate's response
+(:func:`mppf.correct.learned.short_aim`). The loop uses the learned one; the others are measured against it by
+``benchmarks/bench_loop.py --correction`` (docs/correction.md)."""
 
 
 def correct_step(press: PressConfig, design_mid_mm, thickness_mm: float, nominal: Material, cycles, outcomes,
@@ -103,17 +104,19 @@ def correct_step(press: PressConfig, design_mid_mm, thickness_mm: float, nominal
             if policy else StepPlan())
     upper, lower = strokes[plan.base]
 
+    short = correction.startswith("short")
+    name = correction.removeprefix("short").removeprefix("-") or "learned"
+
     def correct(share):
-        if correction == "short-curvature":
-            return curvature_correction(press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower, active,
-                                        edge_mm=edge_mm, share=share, noise_mm=tolerances.noise_mm, short=True)
-        if correction in ("measured", "curvature", "hybrid"):
-            chosen = {"measured": measured_correction, "curvature": curvature_correction,
-                      "hybrid": hybrid_correction}[correction]
+        if name == "measured":
+            return measured_correction(press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower, active,
+                                       edge_mm=edge_mm, share=share, noise_mm=tolerances.noise_mm)
+        if name in ("curvature", "hybrid"):
+            chosen = curvature_correction if name == "curvature" else hybrid_correction
             return chosen(press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower, active,
-                          edge_mm=edge_mm, share=share, noise_mm=tolerances.noise_mm)
+                          edge_mm=edge_mm, share=share, noise_mm=tolerances.noise_mm, short=short)
         return learned_correction(press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower, active,
-                                  edge_mm=edge_mm, scale=np.full(ring.shape, share), short=correction == "short")
+                                  edge_mm=edge_mm, scale=np.full(ring.shape, share), short=short)
 
     learned = correct(plan.share)
     if len(outcomes) > 1:
