@@ -59,7 +59,7 @@ REACH_ELASTIC_LIMITS = 4.0
 elastic-limit curvatures at any punch (the model is trusted that far from what was pressed)."""
 
 SHORT_SPREAD = 2.0
-"""A short first correction (``short=True``) aims at ``1 / (1 + SHORT_SPREAD sigma)`` of the way: two standard
+"""A short first correction (``short="aim"`` or ``"fresh"``) aims at ``1 / (1 + SHORT_SPREAD sigma)`` of the way: two standard
 deviations of the plate's response short of the design, so that an answer that large still leaves the plate
 under-bent (on the loading side of its memory)."""
 
@@ -112,7 +112,7 @@ class LearnedCorrection:
 
 def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, nominal: Material, cycles,
                        base_upper_mm, base_lower_mm, active, trust: float = 1.0, edge_mm=None,
-                       scale=None, short: bool = False) -> LearnedCorrection:
+                       scale=None, short: str = "") -> LearnedCorrection:
     """The next strokes from every pressed and measured cycle of the plate.
 
     Parameters
@@ -137,9 +137,11 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
     scale : (rows, cols) float, optional
         Share of the wanted change asked for at each punch (:attr:`mppf.correct.policy.StepPlan.share`);
         default 1.
-    short : bool
-        The first correction aimed short of the design by the measured uncertainty of the plate's response
-        (:func:`short_aim`) instead of :data:`AIM` [0]; later ones as usual.
+    short : str
+        ``"aim"``: the first correction aimed short of the design by the measured uncertainty of the plate's
+        response (:func:`short_aim`) instead of :data:`AIM` [0], later ones as usual; ``"fresh"``: the same, and
+        the response learned only from the secants after the first correction (the first one crossed the first
+        press's elastic gaps); ``""`` (default): neither.
 
     Returns
     -------
@@ -158,12 +160,15 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
     cycles = interrupted_share(section, grid, loaded, [_unknown_share(c) for c in cycles], measured)
     model = replay(section, loaded, cycles)
     # 3. the plate's response against the model's, learned on every secant
-    gain = _learn_response(grid, model, cycles)
+    gain = _learn_response(grid, model, cycles, skip=1 if short == "fresh" else 0)
     # 4. the change wanted of the plate, and what to ask of the model for it
     error = grid.flat(np.where(grid.active, balanced_error(cycles[-1].error_mm, edge_mm), np.nan))
     error = np.where(grid.active & np.isfinite(error), error, 0.0)
-    first = short_aim(calibration, error[grid.active]) if short and not gain.updates else AIM[0]
-    aim = (AIM[1] if gain.updates else first) * (0.5 + 0.5 * trust)
+    if not short:
+        aim = AIM[1] if gain.updates else AIM[0]
+    else:  # the first correction short; later ones as usual, whether or not a secant was learned
+        aim = AIM[1] if sum(1 for c in cycles if c.measured) > 1 else short_aim(calibration, error[grid.active])
+    aim *= 0.5 + 0.5 * trust
     wanted = error if scale is None else error * np.where(grid.active, np.asarray(scale, dtype=float), 1.0)
     request = gain.model_request(-aim * wanted)
     # 5. the loaded curvature for it, through the model with its memory, in virtual cycles
@@ -238,10 +243,11 @@ def _unknown_share(cycle: PressedCycle) -> PressedCycle:
     return PressedCycle(cycle.steps_mid_mm, cycle.error_mm, cycle.interrupted, None)
 
 
-def _learn_response(grid: PunchGrid, model, cycles) -> ModeGain:
-    """Broyden updates of the plate's response from every pair of consecutive measured cycles."""
+def _learn_response(grid: PunchGrid, model, cycles, skip: int = 0) -> ModeGain:
+    """Broyden updates of the plate's response from every pair of consecutive measured cycles (the first ``skip``
+    secants left out)."""
     gain = ModeGain(grid)
-    known = [k for k, c in enumerate(cycles) if c.measured]
+    known = [k for k, c in enumerate(cycles) if c.measured][skip:]
     for j, k in zip(known, known[1:]):
         model_change = grid.heights(model.unloaded[k] - model.unloaded[j])
         plate_change = grid.flat(np.where(grid.active, cycles[k].error_mm - cycles[j].error_mm, np.nan))

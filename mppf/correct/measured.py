@@ -254,7 +254,7 @@ def learn_curvature_response(grid: PunchGrid, ring, design_mid_mm, cycles, noise
 
 def curvature_correction(press: PressConfig, design_mid_mm, thickness_mm: float, nominal: Material, cycles,
                          base_upper_mm, base_lower_mm, active, edge_mm=None, share: float = 1.0,
-                         noise_mm: float = DEFAULT_NOISE_MM, short: bool = False) -> LearnedCorrection:
+                         noise_mm: float = DEFAULT_NOISE_MM, short: str = "") -> LearnedCorrection:
     """:func:`measured_correction` point by point in curvature instead of heights (same parameters and result).
 
     The loaded curvature change at every punch is the wanted residual curvature change over the measured
@@ -287,7 +287,7 @@ def curvature_correction(press: PressConfig, design_mid_mm, thickness_mm: float,
 
 def hybrid_correction(press: PressConfig, design_mid_mm, thickness_mm: float, nominal: Material, cycles,
                       base_upper_mm, base_lower_mm, active, edge_mm=None, share: float = 1.0,
-                      noise_mm: float = DEFAULT_NOISE_MM, short: bool = False) -> LearnedCorrection:
+                      noise_mm: float = DEFAULT_NOISE_MM, short: str = "") -> LearnedCorrection:
     """:func:`curvature_correction` on the loading side, the learned correction's reverse bend where over-bent.
 
     Point by point in curvature: where the wanted change presses further into the bend, the loaded change is the

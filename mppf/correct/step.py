@@ -56,14 +56,16 @@ class Tolerances:
     noise_mm: float = DEFAULT_NOISE_MM
 
 
-CORRECTIONS = ("learned", "measured", "curvature", "hybrid", "short", "short-curvature", "short-hybrid")
+CORRECTIONS = ("learned", "measured", "curvature", "hybrid", "short", "short-curvature", "short-hybrid",
+               "short-fresh")
 """The corrections :func:`correct_step` can use: the learned one (a model of the plate with its memory), the
 measured one (this plate's measured response in loaded heights, :mod:`mppf.correct.measured`) and the same point by
 point in curvature (:func:`mppf.correct.measured.curvature_correction`), and that one with the learned
 correction's reverse bend at the over-bent punches (:func:`mppf.correct.measured.hybrid_correction`); ``short``,
 ``short-curvature`` and ``short-hybrid``: the learned, the curvature and the hybrid correction with the first
 correction aimed short of the design by the measured uncertainty of the plate's response
-(:func:`mppf.correct.learned.short_aim`). The loop uses the learned one; the others are measured against it by
+(:func:`mppf.correct.learned.short_aim`); ``short-fresh``: ``short`` with the response learned only from the secants
+after the first correction. The loop uses the learned one; the others are measured against it by
 ``benchmarks/bench_loop.py --correction`` (docs/correction.md)."""
 
 
@@ -104,8 +106,8 @@ def correct_step(press: PressConfig, design_mid_mm, thickness_mm: float, nominal
             if policy else StepPlan())
     upper, lower = strokes[plan.base]
 
-    short = correction.startswith("short")
-    name = correction.removeprefix("short").removeprefix("-") or "learned"
+    short = "fresh" if correction == "short-fresh" else "aim" if correction.startswith("short") else ""
+    name = correction.removeprefix("short").removeprefix("-").removeprefix("fresh") or "learned"
 
     def correct(share):
         if name == "measured":
