@@ -22,17 +22,23 @@ model-free with the secant gain, then :func:`mppf.planning.sectional.apply_secti
 deviation: the formed mid-surface against the design placed as section 1 places it, best plane removed
 over the whole plate; at each section's punches where the section places the design. No scanner.
 
-Per cycle: form max and RMS over the whole net plate, and the **border kink**: at each section's bed edge
+Per cycle: form max and RMS over the whole net plate, the **border kink**: at each section's bed edge
 inside the plate, the deviation's departure from the straight line through its values one pitch to
 either side, ``|e(b) - (e(b - p) + e(b + p)) / 2|`` (a smooth deviation has none; a step or a kink left
-where a section ended shows here), largest over the borders of all sections.
+where a section ended shows here), largest over the borders of all sections; and the largest deviation
+more than 300 mm inside the plate's edges (``inner_max``: the simulated plate's free corners and ends beyond
+the outer punches depend on its grid on long plates).
+
+Variants (``--correction``, :data:`CORRECTIONS`; ``--gain`` scales every correction; ``--weightless`` takes the
+plate's own weight off, as if it were all carried beside the press).
 
 Resumable: every finished run is written at once to ``--results`` (JSON keyed by physics, plate, seed,
 max cycles, grid and ``--label``); ``--budget-s`` (default 540) stops starting new runs after that long.
 ``--table`` prints the tables of the file only.
 
 Run:  python benchmarks/bench_loop_sectional.py [--plates cylinder twisted kcs_stern real0010 real0008]
-          [--physics steel] [--seeds 1] [--grid-mm 150] [--label before] [--results FILE.json] [--table]
+          [--physics steel] [--seeds 1] [--grid-mm 150] [--correction blend|field|secant|learned] [--gain F]
+          [--weightless] [--label before] [--results FILE.json] [--table]
 """
 
 from __future__ import annotations
@@ -140,6 +146,24 @@ def true_deviation(planned: Planned, formed) -> np.ndarray:
     return without_plane(p[:, 0], p[:, 1], dev)
 
 
+INNER_MM = 300.0
+"""How far inside the net plate's edges :func:`inner_max` looks."""
+
+
+def inner_max(planned: Planned, dev) -> float:
+    """Largest |deviation| (mm) over the plate more than :data:`INNER_MM` inside its edges (as section 1 places
+    it): the simulated plate's free corners and edges beyond the outer punches left out."""
+    from mppf.core.polygon import convex_outline
+
+    p = planned.placed[0]
+    corners = convex_outline(p[:, :2], "the design")  # counter-clockwise
+    edge = np.roll(corners, -1, axis=0) - corners
+    inward = np.column_stack([-edge[:, 1], edge[:, 0]]) / np.linalg.norm(edge, axis=1)[:, None]
+    depth = np.min(np.einsum("nkj,kj->nk", p[:, None, :2] - corners[None], inward), axis=1)
+    inside = depth > INNER_MM
+    return float(np.nanmax(np.abs(dev[inside]))) if inside.any() else float("nan")
+
+
 def section_punch_deviations(press, planned: Planned, dev) -> list[np.ndarray]:
     """Per section, (rows, cols) mm: the deviation at its active punches, where the section places the design."""
     from scipy.interpolate import LinearNDInterpolator
@@ -176,27 +200,26 @@ def border_kink(press, planned: Planned, dev) -> float:
     return worst
 
 
-CORRECTIONS = ("blend", "field", "secant")
+CORRECTIONS = ("blend", "field", "secant", "learned")
 """How the sections are corrected. ``blend``: as the loop does (:func:`mppf.loop.sectional.plan_next_sections`):
 each section's model-free correction (:func:`mppf.correct.compensate.compensate`, the secant gain per punch from
 the cycle before) on its deviation, blended where sections overlap
 (:func:`mppf.planning.sectional.apply_section_corrections`). ``field`` and ``secant``: one correction of the
 whole plate, each section's deviation without its best plane (the plane is the section's pose, not its shape),
 not blended (``blend=False``); ``field`` through the springback model (``compensate`` with the nominal material),
-``secant`` model-free with the secant gains of these plane-free deviations."""
+``secant`` model-free with the secant gains of these plane-free deviations; ``learned``: the single plate's
+correction (:func:`mppf.correct.step.correct_step`, its memory of every cycle, the edge beyond the outer punches
+and its step policy) per section on the plane-free deviations, not blended."""
 
 
 def section_shapes(press, job, devs) -> list:
     """Per section, (rows, cols) mm: its deviation at its active punches without its best plane (its pose)."""
-    gx, gy = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
-    out = []
-    for s, dev in zip(job.sections, devs):
-        known = s.steps[-1].active & np.isfinite(dev)
-        out.append(np.where(known, without_plane(gx, gy, np.where(known, dev, 0.0), known), np.nan))
-    return out
+    from mppf.loop.sectional import section_shapes as shapes
+
+    return shapes(press, [s.steps[-1].active for s in job.sections], devs)
 
 
-def correct_sections(press, job, devs, previous, how: str):
+def correct_sections(press, job, devs, previous, how: str, gain: float = 1.0):
     """The next cycle's job, every section corrected on the true deviation; the per-section mean gains; the
     deviations the secant of the next cycle takes (``previous``: per section the (lower strokes, deviation) of
     the cycle before, or None)."""
@@ -210,25 +233,64 @@ def correct_sections(press, job, devs, previous, how: str):
         final = s.steps[-1]
         c = compensate(final.upper_mm, final.lower_mm, error, press=press, thickness_mm=THICKNESS_MM,
                        previous=None if prev is None else PreviousCycle(*prev),
-                       material=NOMINAL if how == "field" else None)
+                       material=NOMINAL if how == "field" else None, gain=gain)
         deltas.append((np.where(final.active, c.upper_mm - final.upper_mm, 0.0),
                        np.where(final.active, c.lower_mm - final.lower_mm, 0.0)))
-        gain = np.asarray(c.gain, dtype=float)
-        gains.append(float(np.nanmean(gain)) if np.isfinite(gain).any() else float("nan"))
+        used = np.asarray(c.gain, dtype=float)
+        gains.append(float(np.nanmean(used)) if np.isfinite(used).any() else float("nan"))
     return apply_section_corrections(job, deltas, blend=how == "blend"), gains, errors
 
 
-def run_direct(press, planned: Planned, plate, max_cycles: int, how: str = "blend", weightless: bool = False) -> dict:
+class LearnedSections:
+    """The single plate's correction (:func:`mppf.correct.step.correct_step`) per section, with its memory."""
+
+    def __init__(self, n_sections: int):
+        self.memory = [{"cycles": [], "outcomes": [], "strokes": [], "promised": None} for _ in range(n_sections)]
+        self.verdicts: list[str] = []
+
+    def correct(self, press, planned: Planned, job, dev, form: tuple[float, float]):
+        """The next cycle's job from the deviation ``dev`` at the design points (mm) and (form max, RMS)."""
+        from mppf.correct.memory import PressedCycle
+        from mppf.correct.step import Tolerances, correct_step, outcome
+        from mppf.measure.punches import edge_deviations
+        from mppf.planning.sectional import apply_section_corrections
+
+        errors = section_shapes(press, job, section_punch_deviations(press, planned, dev))
+        deltas = []
+        for s, error, placed, mem in zip(job.sections, errors, planned.placed, self.memory):
+            final = s.steps[-1]
+            act = final.active
+            mem["cycles"].append(PressedCycle([np.where(st.active, 0.5 * (st.upper_mm + st.lower_mm), np.nan)
+                                               for st in s.steps], error))
+            mem["outcomes"].append(outcome(form[0], form[1], error, mem["promised"]))
+            mem["strokes"].append((final.upper_mm, final.lower_mm))
+            edge = edge_deviations(press.punch_x_mm, press.punch_y_mm, act, placed[:, :2], dev)
+            step = correct_step(press, s.layout.design_mid_mm, THICKNESS_MM, NOMINAL, mem["cycles"],
+                                mem["outcomes"], mem["strokes"], act, edge, Tolerances(TOL_MM, RMS_TOL_MM))
+            if step.verdict is not None or step.learned is None:
+                self.verdicts.append(f"section {s.index}: {step.verdict.text[:100] if step.verdict else 'none'}")
+                deltas.append((np.zeros(press.shape), np.zeros(press.shape)))
+                continue
+            mem["promised"] = step.learned.predicted_mm
+            deltas.append((np.where(act, step.learned.upper_mm - final.upper_mm, 0.0),
+                           np.where(act, step.learned.lower_mm - final.lower_mm, 0.0)))
+        return apply_section_corrections(job, deltas, blend=False)
+
+
+def run_direct(press, planned: Planned, plate, max_cycles: int, how: str = "blend", weightless: bool = False,
+               gain: float = 1.0) -> dict:
     """Press, measure the true deviation, correct every section; up to ``max_cycles`` cycles."""
     job = planned.job
     row = {"max": [], "rms": [], "kink": [], "decisions": [], "ok_at": None, "verdict": None, "gain": [],
            "steps": [], "sections": len(job.sections), "plan_cpu_s": round(planned.plan_cpu_s, 2)}
     previous = [None] * len(job.sections)
+    learned = LearnedSections(len(job.sections))
     for cycle in range(1, max_cycles + 1):
         press_cycle(press, plate, job, weightless)
         dev = true_deviation(planned, plate.formed)
         row["max"].append(float(np.nanmax(np.abs(dev)))), row["rms"].append(float(np.sqrt(np.nanmean(dev ** 2))))
         row["kink"].append(border_kink(press, planned, dev))
+        row.setdefault("inner_max", []).append(inner_max(planned, dev))
         row["steps"].append([len(s.steps) for s in job.sections])
         if row["max"][-1] <= TOL_MM and row["rms"][-1] <= RMS_TOL_MM:
             row["decisions"].append("in_tolerance")
@@ -237,8 +299,13 @@ def run_direct(press, planned: Planned, plate, max_cycles: int, how: str = "blen
         if cycle == max_cycles:
             row["decisions"].append("max_cycles")
             break
+        if how == "learned":
+            job = learned.correct(press, planned, job, dev, (row["max"][-1], row["rms"][-1]))
+            row["decisions"].append("continue")
+            row["verdict"] = "; ".join(learned.verdicts) or None
+            continue
         devs = section_punch_deviations(press, planned, dev)
-        corrected, gains, errors = correct_sections(press, job, devs, previous, how)
+        corrected, gains, errors = correct_sections(press, job, devs, previous, how, gain)
         previous = [(s.steps[-1].lower_mm, e) for s, e in zip(job.sections, errors)]
         row["gain"].append([round(g, 2) for g in gains])
         row["decisions"].append("continue")
@@ -247,14 +314,15 @@ def run_direct(press, planned: Planned, plate, max_cycles: int, how: str = "blen
 
 
 def report(results: dict) -> None:
-    """One table per plate (cycles: form max / RMS / border kink), and a summary table."""
-    print("\n| plate | physics | seed | label | sections | cycle: form max / RMS / border kink (mm) | in tol. at "
-          "| s |")
+    """One row per run: per cycle form max / RMS / border kink / form max 300 mm inside the edges."""
+    print("\n| plate | physics | seed | label | sections | cycle: form max / RMS / border kink / max 300 mm inside "
+          "the edges (mm) | in tol. at | s |")
     print("|---|---|---|---|---|---|---|---|")
     for key, r in sorted(results.items()):
         physics, name, seed, _, grid, how, label = key.split("|")
-        cycles = ", ".join(f"{k}: {m:.1f} / {s:.2f} / {b:.2f}" for k, (m, s, b) in
-                           enumerate(zip(r["max"], r["rms"], r["kink"]), start=1))
+        inner = r.get("inner_max") or [float("nan")] * len(r["max"])
+        cycles = ", ".join(f"{k}: {m:.1f} / {s:.2f} / {b:.2f} / {i:.1f}" for k, (m, s, b, i) in
+                           enumerate(zip(r["max"], r["rms"], r["kink"], inner), start=1))
         end = r["decisions"][-1] if r["decisions"] else ""
         why = f" ({r['verdict'][:120]})" if r.get("verdict") else ""
         print(f"| {name} | {physics} (grid {grid}) | {seed} | {label}, {how} | {r.get('sections', '')} | {cycles} "
@@ -277,7 +345,8 @@ def run_part(args, results: dict) -> bool:
             try:
                 planned.setdefault(name, Planned(press, name, Path(tmp)))
                 plate = make_plate(press, planned[name], physics, seed, args.grid_mm, args.true_yield)
-                row = run_direct(press, planned[name], plate, args.max_cycles, args.correction, args.weightless)
+                row = run_direct(press, planned[name], plate, args.max_cycles, args.correction, args.weightless,
+                                 args.gain)
             except MppfError as exc:  # a failed run counts as not in tolerance
                 row = {"max": [], "rms": [], "kink": [], "decisions": ["error"], "ok_at": None,
                        "verdict": f"{type(exc).__name__}: {exc.message[:200]}"}
@@ -291,7 +360,7 @@ def run_part(args, results: dict) -> bool:
 
 
 def _key(physics: str, name: str, seed: int, args) -> str:
-    physics = physics + ("-weightless" if args.weightless else "")
+    physics = physics + ("-weightless" if args.weightless else "") + (f"-gain{args.gain:g}" if args.gain != 1 else "")
     return f"{physics}|{name}|{seed}|{args.max_cycles}|{args.grid_mm:g}|{args.correction}|{args.label}"
 
 
@@ -305,6 +374,8 @@ def main(argv=None) -> int:
     parser.add_argument("--true-yield", type=float, default=265.0, help="the simulated steel's yield stress (MPa)")
     parser.add_argument("--correction", choices=CORRECTIONS, default="blend",
                         help="how the sections are corrected (see CORRECTIONS)")
+    parser.add_argument("--gain", type=float, default=1.0,
+                        help="factor on every correction (the first's, and the default where no secant is known)")
     parser.add_argument("--weightless", action="store_true",
                         help="take the plate's own weight off (as if all of it were carried beside the press)")
     parser.add_argument("--label", default="now", help="names the code measured (e.g. before, after)")

@@ -313,8 +313,7 @@ def _on_compared(run: _Run, record: CycleRecord) -> int:
     else:
         # correct the strokes and record the next cycle, or stop with the correction's verdict
         if is_sectional(run.job(record)):
-            plan_next_sections(run.history, run.plate, record, run.press, run.settings)
-            verdict = None
+            verdict = plan_next_sections(run.history, run.plate, record, run.press, run.settings)
         else:
             verdict = plan_next(run.history, run.plate, record, run.press, run.settings)
         if verdict is not None:

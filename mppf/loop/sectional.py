@@ -30,8 +30,9 @@ from pathlib import Path
 
 import numpy as np
 
-from mppf.core.progress import Reporter
 from mppf.core.presslink import PressLink
+from mppf.core.progress import Reporter
+from mppf.correct.verdict import Verdict
 from mppf.loop.correcting import correction_to_dict, next_correction
 from mppf.loop.history import History
 from mppf.loop.pressing import close_cut_step, press_step
@@ -188,17 +189,25 @@ class SectionHistory:
 
 
 def plan_next_sections(history: History, plate: PlateRecord, record: CycleRecord, press: PressConfig,
-                       settings: LoopSettings) -> None:
-    """Correct every section by its measured deviations and record the next cycle ("planned").
+                       settings: LoopSettings) -> Verdict | None:
+    """Correct every section by its measured deviations and record the next cycle ("planned"), or stop.
 
-    Each section's correction is the single-piece loop's model-free one on that section
-    (:func:`mppf.loop.correcting.next_correction` without the material model: the measured deviation at
-    its punches, the secant gain per punch from the cycle before). The material-model corrections (the
-    calibrated and the learned one) model one plate between the punches of one bed, its free edges at
-    the bed's edges; a section's plate runs on beyond the bed and the next section re-presses its overlap,
-    and on the simulated plate they diverged (docs/sections.md). The change of each section's final
-    strokes goes through :func:`mppf.planning.sectional.apply_section_corrections` (blended where sections
-    overlap, new steps from flat, validated). The compared cycle moves to "corrected" in the same transaction.
+    With the learned correction (the loop's default: ``settings.learn``, the nominal material known) every
+    section gets the single plate's correction (:func:`mppf.correct.step.correct_step`: its memory of every
+    cycle, its step policy) on its **plane-free** deviation (:func:`section_shapes`: the deviation at its
+    punches without its best plane, which is the section's pose, not its shape), with the whole plate's form
+    max and RMS as the outcomes; the corrections are one correction of the whole plate and are not blended
+    (:func:`mppf.planning.sectional.apply_section_corrections` with ``blend=False``). A section whose
+    correction finds no way on keeps its strokes; when every section's does, the loop stops with the first
+    one's verdict. Otherwise each section gets the model-free correction
+    (:func:`mppf.loop.correcting.next_correction` without the material model), blended where sections
+    overlap. The new steps go from flat, validated; the compared cycle moves to "corrected" in the same
+    transaction.
+
+    Returns
+    -------
+    Verdict or None
+        The verdict when no section can be corrected (nothing recorded), else None.
 
     Raises
     ------
@@ -206,6 +215,30 @@ def plan_next_sections(history: History, plate: PlateRecord, record: CycleRecord
         Corrected strokes the press cannot take.
     """
     job = load_cycle_job(record)
+    learned = settings.learn and settings.model_gain and settings.calibrate and all(
+        s.layout.material is not None and s.layout.design_mid_mm is not None for s in job.sections)
+    if learned:
+        deltas, corrections, verdicts = _learned_sections(history, plate, record, press, settings, job)
+        if len(verdicts) == len(job.sections):
+            return verdicts[0]
+        corrected = apply_section_corrections(job, deltas, blend=False)
+    else:
+        deltas, corrections = _model_free_sections(history, plate, record, press, settings, job)
+        corrected = apply_section_corrections(job, deltas)
+    loop = {"plate_id": plate.plate_id, "cycle": record.cycle + 1, "corrects_job_sha256": record.job_sha256}
+    corrected = dataclasses.replace(corrected, extra={**corrected.extra, "loop": loop})
+    path = save_job(corrected, Path(plate.settings["work_dir"]) / f"cycle-{record.cycle + 1:02d}.job.json")
+    history.add_cycle(
+        plate.plate_id, record.cycle + 1, job_path=path.resolve(), job_sha256=corrected.sha256(),
+        steps=cycle_steps(corrected), gain=_mean_gain(corrections),
+        correction={"strategy": "sections-learned" if learned else "sections", "sections": corrections},
+        previous_decision=Decision.CONTINUE,
+    )
+    return None
+
+
+def _model_free_sections(history, plate, record, press, settings, job) -> tuple[list, list]:
+    """Per section the model-free correction's change of its final strokes, and its record."""
     model_free = dataclasses.replace(settings, model_gain=False)
     deltas, corrections = [], []
     for s in job.sections:
@@ -216,19 +249,66 @@ def plan_next_sections(history: History, plate: PlateRecord, record: CycleRecord
         deltas.append((np.where(final.active, c.upper_mm - final.upper_mm, 0.0),
                        np.where(final.active, c.lower_mm - final.lower_mm, 0.0)))
         corrections.append({"section": s.index, **correction_to_dict(c)})
-    corrected = apply_section_corrections(job, deltas)
-    loop = {"plate_id": plate.plate_id, "cycle": record.cycle + 1, "corrects_job_sha256": record.job_sha256}
-    corrected = dataclasses.replace(corrected, extra={**corrected.extra, "loop": loop})
-    path = save_job(corrected, Path(plate.settings["work_dir"]) / f"cycle-{record.cycle + 1:02d}.job.json")
-    history.add_cycle(
-        plate.plate_id, record.cycle + 1, job_path=path.resolve(), job_sha256=corrected.sha256(),
-        steps=cycle_steps(corrected), gain=_mean_gain(corrections),
-        correction={"strategy": "sections", "sections": corrections}, previous_decision=Decision.CONTINUE,
-    )
+    return deltas, corrections
+
+
+def _learned_sections(history, plate, record, press, settings, job) -> tuple[list, list, list]:
+    """Per section the learned correction's change of its final strokes, its record, and the verdicts."""
+    from mppf.correct.policy import DEFAULT_NOISE_MM
+    from mppf.correct.step import Tolerances, correct_step, outcome
+    from mppf.loop.correcting import pressed_cycle, step_to_dict
+
+    noise = ((record.comparison or {}).get("form") or {}).get("noise_mm") or DEFAULT_NOISE_MM
+    tolerances = Tolerances(settings.tolerance_mm, settings.rms_tolerance_mm, float(noise))
+    deltas, corrections, verdicts = [], [], []
+    for s in job.sections:
+        view = SectionHistory(history, s.index)
+        records = [r for r in view.cycles(record.plate_id)[: record.cycle] if r.punch_deviation_mm is not None
+                   and r.rms_mm is not None]
+        cycles, outcomes, strokes = [], [], []
+        for r in records:
+            shape = section_shapes(press, [r.steps[-1].active], [r.punch_deviation_mm])[0]
+            cycle = pressed_cycle(r, press)
+            if cycle.steps_mid_mm:
+                cycles.append(dataclasses.replace(cycle, error_mm=shape))
+            promised = (r.correction or {}).get("predicted_mm")
+            outcomes.append(outcome(r.max_abs_mm, r.rms_mm, shape,
+                                    None if promised is None else grid_from_json(promised)))
+            strokes.append((r.steps[-1].upper_mm, r.steps[-1].lower_mm))
+        final = s.steps[-1]
+        step = correct_step(press, s.layout.design_mid_mm, plate.thickness_mm, s.layout.material, cycles, outcomes,
+                            strokes, final.active, None, tolerances)
+        if step.verdict is not None:
+            verdicts.append(step.verdict)
+            deltas.append((np.zeros(press.shape), np.zeros(press.shape)))
+            corrections.append({"section": s.index, "verdict": step.verdict.text})
+            continue
+        deltas.append((np.where(final.active, step.learned.upper_mm - final.upper_mm, 0.0),
+                       np.where(final.active, step.learned.lower_mm - final.lower_mm, 0.0)))
+        corrections.append({"section": s.index, **step_to_dict(step), "gain": grid_to_json(
+            np.where(final.active, float(np.mean(step.learned.gains)) if step.learned.gains.size else 1.0, np.nan))})
+    return deltas, corrections, verdicts
+
+
+def section_shapes(press: PressConfig, actives, deviations) -> list[np.ndarray]:
+    """Per section, (rows, cols) mm: its deviation at its active punches without its best plane (its pose).
+
+    ``actives``: each section's active punches; ``deviations``: its deviation at its punches (NaN unknown).
+    """
+    from mppf.core.grid import without_plane
+
+    gx, gy = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    out = []
+    for active, dev in zip(actives, deviations):
+        dev = np.asarray(dev, dtype=float)
+        known = np.asarray(active, dtype=bool) & np.isfinite(dev)
+        out.append(np.where(known, without_plane(gx, gy, np.where(known, dev, 0.0), known), np.nan))
+    return out
 
 
 def _mean_gain(corrections: list) -> float | None:
     """The mean gain of the sections' corrections over their punches (None when no punch has one)."""
-    values = [v for c in corrections for v in np.ravel(np.asarray(grid_from_json(c["gain"]), dtype=float))]
+    values = [v for c in corrections if c.get("gain") is not None
+              for v in np.ravel(np.asarray(grid_from_json(c["gain"]), dtype=float))]
     values = [v for v in values if np.isfinite(v)]
     return float(np.mean(values)) if values else None

@@ -6,6 +6,8 @@ the steel-plate simulator (coarse grid, to keep the tests fast) on the in-proces
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from driver_helpers import HookReporter
@@ -147,18 +149,20 @@ def test_an_interruption_in_section_2_is_resumed_without_pressing_section_1_agai
     assert [s for _, s in scanner.pressed] == list(range(1, last_2 + 1))
 
 
-@pytest.mark.slow  # six cycles of the steel-plate simulator on a plate in two sections: about 1.5 minutes
-def test_the_loop_brings_a_plate_in_sections_closer_cycle_by_cycle(long_plate, tmp_path):
+@pytest.mark.slow  # up to six cycles of the steel-plate simulator on a plate in two sections: 10-90 s
+def test_the_loop_brings_a_plate_in_sections_into_tolerance(long_plate, tmp_path):
     with History(tmp_path / "h.sqlite") as history:
         press, scanner = _start(tmp_path, long_plate, history, "S4", max_cycles=6)
         with InProcessPress(press) as link:
             result = run_loop(history, "S4", link, scanner)
     form = [c.max_abs_mm for c in result.cycles]
     rms = [c.rms_mm for c in result.cycles]
-    assert len(form) == 6 or result.status == "in_tolerance"
-    # no cycle makes the plate worse (beyond the scans' noise), and it ends far closer: (46 mm, 14.6 mm RMS) to
-    # (4-5 mm, about 2.5 mm RMS) in six cycles on this plate; it does not get into the 2.5 mm tolerance
-    assert all(b < a + 0.5 for a, b in zip(form, form[1:])), form
-    assert form[-1] < 0.15 * form[0] and rms[-1] < 0.25 * rms[0], (form, rms)
+    # the learned correction per section on its plane-free deviation: (46 mm, 16.8 mm RMS) into the 2.5 mm
+    # tolerance in 4 cycles on this plate (the model-free, blended correction it replaced ended at 4.4 mm
+    # after six)
+    assert result.status == "in_tolerance" and len(form) <= 5, (form, rms)
+    assert all(b < a + 0.5 for a, b in itertools.pairwise(form)), form
+    assert all("verdict" in c or c["strategy"] == "learned" for r in result.cycles[1:] for c in r.correction["sections"])
+    assert {r.correction["strategy"] for r in result.cycles[1:]} == {"sections-learned"}
     for c in result.cycles:  # every section pressed and measured in every cycle
         assert c.steps_done == len(c.steps) and [s["index"] for s in c.comparison["sections"]] == [1, 2]
