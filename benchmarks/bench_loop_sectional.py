@@ -249,24 +249,24 @@ class LearnedSections:
         self.verdicts: list[str] = []
 
     def correct(self, press, planned: Planned, job, dev, form: tuple[float, float]):
-        """The next cycle's job from the deviation ``dev`` at the design points (mm) and (form max, RMS)."""
+        """The next cycle's job from the deviation ``dev`` at the design points (mm) and (form max, RMS); None
+        when no section can go on."""
         from mppf.correct.memory import PressedCycle
         from mppf.correct.step import Tolerances, correct_step, outcome
-        from mppf.measure.punches import edge_deviations
         from mppf.planning.sectional import apply_section_corrections
 
         errors = section_shapes(press, job, section_punch_deviations(press, planned, dev))
-        deltas = []
-        for s, error, placed, mem in zip(job.sections, errors, planned.placed, self.memory):
+        deltas, before = [], len(self.verdicts)
+        for s, error, mem in zip(job.sections, errors, self.memory):
             final = s.steps[-1]
             act = final.active
             mem["cycles"].append(PressedCycle([np.where(st.active, 0.5 * (st.upper_mm + st.lower_mm), np.nan)
                                                for st in s.steps], error))
             mem["outcomes"].append(outcome(form[0], form[1], error, mem["promised"]))
             mem["strokes"].append((final.upper_mm, final.lower_mm))
-            edge = edge_deviations(press.punch_x_mm, press.punch_y_mm, act, placed[:, :2], dev)
+            # no edge deviation: the loop's comparison gives one for section 1's pose only (as the loop does)
             step = correct_step(press, s.layout.design_mid_mm, THICKNESS_MM, NOMINAL, mem["cycles"],
-                                mem["outcomes"], mem["strokes"], act, edge, Tolerances(TOL_MM, RMS_TOL_MM))
+                                mem["outcomes"], mem["strokes"], act, None, Tolerances(TOL_MM, RMS_TOL_MM))
             if step.verdict is not None or step.learned is None:
                 self.verdicts.append(f"section {s.index}: {step.verdict.text[:100] if step.verdict else 'none'}")
                 deltas.append((np.zeros(press.shape), np.zeros(press.shape)))
@@ -274,6 +274,8 @@ class LearnedSections:
             mem["promised"] = step.learned.predicted_mm
             deltas.append((np.where(act, step.learned.upper_mm - final.upper_mm, 0.0),
                            np.where(act, step.learned.lower_mm - final.lower_mm, 0.0)))
+        if len(self.verdicts) - before == len(job.sections):
+            return None  # no section can go on: the loop stops with the verdict
         return apply_section_corrections(job, deltas, blend=False)
 
 
@@ -301,8 +303,10 @@ def run_direct(press, planned: Planned, plate, max_cycles: int, how: str = "blen
             break
         if how == "learned":
             job = learned.correct(press, planned, job, dev, (row["max"][-1], row["rms"][-1]))
-            row["decisions"].append("continue")
             row["verdict"] = "; ".join(learned.verdicts) or None
+            row["decisions"].append("continue" if job is not None else "cannot_converge")
+            if job is None:
+                break
             continue
         devs = section_punch_deviations(press, planned, dev)
         corrected, gains, errors = correct_sections(press, job, devs, previous, how, gain)
