@@ -250,7 +250,7 @@ class LearnedSections:
 
     def correct(self, press, planned: Planned, job, dev, form: tuple[float, float]):
         """The next cycle's job from the deviation ``dev`` at the design points (mm) and (form max, RMS); None
-        when no section can go on."""
+        when a section cannot go on (as the loop, :func:`mppf.loop.sectional.plan_next_sections`)."""
         from mppf.correct.memory import PressedCycle
         from mppf.correct.step import Tolerances, correct_step, outcome
         from mppf.planning.sectional import apply_section_corrections
@@ -274,8 +274,8 @@ class LearnedSections:
             mem["promised"] = step.learned.predicted_mm
             deltas.append((np.where(act, step.learned.upper_mm - final.upper_mm, 0.0),
                            np.where(act, step.learned.lower_mm - final.lower_mm, 0.0)))
-        if len(self.verdicts) - before == len(job.sections):
-            return None  # no section can go on: the loop stops with the verdict
+        if len(self.verdicts) > before:
+            return None  # a section cannot go on: the loop stops with its verdict
         return apply_section_corrections(job, deltas, blend=False)
 
 

@@ -197,9 +197,10 @@ def plan_next_sections(history: History, plate: PlateRecord, record: CycleRecord
     cycle, its step policy) on its **plane-free** deviation (:func:`section_shapes`: the deviation at its
     punches without its best plane, which is the section's pose, not its shape), with the whole plate's form
     max and RMS as the outcomes; the corrections are one correction of the whole plate and are not blended
-    (:func:`mppf.planning.sectional.apply_section_corrections` with ``blend=False``). A section whose
-    correction finds no way on keeps its strokes; when every section's does, the loop stops with the first
-    one's verdict. Otherwise each section gets the model-free correction
+    (:func:`mppf.planning.sectional.apply_section_corrections` with ``blend=False``). When a section's
+    correction finds no way on (its verdict: cannot converge, strokes beyond the limits...), the loop stops
+    with that verdict: the sections form one plate, and the others' corrections alone would throw it.
+    Otherwise each section gets the model-free correction
     (:func:`mppf.loop.correcting.next_correction` without the material model), blended where sections
     overlap. The new steps go from flat, validated; the compared cycle moves to "corrected" in the same
     transaction.
@@ -207,7 +208,7 @@ def plan_next_sections(history: History, plate: PlateRecord, record: CycleRecord
     Returns
     -------
     Verdict or None
-        The verdict when no section can be corrected (nothing recorded), else None.
+        The first section's verdict when a section cannot be corrected (nothing recorded), else None.
 
     Raises
     ------
@@ -219,7 +220,7 @@ def plan_next_sections(history: History, plate: PlateRecord, record: CycleRecord
         s.layout.material is not None and s.layout.design_mid_mm is not None for s in job.sections)
     if learned:
         deltas, corrections, verdicts = _learned_sections(history, plate, record, press, settings, job)
-        if len(verdicts) == len(job.sections):
+        if verdicts:  # the sections form one plate: one that cannot go on stops it
             return verdicts[0]
         corrected = apply_section_corrections(job, deltas, blend=False)
     else:
