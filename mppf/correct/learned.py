@@ -59,7 +59,7 @@ REACH_ELASTIC_LIMITS = 4.0
 elastic-limit curvatures at any punch (the model is trusted that far from what was pressed)."""
 
 SHORT_SPREAD = 2.0
-"""A short first correction (``short="aim"`` or ``"fresh"``) aims at ``1 / (1 + SHORT_SPREAD sigma)`` of the way: two standard
+"""A short first correction (``variant`` with ``"short"``) aims at ``1 / (1 + SHORT_SPREAD sigma)`` of the way: two standard
 deviations of the plate's response short of the design, so that an answer that large still leaves the plate
 under-bent (on the loading side of its memory)."""
 
@@ -112,7 +112,7 @@ class LearnedCorrection:
 
 def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, nominal: Material, cycles,
                        base_upper_mm, base_lower_mm, active, trust: float = 1.0, edge_mm=None,
-                       scale=None, short: str = "") -> LearnedCorrection:
+                       scale=None, variant: str = "") -> LearnedCorrection:
     """The next strokes from every pressed and measured cycle of the plate.
 
     Parameters
@@ -137,11 +137,11 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
     scale : (rows, cols) float, optional
         Share of the wanted change asked for at each punch (:attr:`mppf.correct.policy.StepPlan.share`);
         default 1.
-    short : str
-        ``"aim"``: the first correction aimed short of the design by the measured uncertainty of the plate's
-        response (:func:`short_aim`) instead of :data:`AIM` [0], later ones as usual; ``"fresh"``: the same, and
-        the response learned only from the secants after the first correction (the first one crossed the first
-        press's elastic gaps); ``""`` (default): neither.
+    variant : str
+        Candidates measured by ``benchmarks/bench_loop.py`` (default ``""``: neither): with ``"short"`` the first
+        correction is aimed short of the design by the measured uncertainty of the plate's response
+        (:func:`short_aim`) instead of :data:`AIM` [0]; with ``"fresh"`` the response is learned only from the
+        secants after the first correction (the first one crossed the first press's elastic gaps).
 
     Returns
     -------
@@ -160,14 +160,15 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
     cycles = interrupted_share(section, grid, loaded, [_unknown_share(c) for c in cycles], measured)
     model = replay(section, loaded, cycles)
     # 3. the plate's response against the model's, learned on every secant
-    gain = _learn_response(grid, model, cycles, skip=1 if short == "fresh" else 0)
+    gain = _learn_response(grid, model, cycles, skip=1 if "fresh" in variant else 0)
     # 4. the change wanted of the plate, and what to ask of the model for it
     error = grid.flat(np.where(grid.active, balanced_error(cycles[-1].error_mm, edge_mm), np.nan))
     error = np.where(grid.active & np.isfinite(error), error, 0.0)
-    if not short:
+    if not variant:
         aim = AIM[1] if gain.updates else AIM[0]
-    else:  # the first correction short; later ones as usual, whether or not a secant was learned
-        aim = AIM[1] if sum(1 for c in cycles if c.measured) > 1 else short_aim(calibration, error[grid.active])
+    else:  # the first correction as the variant says; later ones as usual, whether or not a secant was learned
+        first = short_aim(calibration, error[grid.active]) if "short" in variant else AIM[0]
+        aim = AIM[1] if sum(1 for c in cycles if c.measured) > 1 else first
     aim *= 0.5 + 0.5 * trust
     wanted = error if scale is None else error * np.where(grid.active, np.asarray(scale, dtype=float), 1.0)
     request = gain.model_request(-aim * wanted)

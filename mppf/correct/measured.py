@@ -254,18 +254,18 @@ def learn_curvature_response(grid: PunchGrid, ring, design_mid_mm, cycles, noise
 
 def curvature_correction(press: PressConfig, design_mid_mm, thickness_mm: float, nominal: Material, cycles,
                          base_upper_mm, base_lower_mm, active, edge_mm=None, share: float = 1.0,
-                         noise_mm: float = DEFAULT_NOISE_MM, short: str = "") -> LearnedCorrection:
+                         noise_mm: float = DEFAULT_NOISE_MM, variant: str = "") -> LearnedCorrection:
     """:func:`measured_correction` point by point in curvature instead of heights (same parameters and result).
 
     The loaded curvature change at every punch is the wanted residual curvature change over the measured
     loading-side response (``g``, 1 before any secant); where it presses against the bend the elastic stretch
     of a reverse bend is added, :data:`REVERSE_STRETCH` springbacks, held to ``|wanted| / g_min``; the field is
-    integrated to heights (:attr:`mppf.correct.punch_grid.PunchGrid.heights_matrix`). ``short``: the first
-    correction (the learned one) aimed short of the design (:func:`mppf.correct.learned.short_aim`).
+    integrated to heights (:attr:`mppf.correct.punch_grid.PunchGrid.heights_matrix`). ``variant``: of the first
+    correction (the learned one), :func:`mppf.correct.learned.learned_correction`.
     """
     if sum(1 for c in cycles if c.measured) < 2:  # the first correction: the model knows the elastic gaps
         return learned_correction(press, design_mid_mm, thickness_mm, nominal, cycles, base_upper_mm, base_lower_mm,
-                                  active, edge_mm=edge_mm, scale=np.full(np.shape(active), share), short=short)
+                                  active, edge_mm=edge_mm, scale=np.full(np.shape(active), share), variant=variant)
     grid = PunchGrid(press, active)
     ring = outer_ring(active).ravel()[grid.index]
     noise_per_mm = noise_mm * np.sqrt(6.0) / (press.pitch_x_mm * press.pitch_y_mm)
@@ -287,7 +287,7 @@ def curvature_correction(press: PressConfig, design_mid_mm, thickness_mm: float,
 
 def hybrid_correction(press: PressConfig, design_mid_mm, thickness_mm: float, nominal: Material, cycles,
                       base_upper_mm, base_lower_mm, active, edge_mm=None, share: float = 1.0,
-                      noise_mm: float = DEFAULT_NOISE_MM, short: str = "") -> LearnedCorrection:
+                      noise_mm: float = DEFAULT_NOISE_MM, variant: str = "") -> LearnedCorrection:
     """:func:`curvature_correction` on the loading side, the learned correction's reverse bend where over-bent.
 
     Point by point in curvature: where the wanted change presses further into the bend, the loaded change is the
@@ -295,10 +295,10 @@ def hybrid_correction(press: PressConfig, design_mid_mm, thickness_mm: float, no
     curvature change of the learned correction (its model knows the elastic stretch a reverse bend must cross),
     held to ``2 k_e + |wanted| / g_min`` (``k_e`` the calibrated model's elastic-limit curvature, ``g_min`` the
     smallest response measured on this plate). The field is integrated to heights. Same parameters and result as
-    :func:`measured_correction`; ``short`` as in :func:`curvature_correction`.
+    :func:`measured_correction`; ``variant`` as in :func:`curvature_correction`.
     """
     learned = learned_correction(press, design_mid_mm, thickness_mm, nominal, cycles, base_upper_mm, base_lower_mm,
-                                 active, edge_mm=edge_mm, scale=np.full(np.shape(active), share), short=short)
+                                 active, edge_mm=edge_mm, scale=np.full(np.shape(active), share), variant=variant)
     if sum(1 for c in cycles if c.measured) < 2:  # the first correction: the model knows the elastic gaps
         return learned
     grid = PunchGrid(press, active)

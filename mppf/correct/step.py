@@ -57,7 +57,7 @@ class Tolerances:
 
 
 CORRECTIONS = ("learned", "measured", "curvature", "hybrid", "short", "short-curvature", "short-hybrid",
-               "short-fresh")
+               "short-fresh", "fresh")
 """The corrections :func:`correct_step` can use: the learned one (a model of the plate with its memory), the
 measured one (this plate's measured response in loaded heights, :mod:`mppf.correct.measured`) and the same point by
 point in curvature (:func:`mppf.correct.measured.curvature_correction`), and that one with the learned
@@ -65,7 +65,7 @@ correction's reverse bend at the over-bent punches (:func:`mppf.correct.measured
 ``short-curvature`` and ``short-hybrid``: the learned, the curvature and the hybrid correction with the first
 correction aimed short of the design by the measured uncertainty of the plate's response
 (:func:`mppf.correct.learned.short_aim`); ``short-fresh``: ``short`` with the response learned only from the secants
-after the first correction. The loop uses the learned one; the others are measured against it by
+after the first correction; ``fresh``: the learned correction with that response. The loop uses the learned one; the others are measured against it by
 ``benchmarks/bench_loop.py --correction`` (docs/correction.md)."""
 
 
@@ -106,8 +106,8 @@ def correct_step(press: PressConfig, design_mid_mm, thickness_mm: float, nominal
             if policy else StepPlan())
     upper, lower = strokes[plan.base]
 
-    short = "fresh" if correction == "short-fresh" else "aim" if correction.startswith("short") else ""
-    name = correction.removeprefix("short").removeprefix("-").removeprefix("fresh") or "learned"
+    variant = " ".join(w for w in ("short", "fresh") if w in correction.split("-"))
+    name = next((w for w in correction.split("-") if w not in ("short", "fresh")), "learned")
 
     def correct(share):
         if name == "measured":
@@ -116,9 +116,9 @@ def correct_step(press: PressConfig, design_mid_mm, thickness_mm: float, nominal
         if name in ("curvature", "hybrid"):
             chosen = curvature_correction if name == "curvature" else hybrid_correction
             return chosen(press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower, active,
-                          edge_mm=edge_mm, share=share, noise_mm=tolerances.noise_mm, short=short)
+                          edge_mm=edge_mm, share=share, noise_mm=tolerances.noise_mm, variant=variant)
         return learned_correction(press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower, active,
-                                  edge_mm=edge_mm, scale=np.full(ring.shape, share), short=short)
+                                  edge_mm=edge_mm, scale=np.full(ring.shape, share), variant=variant)
 
     learned = correct(plan.share)
     if len(outcomes) > 1:

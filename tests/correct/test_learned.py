@@ -133,7 +133,7 @@ def test_a_short_first_correction_stops_short_of_the_design_and_on_the_loading_s
     scatter = np.random.default_rng(3).normal(0.0, 1.0, error.shape)  # what no model of the plate describes
     cycles = [PressedCycle([mid], grid.flat(error + scatter))]
     full = learned_correction(press, design, T, NOMINAL, cycles, upper, lower, active)
-    short = learned_correction(press, design, T, NOMINAL, cycles, upper, lower, active, short="aim")
+    short = learned_correction(press, design, T, NOMINAL, cycles, upper, lower, active, variant="short")
     aim = float(next(n for n in short.notes if n.startswith("aim ")).split()[1].rstrip("%")) / 100.0
     assert 0.5 <= aim < AIM[0]
     assert _rms(short.change_mm, active) < _rms(full.change_mm, active)  # a smaller step the same way
