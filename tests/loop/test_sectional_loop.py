@@ -166,3 +166,22 @@ def test_the_loop_brings_a_plate_in_sections_into_tolerance(long_plate, tmp_path
     assert {r.correction["strategy"] for r in result.cycles[1:]} == {"sections-learned"}
     for c in result.cycles:  # every section pressed and measured in every cycle
         assert c.steps_done == len(c.steps) and [s["index"] for s in c.comparison["sections"]] == [1, 2]
+
+
+def test_each_sections_shape_is_its_deviation_without_its_plane(long_plate):
+    """The plane of a section's deviation is its pose, not its shape: it is taken out, the rest kept exactly."""
+    from mppf.loop.sectional import section_shapes
+
+    press = long_plate[2]
+    gx, gy = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    active = np.ones(press.shape, dtype=bool)
+    active[0, :] = False
+    bowl = 1e-6 * (gx**2 + 2.0 * gy**2)
+    plane = 3.0 + 0.01 * gx - 0.02 * gy
+    unknown = np.where((gx > 0) & (gy > 0) & (gx < 200) & (gy < 200), np.nan, 0.0)
+    shape_a, shape_b = section_shapes(press, [active, active], [bowl + plane + unknown, bowl + unknown])
+    known = active & np.isfinite(unknown)
+    assert (active & ~np.isfinite(unknown)).any()  # some active punches without a measured deviation
+    assert np.isnan(shape_a[~known]).all() and np.isfinite(shape_a[known]).all()
+    assert np.allclose(shape_a[known], shape_b[known], atol=1e-9)  # the plane left no trace
+    assert np.ptp(shape_a[known]) > 1.0  # the shape itself is kept
