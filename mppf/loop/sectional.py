@@ -80,8 +80,7 @@ def press_sections(history: History, record: CycleRecord, press: PressConfig, li
     """
     resumed = record.state == CycleState.PRESSING
     record = close_cut_step(history, record, press)
-    if hasattr(link, "job_sha256"):  # the press driver writes it into the audit log
-        link.job_sha256 = record.job_sha256
+    link.job_sha256 = record.job_sha256  # the press driver writes it into the audit log
     spans = {k: (first, last) for k, first, last in section_spans(job)}
     placed = None
     for index in range(record.steps_done + 1, len(record.steps) + 1):
