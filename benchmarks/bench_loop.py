@@ -36,7 +36,7 @@ ends within 10 minutes; call again to go on. ``--table`` prints the tables of th
 
 Run:  python benchmarks/bench_loop.py [--physics steel yield:1.2 ...] [--sweep] [--seeds 1 2 3]
           [--plates P1_midbody_bilge_smooth ...] [--mode direct|loop] [--results FILE.json]
-          [--budget-s 540] [--correction learned|measured|curvature|hybrid|short|short-curvature|short-hybrid]
+          [--budget-s 540] [--correction learned|measured|curvature|hybrid|short|...]
           [--table]
           [--yield-uncertainty PCT]  (the first press under-bent: issue 40)
 """
