@@ -21,8 +21,7 @@ Plate physics (``--physics``, each a name or ``effect:factor``):
 Two ways to run a plate:
 
 - ``--mode direct`` (default): the loop's correction (:func:`mppf.correct.step.correct_step`, what
-  :mod:`mppf.loop.correcting` calls; ``--correction`` names one of its candidates,
-  :data:`mppf.correct.step.CORRECTIONS`) on the plate in process, on the TRUE deviation (the
+  :mod:`mppf.loop.correcting` calls) on the plate in process, on the TRUE deviation (the
   formed mid-surface against the design over the net plate, best plane removed; at the
   punches and at the net edge for the correction). No scanner, no registration.
 - ``--mode loop``: :func:`mppf.loop.cycle.run_loop` with the in-process press and the
@@ -36,8 +35,7 @@ ends within 10 minutes; call again to go on. ``--table`` prints the tables of th
 
 Run:  python benchmarks/bench_loop.py [--physics steel yield:1.2 ...] [--sweep] [--seeds 1 2 3]
           [--plates P1_midbody_bilge_smooth ...] [--mode direct|loop] [--results FILE.json]
-          [--budget-s 540] [--correction learned|measured|curvature|hybrid|short|...]
-          [--table]
+          [--budget-s 540] [--table]
           [--yield-uncertainty PCT]  (the first press under-bent: issue 40)
 """
 
@@ -60,7 +58,7 @@ from mppf.core.grid import without_plane
 from mppf.core.transform import apply_tf
 from mppf.correct.learned import steps_towards
 from mppf.correct.memory import PressedCycle
-from mppf.correct.step import CORRECTIONS, Tolerances, correct_step, outcome
+from mppf.correct.step import Tolerances, correct_step, outcome
 from mppf.forming.material import Material
 from mppf.forming.precompensate import deviation
 from mppf.geometry.read import read_points
@@ -145,12 +143,11 @@ def true_deviation(press, formed, planned: Planned, active):
     return float(np.nanmax(np.abs(dev))), float(np.sqrt(np.nanmean(dev**2))), punch, edge
 
 
-def run_direct(press, planned: Planned, plate, max_cycles: int, policy: bool = True,
-               correction: str = "learned") -> dict:
+def run_direct(press, planned: Planned, plate, max_cycles: int, policy: bool = True) -> dict:
     """The loop's correction (:func:`mppf.correct.step.correct_step`) on the plate in process, true deviations.
 
     ``policy=False``: without the step policy (every step at scale 1 from the last strokes), to measure what it
-    does. ``correction``: one of :data:`mppf.correct.step.CORRECTIONS`.
+    does.
     """
     job = planned.job
     final = job.steps[-1]
@@ -176,7 +173,7 @@ def run_direct(press, planned: Planned, plate, max_cycles: int, policy: bool = T
             row["decisions"].append("max_cycles")
             break
         step = correct_step(press, job.layout.design_mid_mm, THICKNESS_MM, NOMINAL, cycles, outcomes, strokes,
-                            active, edge, tolerances, policy=policy, correction=correction)
+                            active, edge, tolerances, policy=policy)
         row["share"].append(round(step.plan.share, 3))
         if step.verdict is not None:
             row["decisions"].append("cannot_converge")
@@ -303,8 +300,7 @@ def run_part(args, results: dict, path: Path) -> bool:
                     row = run_loop_mode(press, p, seed, args.max_cycles, args.true_yield, work, physics)
                 else:
                     plate = direct_plate(press, p, physics, seed, args.true_yield)
-                    row = run_direct(press, p, plate, args.max_cycles, not args.no_policy, args.correction)
-                    row["correction"] = args.correction
+                    row = run_direct(press, p, plate, args.max_cycles, not args.no_policy)
             except MppfError as exc:  # a failed run counts as not in tolerance
                 row = {"max": [], "rms": [], "decisions": ["error"], "ok_at": None,
                        "verdict": f"{type(exc).__name__}: {exc.message[:160]}"}
@@ -331,8 +327,6 @@ def main(argv=None) -> int:
     parser.add_argument("--budget-s", type=float, default=540.0, help="start no new run after this long (s)")
     parser.add_argument("--no-policy", action="store_true",
                         help="direct mode: every correction at full size from the last strokes (the step policy off)")
-    parser.add_argument("--correction", choices=CORRECTIONS, default="learned",
-                        help="direct mode: the correction measured (keep each one's runs in its own --results file)")
     parser.add_argument("--table", action="store_true", help="only print the tables of --results")
     parser.add_argument("--yield-uncertainty", type=float, default=None,
                         help="the first press planned for yield x (1 - PCT/100) (default: the loop's default; "

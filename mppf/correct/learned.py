@@ -58,11 +58,6 @@ REACH_ELASTIC_LIMITS = 4.0
 """Trust region of one correction: the loaded curvature may change by at most this many
 elastic-limit curvatures at any punch (the model is trusted that far from what was pressed)."""
 
-SHORT_SPREAD = 2.0
-"""A short first correction (``variant`` with ``"short"``) aims at ``1 / (1 + SHORT_SPREAD sigma)`` of the way: two standard
-deviations of the plate's response short of the design, so that an answer that large still leaves the plate
-under-bent (on the loading side of its memory)."""
-
 MIN_REACH_ELASTIC_LIMITS = 2.5
 """The smallest reach, however small the trust region: a reverse bend must cross the elastic
 stretch of the plate's memory (two elastic-limit curvatures) to change anything at all."""
@@ -112,7 +107,7 @@ class LearnedCorrection:
 
 def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, nominal: Material, cycles,
                        base_upper_mm, base_lower_mm, active, trust: float = 1.0, edge_mm=None,
-                       scale=None, variant: str = "") -> LearnedCorrection:
+                       scale=None) -> LearnedCorrection:
     """The next strokes from every pressed and measured cycle of the plate.
 
     Parameters
@@ -137,11 +132,6 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
     scale : (rows, cols) float, optional
         Share of the wanted change asked for at each punch (:attr:`mppf.correct.policy.StepPlan.share`);
         default 1.
-    variant : str
-        Candidates measured by ``benchmarks/bench_loop.py`` (default ``""``: neither): with ``"short"`` the first
-        correction is aimed short of the design by the measured uncertainty of the plate's response
-        (:func:`short_aim`) instead of :data:`AIM` [0]; with ``"fresh"`` the response is learned only from the
-        secants after the first correction (the first one crossed the first press's elastic gaps).
 
     Returns
     -------
@@ -160,16 +150,11 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
     cycles = interrupted_share(section, grid, loaded, [_unknown_share(c) for c in cycles], measured)
     model = replay(section, loaded, cycles)
     # 3. the plate's response against the model's, learned on every secant
-    gain = _learn_response(grid, model, cycles, skip=1 if "fresh" in variant else 0)
+    gain = _learn_response(grid, model, cycles)
     # 4. the change wanted of the plate, and what to ask of the model for it
     error = grid.flat(np.where(grid.active, balanced_error(cycles[-1].error_mm, edge_mm), np.nan))
     error = np.where(grid.active & np.isfinite(error), error, 0.0)
-    if not variant:
-        aim = AIM[1] if gain.updates else AIM[0]
-    else:  # the first correction as the variant says; later ones as usual, whether or not a secant was learned
-        first = short_aim(calibration, error[grid.active]) if "short" in variant else AIM[0]
-        aim = AIM[1] if sum(1 for c in cycles if c.measured) > 1 else first
-    aim *= 0.5 + 0.5 * trust
+    aim = (AIM[1] if gain.updates else AIM[0]) * (0.5 + 0.5 * trust)
     wanted = error if scale is None else error * np.where(grid.active, np.asarray(scale, dtype=float), 1.0)
     request = gain.model_request(-aim * wanted)
     # 5. the loaded curvature for it, through the model with its memory, in virtual cycles
@@ -184,33 +169,6 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
     # 7. the strokes, held to the limits, and the steps they need
     return _strokes(press, grid, base_upper_mm, base_lower_mm, change + direct, error, gain, section, model,
                     calibration, unreached, aim, direct)
-
-
-def short_aim(calibration: Calibration, error_mm) -> float:
-    """Share of the way a short first correction aims at: ``1 / (1 + SHORT_SPREAD sigma)``, at most :data:`AIM` [0].
-
-    ``sigma``, the relative uncertainty of the plate's response, is what the calibrated model does not explain
-    of the first cycle: its shape misfit (``calibration.misfit_mm``) over the RMS deviation at the punches.
-
-    Parameters
-    ----------
-    calibration : Calibration
-        The model fitted to the measured cycle(s).
-    error_mm : (m,) float
-        The deviation at the active punches (mm).
-
-    Returns
-    -------
-    float
-        In [0.5, AIM[0]].
-    """
-    error = np.asarray(error_mm, dtype=float)
-    error = error[np.isfinite(error)]
-    rms = float(np.sqrt(np.mean(error**2))) if error.size else 0.0
-    if rms <= 0.0 or not np.isfinite(calibration.misfit_mm):
-        return AIM[0]
-    sigma = calibration.misfit_mm / rms
-    return float(np.clip(1.0 / (1.0 + SHORT_SPREAD * sigma), 0.5, AIM[0]))
 
 
 def _direct_part(grid: PunchGrid, section: Section, model, base_mid, change, request, misfit: float) -> np.ndarray:
@@ -244,11 +202,10 @@ def _unknown_share(cycle: PressedCycle) -> PressedCycle:
     return PressedCycle(cycle.steps_mid_mm, cycle.error_mm, cycle.interrupted, None)
 
 
-def _learn_response(grid: PunchGrid, model, cycles, skip: int = 0) -> ModeGain:
-    """Broyden updates of the plate's response from every pair of consecutive measured cycles (the first ``skip``
-    secants left out)."""
+def _learn_response(grid: PunchGrid, model, cycles) -> ModeGain:
+    """Broyden updates of the plate's response from every pair of consecutive measured cycles."""
     gain = ModeGain(grid)
-    known = [k for k, c in enumerate(cycles) if c.measured][skip:]
+    known = [k for k, c in enumerate(cycles) if c.measured]
     for j, k in zip(known, known[1:]):
         model_change = grid.heights(model.unloaded[k] - model.unloaded[j])
         plate_change = grid.flat(np.where(grid.active, cycles[k].error_mm - cycles[j].error_mm, np.nan))

@@ -14,11 +14,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from mppf.correct.learned import LearnedCorrection, learned_correction
-from mppf.correct.measured import (
-    curvature_correction,
-    hybrid_correction,
-    measured_correction,
-)
 from mppf.correct.policy import (
     DEFAULT_NOISE_MM,
     Outcome,
@@ -56,22 +51,8 @@ class Tolerances:
     noise_mm: float = DEFAULT_NOISE_MM
 
 
-CORRECTIONS = ("learned", "measured", "curvature", "hybrid", "short", "short-curvature", "short-hybrid",
-               "short-fresh", "fresh")
-"""The corrections :func:`correct_step` can use: the learned one (a model of the plate with its memory), the
-measured one (this plate's measured response in loaded heights, :mod:`mppf.correct.measured`) and the same point by
-point in curvature (:func:`mppf.correct.measured.curvature_correction`), and that one with the learned
-correction's reverse bend at the over-bent punches (:func:`mppf.correct.measured.hybrid_correction`); ``short``,
-``short-curvature`` and ``short-hybrid``: the learned, the curvature and the hybrid correction with the first
-correction aimed short of the design by the measured uncertainty of the plate's response
-(:func:`mppf.correct.learned.short_aim`); ``short-fresh``: ``short`` with the response learned only from the secants
-after the first correction; ``fresh``: the learned correction with that response. The loop uses the learned one; the others are measured against it by
-``benchmarks/bench_loop.py --correction`` (docs/correction.md)."""
-
-
 def correct_step(press: PressConfig, design_mid_mm, thickness_mm: float, nominal: Material, cycles, outcomes,
-                 strokes, active, edge_mm, tolerances: Tolerances, policy: bool = True,
-                 correction: str = "learned") -> CorrectionStep:
+                 strokes, active, edge_mm, tolerances: Tolerances, policy: bool = True) -> CorrectionStep:
     """The next strokes from every pressed and measured cycle, sized by what the plate showed.
 
     Parameters
@@ -94,8 +75,6 @@ def correct_step(press: PressConfig, design_mid_mm, thickness_mm: float, nominal
     tolerances : Tolerances
     policy : bool
         False: every step at full size from the last strokes (to measure what the policy does).
-    correction : str
-        One of :data:`CORRECTIONS`.
 
     Returns
     -------
@@ -106,19 +85,9 @@ def correct_step(press: PressConfig, design_mid_mm, thickness_mm: float, nominal
             if policy else StepPlan())
     upper, lower = strokes[plan.base]
 
-    variant = " ".join(w for w in ("short", "fresh") if w in correction.split("-"))
-    name = next((w for w in correction.split("-") if w not in ("short", "fresh")), "learned")
-
     def correct(share):
-        if name == "measured":
-            return measured_correction(press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower, active,
-                                       edge_mm=edge_mm, share=share, noise_mm=tolerances.noise_mm)
-        if name in ("curvature", "hybrid"):
-            chosen = curvature_correction if name == "curvature" else hybrid_correction
-            return chosen(press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower, active,
-                          edge_mm=edge_mm, share=share, noise_mm=tolerances.noise_mm, variant=variant)
         return learned_correction(press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower, active,
-                                  edge_mm=edge_mm, scale=np.full(ring.shape, share), variant=variant)
+                                  edge_mm=edge_mm, scale=np.full(ring.shape, share))
 
     learned = correct(plan.share)
     if len(outcomes) > 1:

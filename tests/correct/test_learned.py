@@ -11,8 +11,7 @@ import numpy as np
 import pytest
 
 from mppf.core.grid import largest_neighbour_difference
-from mppf.correct.calibrate import Calibration
-from mppf.correct.learned import AIM, learned_correction, short_aim, steps_towards
+from mppf.correct.learned import learned_correction, steps_towards
 from mppf.correct.memory import PressedCycle, loaded_curvatures, replay
 from mppf.correct.punch_grid import PunchGrid
 from mppf.correct.section import Section
@@ -114,30 +113,3 @@ def test_the_next_steps_keep_the_dimpling_limit_and_end_on_the_strokes(setup):
     assert any("calibrated" in note for note in learned.notes)
 
 
-
-
-def test_the_short_aim_is_two_response_scatters_short_of_the_design():
-    section = Section(T, NOMINAL.youngs_modulus_mpa, NOMINAL.poisson, NOMINAL.yield_stress_mpa)
-    error = np.array([4.0, -4.0, 4.0, -4.0])  # RMS 4 mm
-    assert short_aim(Calibration(section, 1.0), error) == pytest.approx(1.0 / 1.5)  # sigma 0.25
-    assert short_aim(Calibration(section, 0.0), error) == AIM[0]  # a model that explains all: the usual aim
-    assert short_aim(Calibration(section, 40.0), error) == 0.5  # one that explains nothing: half the way
-    assert short_aim(Calibration(section, float("nan")), error) == AIM[0]
-
-
-def test_a_short_first_correction_stops_short_of_the_design_and_on_the_loading_side(setup):
-    press, active, design, grid = setup
-    (upper, lower), = _first_cycle(design, active)
-    mid = 0.5 * (upper + lower)
-    error = _measure(grid, design, [PressedCycle([mid], None)])
-    scatter = np.random.default_rng(3).normal(0.0, 1.0, error.shape)  # what no model of the plate describes
-    cycles = [PressedCycle([mid], grid.flat(error + scatter))]
-    full = learned_correction(press, design, T, NOMINAL, cycles, upper, lower, active)
-    short = learned_correction(press, design, T, NOMINAL, cycles, upper, lower, active, variant="short")
-    aim = float(next(n for n in short.notes if n.startswith("aim ")).split()[1].rstrip("%")) / 100.0
-    assert 0.5 <= aim < AIM[0]
-    assert _rms(short.change_mm, active) < _rms(full.change_mm, active)  # a smaller step the same way
-    assert np.nansum(short.change_mm * full.change_mm) > 0.0
-    after = _measure(grid, design, [PressedCycle([mid], None), PressedCycle([0.5 * (short.upper_mm + short.lower_mm)],
-                                                                            None)])
-    assert _rms(after, active) < _rms(error, active)
