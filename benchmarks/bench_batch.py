@@ -34,8 +34,8 @@ import numpy as np
 from mppf.core.transform import apply_tf
 from mppf.examples.analytic import hull_pose
 from mppf.geometry.write import write_points
+from mppf.model.press import example_press_path
 from mppf.planning.batch import BatchOptions, planning_pool, read_manifest, run_batch
-from mppf.planning.press import example_press_path
 
 
 def generated_plate(rng, spacing_mm: float):

@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 from mppf.sim.fe.plate import FEPlate
 from mppf.sim.plate.contact import Compliance
 from mppf.sim.plate.material import PlateSteel

@@ -54,7 +54,7 @@ def main() -> None:
         env.update(MPPF_HOME=tmp, PYTHONPYCACHEPREFIX=str(Path(tmp) / "pyc"))  # compiled once, as installed
         # this installation's press and seal key: the job is sealed here and pressed by the subprocess
         from mppf.core.paths import seal_key_path
-        from mppf.planning.press import press_to_toml
+        from mppf.model.press import press_to_toml
 
         (Path(tmp) / "press.toml").write_text(press_to_toml(press))
         env["MPPF_SEAL_KEY"] = str(seal_key_path())

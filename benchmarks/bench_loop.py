@@ -59,13 +59,13 @@ from mppf.core.transform import apply_tf
 from mppf.correct.learned import steps_towards
 from mppf.correct.memory import PressedCycle
 from mppf.correct.step import Tolerances, correct_step, outcome
-from mppf.forming.material import Material
 from mppf.forming.precompensate import deviation
 from mppf.geometry.read import read_points
 from mppf.geometry.unfold import unfold
 from mppf.geometry.write import write_points
 from mppf.measure.punches import edge_deviations
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.material import Material
+from mppf.model.press import example_press_path, load_press
 
 HULL = Path(__file__).resolve().parents[1] / "mppf" / "examples" / "hull"
 PLATES = ["P1_midbody_bilge_smooth", "P2_bow_flare_smooth", "P3_stern_saddle_smooth",

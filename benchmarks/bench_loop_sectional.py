@@ -71,7 +71,7 @@ from mppf.geometry.read import read_points
 from mppf.geometry.unfold import unfold
 from mppf.geometry.write import write_points
 from mppf.loop.section_steps import placement_mm
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 
 ROOT = Path(__file__).resolve().parents[1]
 LONG = ROOT / "mppf" / "examples" / "long"

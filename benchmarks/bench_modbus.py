@@ -39,7 +39,7 @@ from pymodbus.pdu.register_message import ReadHoldingRegistersRequest, WriteMult
 from mppf.drivers.modbus import ModbusPress
 from mppf.drivers.modbus_adapter import RTU_SILENCE_CHARS
 from mppf.drivers.url import parse_plc_url
-from mppf.planning.press import example_press_path, load_press, press_from_dict
+from mppf.model.press import example_press_path, load_press, press_from_dict
 from mppf.sim.plc.host import start_simulated_plc
 from mppf.sim.serial_pty import BITS_PER_BYTE, wire_time_s
 

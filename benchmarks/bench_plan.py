@@ -25,10 +25,10 @@ from pathlib import Path
 import numpy as np
 
 import mppf
+from mppf.model.press import load_press, example_press_path, press_from_dict
 from mppf.planning.contact import PlacedSurface, tip_heights
 from mppf.geometry.read import read_points
 from mppf.planning.plan import plan_job
-from mppf.planning.press import load_press, example_press_path, press_from_dict
 from mppf.geometry.surface import fit_plate
 from mppf.geometry.unfold import unfold
 

@@ -27,7 +27,7 @@ import tracemalloc  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from mppf.planning.press import example_press_path, load_press  # noqa: E402
+from mppf.model.press import example_press_path, load_press  # noqa: E402
 from mppf.sim.plate.plate import SteelPlate  # noqa: E402
 
 THICKNESS_MM = 20.0

@@ -33,9 +33,10 @@ def main() -> None:
         os.environ["MPPF_SEAL_KEY"] = str(Path(tmp) / "seal.key")
         from mppf.core.seal import verify_document
         from mppf.examples.analytic import cylinder_plate
-        from mppf.planning.job import load_job, read_job_document, save_job
+        from mppf.model.job import read_job_document
+        from mppf.model.press import example_press_path, load_press
+        from mppf.planning.job import load_job, save_job
         from mppf.planning.job_checks import check_plan
-        from mppf.planning.press import example_press_path, load_press
         from mppf.planning.sectional import plan_plate
 
         press = load_press(example_press_path())

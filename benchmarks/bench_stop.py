@@ -33,8 +33,10 @@ from pathlib import Path
 
 import numpy as np
 
-from mppf.planning.job import Job, StepStrokes, save_job
-from mppf.planning.press import example_press_path, load_press, press_from_dict
+from mppf.model.job import Job
+from mppf.model.job_parts import StepStrokes
+from mppf.model.press import example_press_path, load_press, press_from_dict
+from mppf.planning.job import save_job
 from mppf.sim.plc.host import start_simulated_plc
 
 GOAL_S = 0.3

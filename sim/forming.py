@@ -36,9 +36,9 @@ from scipy.interpolate import RectBivariateSpline
 from mppf.core import polygon
 from mppf.core.errors import GeometryError, InputError
 from mppf.core.validate import check_number, check_positive
-from mppf.forming.material import Material
 from mppf.forming.plate_model import grid_axes, loaded_surface, spring_back
-from mppf.planning.press import PressConfig
+from mppf.model.material import Material
+from mppf.model.press import PressConfig
 from mppf.sim.plate.formed import grid_inside
 
 GRID_SPACING_MM = 20.0

@@ -14,8 +14,8 @@ import numpy as np
 
 from mppf.core.errors import InputError
 from mppf.core.validate import check_number
-from mppf.forming.material import Material
-from mppf.planning.press import PressConfig
+from mppf.model.material import Material
+from mppf.model.press import PressConfig
 from mppf.sim.forming import FormedPlate, _check_step, form_plate, sample_plate
 
 
@@ -84,7 +84,7 @@ class PlannerModelPlate:
     @classmethod
     def from_state(cls, state) -> PlannerModelPlate:
         """The plate of :meth:`state_dict`."""
-        from mppf.planning.press import press_from_dict
+        from mppf.model.press import press_from_dict
 
         config = json.loads(str(np.asarray(state["config"])))
         self = cls(press_from_dict(config["press"], "saved plate state"), np.asarray(config["outline_xy_mm"]),

@@ -46,8 +46,9 @@ from mppf.core.errors import InputError
 from mppf.core.polygon import convex_outline
 from mppf.core.scanner import PressedStep, ScanContext
 from mppf.core.transform import apply_tf
-from mppf.forming.material import Material
-from mppf.planning.job import Job, reference_corner_xy
+from mppf.model.job import Job
+from mppf.model.job_parts import reference_corner_xy
+from mppf.model.material import Material
 from mppf.sim.scanner import SimulatedScanner
 
 PLATE_MODELS = ("steel", "planner", "fe")

@@ -38,7 +38,7 @@ import numpy as np
 from mppf.core.errors import InputError, MppfError
 from mppf.core.progress import NullReporter
 from mppf.core.scanner import PressedStep, ScanContext
-from mppf.planning.press import PressConfig
+from mppf.model.press import PressConfig
 
 PARK_TOLERANCE_MM = 1.0
 """A tip within this much of its matrix's park height (beyond the press's position tolerance) is parked."""

@@ -34,12 +34,6 @@ FOLDERS = {"mppf": ROOT / "mppf", "mppf.drivers": ROOT / "drivers", "mppf.sim": 
 KNOWN_UPWARD: dict[tuple[str, str], str] = {}
 """Upward imports still to remove, (importer, imported module) -> why it is still there."""
 
-REEXPORTS = ("mppf.planning.press", "mppf.planning.job", "mppf.planning.job_sections",
-             "mppf.forming.material")
-"""Old homes of moved names that re-export them (so that work in progress elsewhere keeps running): a name
-imported from one of them counts as imported from where it lives now. Drop an entry once nothing imports
-the moved names from there."""
-
 KNOWN_PRIVATE = {
     ("mppf.planning.sectional", "mppf.planning.plan"): "issue 42 makes the planner's shared steps public",
     ("mppf.planning.sectional_overbend", "mppf.planning.plan"): "issue 42 makes the springback report public",
@@ -100,33 +94,27 @@ def layer_of(module: str) -> str:
     return "cli" if parts[1] == "__main__" else parts[1]
 
 
-def reexported_from(module: str) -> dict[str, str]:
-    """The names a module of :data:`REEXPORTS` takes from another mppf module at its top level -> that module."""
-    path = next(p for p in source_files() if module_name(p) == module)
-    return {alias.name: node.module for node in ast.parse(path.read_text()).body
-            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("mppf.")
+@functools.cache
+def model_names_of(module: str) -> dict[str, str]:
+    """The names a module outside :mod:`mppf.model` takes from ``mppf.model.*`` at its top level -> that module."""
+    path = next((p for p in source_files() if module_name(p) == module), None)
+    if path is None or module.startswith("mppf.model"):
+        return {}
+    return {alias.asname or alias.name: node.module for node in ast.parse(path.read_text()).body
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("mppf.model.")
             for alias in node.names}
 
 
-def through_reexports(found: list[Import]) -> list[Import]:
-    """Each import of moved names from their old home split into imports from where they live now."""
-    homes = {module: reexported_from(module) for module in REEXPORTS}
-    out = []
-    for i in found:
-        if i.module not in homes or not i.names:
-            out.append(i)
-            continue
-        by_home: dict[str, list[str]] = {}
-        for n in i.names:
-            by_home.setdefault(homes[i.module].get(n, i.module), []).append(n)
-        out += [Import(i.importer, i.path, i.line, home, tuple(names)) for home, names in by_home.items()]
-    return out
+def taken_second_hand(found: list[Import]) -> list[str]:
+    """Each shared type imported from a module that itself imports it from :mod:`mppf.model`, and where it lives."""
+    return [f"{i.path.relative_to(ROOT)}:{i.line}: {i.importer} imports {n} from {i.module}; it lives in {home}"
+            for i in found for n in i.names if (home := model_names_of(i.module).get(n))]
 
 
 @functools.cache
 def all_imports() -> tuple[Import, ...]:
     """Every mppf import of every module, read once per test session."""
-    return tuple(through_reexports([i for path in source_files() for i in imports_of(path)]))
+    return tuple(i for path in source_files() for i in imports_of(path))
 
 
 def test_every_package_has_a_layer():
@@ -200,8 +188,15 @@ def test_every_package_is_installed():
     assert packages <= listed, f"add {sorted(packages - listed)} to [tool.setuptools] packages in pyproject.toml"
 
 
-def test_a_name_taken_from_its_old_home_counts_where_it_lives_now():
+def test_shared_types_are_imported_from_where_they_live():
+    """The shared types (``mppf/model/``) are imported from there, never through a module that uses them."""
+    second_hand = taken_second_hand(list(all_imports()))
+    assert not second_hand, "import these names from mppf.model:\n" + "\n".join(second_hand)
+
+
+def test_a_name_taken_through_its_old_home_is_found():
+    """``PressConfig`` taken from :mod:`mppf.planning.press` (which uses it) is named; ``machine_press`` is not."""
     old = Import("mppf.correct.probe", ROOT / "mppf/correct/probe.py", 1, "mppf.planning.press",
                  ("PressConfig", "machine_press"))
-    assert {(i.module, i.names) for i in through_reexports([old])} == {
-        ("mppf.model.press", ("PressConfig",)), ("mppf.planning.press", ("machine_press",))}
+    assert taken_second_hand([old]) == [("mppf/correct/probe.py:1: mppf.correct.probe imports PressConfig from "
+                                         "mppf.planning.press; it lives in mppf.model.press")]

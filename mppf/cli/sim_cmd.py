@@ -165,7 +165,7 @@ def sim_command(
     plate pressed with every motion this PLC made since that plate's last scan.
     """
     from mppf.cli._common import console
-    from mppf.planning.press import example_press_path, load_press
+    from mppf.model.press import example_press_path, load_press
     from mppf.sim.faults import parse_fault_spec
     from mppf.sim.plc.host import start_simulated_plc
 

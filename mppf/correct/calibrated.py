@@ -21,9 +21,9 @@ from mppf.core.grid import tps_fill
 from mppf.correct.limits import limit_correction, limited_notes
 from mppf.correct.result import Correction
 from mppf.correct.virtual_cycles import ITERATIONS, Refinement, refine_strokes
-from mppf.forming.material import Material
 from mppf.forming.precompensate import deviation, predict_mid_heights
 from mppf.model.job_parts import PlateLayout, StepStrokes
+from mppf.model.material import Material
 from mppf.model.press import PressConfig
 
 YIELD_BOUNDS = (0.6, 1.6)

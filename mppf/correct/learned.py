@@ -42,8 +42,8 @@ from mppf.correct.punch_grid import PunchGrid
 from mppf.correct.secant import ModeGain
 from mppf.correct.solve import STALLED, solve_change
 from mppf.correct.section import Section
-from mppf.forming.material import Material
 from mppf.model.job_parts import StepStrokes
+from mppf.model.material import Material
 from mppf.model.press import PressConfig
 
 AIM = (0.92, 0.95)

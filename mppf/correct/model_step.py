@@ -13,8 +13,8 @@ import numpy as np
 
 from mppf.core.grid import hessian, integrate_hessian, principal, tensor, tps_fill, without_plane
 from mppf.correct.result import Step, punch_grid
-from mppf.forming.material import Material
 from mppf.forming.springback import unloaded_curvature
+from mppf.model.material import Material
 from mppf.model.press import PressConfig
 
 MIN_SLOPE = 0.2

@@ -22,7 +22,7 @@ from mppf.correct.policy import (
     step_plan,
 )
 from mppf.correct.verdict import Verdict, convergence_verdict
-from mppf.forming.material import Material
+from mppf.model.material import Material
 from mppf.model.press import PressConfig
 
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from mppf.core.validate import check_number
-from mppf.model.material import MATERIALS, Material  # noqa: F401 (re-export)
+from mppf.model.material import Material
 
 DEFAULT_YIELD_UNCERTAINTY_PCT = 0.0
 """Declared scatter of the yield stress (+- %) the first press is planned for when the user gives none

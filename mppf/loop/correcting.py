@@ -28,14 +28,16 @@ from mppf.correct.step import Tolerances, correct_step, outcome
 from mppf.correct.memory import PressedCycle
 from mppf.correct.result import Correction, PreviousCycle
 from mppf.correct.verdict import Verdict
-from mppf.forming.material import Material
 from mppf.loop.history import History
 from mppf.loop.pressing import last_step, pressed_steps
 from mppf.loop.records import CycleRecord, PlateRecord, load_cycle_job
 from mppf.loop.settings import LoopSettings
 from mppf.loop.states import Decision
-from mppf.planning.job import Job, grid_from_json, grid_to_json, save_job
-from mppf.planning.press import PressConfig
+from mppf.model.job import Job
+from mppf.model.job_parts import grid_from_json, grid_to_json
+from mppf.model.material import Material
+from mppf.model.press import PressConfig
+from mppf.planning.job import save_job
 from mppf.planning.steps import flat_heights
 
 

@@ -8,15 +8,16 @@ from pathlib import Path
 from mppf.core.errors import InputError
 from mppf.core.progress import NULL_REPORTER, Reporter
 from mppf.core.validate import safe_name
-from mppf.forming.material import Material
 from mppf.geometry.read import PointCloud
 from mppf.loop.history import History
 from mppf.loop.records import PlateRecord
 from mppf.loop.section_steps import cycle_steps
 from mppf.loop.settings import LoopSettings
-from mppf.planning.job import Job, save_job
+from mppf.model.job import Job
+from mppf.model.material import Material
+from mppf.model.press import PressConfig
+from mppf.planning.job import save_job
 from mppf.planning.sectional import plan_plate
-from mppf.planning.press import PressConfig
 
 
 def new_plate_id(design_path) -> str:

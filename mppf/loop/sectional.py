@@ -40,8 +40,10 @@ from mppf.loop.records import CycleRecord, PlateRecord, load_cycle_job
 from mppf.loop.section_steps import cycle_steps, section_of_step, section_spans
 from mppf.loop.settings import LoopSettings
 from mppf.loop.states import CycleState, Decision
-from mppf.planning.job import Job, grid_from_json, grid_to_json, save_job
-from mppf.planning.press import PressConfig
+from mppf.model.job import Job
+from mppf.model.job_parts import grid_from_json, grid_to_json
+from mppf.model.press import PressConfig
+from mppf.planning.job import save_job
 from mppf.planning.sectional import apply_section_corrections
 from mppf.planning.sections import placement_text, section_job
 

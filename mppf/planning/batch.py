@@ -24,7 +24,7 @@ from pathlib import Path
 from mppf.core.errors import FileFormatError, InputError, MppfError
 from mppf.core.progress import NULL_REPORTER
 from mppf.core.validate import check_name
-from mppf.forming.material import MATERIALS
+from mppf.model.material import MATERIALS
 from mppf.planning.batch_pool import planning_pool
 
 MANIFEST_COLUMNS = ("name", "design", "flat", "thickness_mm", "material", "springback")
@@ -242,8 +242,8 @@ def finished_row(plate: Plate, options: BatchOptions, key: str) -> dict | None:
 def plan_plate_files(plate: Plate, options: BatchOptions, key: str) -> dict:
     """Read, unfold (unless a flat is given), plan and save one plate; its summary row. Runs in a worker."""
     from mppf.geometry.read import read_points
+    from mppf.model.press import load_press
     from mppf.planning.job import save_job
-    from mppf.planning.press import load_press
     from mppf.planning.sectional import plan_plate
 
     started, cpu_started = time.perf_counter(), time.process_time()

@@ -2,8 +2,7 @@
 
 The job itself and its (de)serialisation are shared data of every stage and live in
 :mod:`mppf.model.job` (its parts in :mod:`mppf.model.job_parts`, its sections in
-:mod:`mppf.model.job_sections`); they are re-exported here for the callers that still import
-them from planning. :func:`save_job` seals the file with the installation's key
+:mod:`mppf.model.job_sections`). :func:`save_job` seals the file with the installation's key
 (:mod:`mppf.core.seal`) and :func:`load_job` refuses a job whose content does not match its seal,
 naming the parts that changed; older, unsealed jobs (versions 1-3) are read only where nothing
 is pressed (``require_seal=False``: compare, history, reports).
@@ -14,30 +13,14 @@ from __future__ import annotations
 from pathlib import Path
 
 from mppf.core.errors import InputError
-from mppf.model.job import (  # noqa: F401 (re-export)
-    JOB_FORMAT,
-    JOB_VERSION,
-    MAX_JOB_BYTES,
+from mppf.model.job import (
     READ_VERSIONS,
     SEALED_VERSION,
-    SECTIONS_VERSION,
-    V1_LAYOUT_KEYS,
     Job,
     check_format,
     job_from_dict,
     read_job_document,
 )
-from mppf.model.job_parts import (  # noqa: F401 (re-export)
-    PlateLayout,
-    StepStrokes,
-    grid_from_json,
-    grid_to_json,
-    reference_corner_xy,
-    steps_from_json,
-    steps_to_json,
-)
-from mppf.model.job_sections import Section  # noqa: F401 (re-export)
-from mppf.model.press import PressConfig  # noqa: F401 (re-export)
 
 
 def load_job(path, *, require_seal: bool = True) -> Job:

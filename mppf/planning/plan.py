@@ -20,15 +20,17 @@ from mppf.core.progress import NULL_REPORTER
 from mppf.core.transform import apply_tf, as_points, rotation_angle_deg
 from mppf.core.validate import check_number
 from mppf.correct.virtual_cycles import refine_strokes
-from mppf.forming.material import Material, check_yield_uncertainty, weakest_material
+from mppf.forming.material import check_yield_uncertainty, weakest_material
 from mppf.geometry.surface import fit_plate
+from mppf.model.job import Job
+from mppf.model.job_parts import PlateLayout
+from mppf.model.material import Material
+from mppf.model.press import PressConfig
 from mppf.planning.belongs import check_flat_belongs, design_area_mm2
 from mppf.planning.contact import PlacedSurface, tip_heights
-from mppf.planning.job import Job, PlateLayout
 from mppf.planning.overbend import overbend
 from mppf.planning.placement import place_flat, register_design
 from mppf.planning.pose import optimise_pose
-from mppf.planning.press import PressConfig
 from mppf.planning.steps import MAX_STEPS, split_steps, steps_needed
 from mppf.planning.validate import validate_steps
 

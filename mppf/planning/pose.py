@@ -13,8 +13,8 @@ import numpy as np
 
 from mppf.core.errors import LimitError
 from mppf.core.transform import make_tf
+from mppf.model.press import PressConfig
 from mppf.planning.contact import PlacedSurface, tip_heights
-from mppf.planning.press import PressConfig
 
 MAX_TILT_DEG = 3.0
 """Largest tilt of the design against the bed that the stroke optimisation may choose."""

@@ -1,25 +1,13 @@
 """This machine's press: the installed press description, and the check that a press is that one.
 
-The press description itself (:class:`PressConfig`, its TOML loader and writer) is shared data of
-every stage and lives in :mod:`mppf.model.press`; it is re-exported here for the callers that
-still import it from planning.
+The press description itself (:class:`~mppf.model.press.PressConfig`, its TOML loader and writer) is
+shared data of every stage and lives in :mod:`mppf.model.press`.
 """
 
 from __future__ import annotations
 
 from mppf.core.errors import ConfigError
-from mppf.model.press import (  # noqa: F401 (re-export)
-    MAX_COLS,
-    MAX_PRESS_BYTES,
-    MAX_ROWS,
-    MAX_VALUE,
-    AxisLimits,
-    PressConfig,
-    example_press_path,
-    load_press,
-    press_from_dict,
-    press_to_toml,
-)
+from mppf.model.press import PressConfig, example_press_path, load_press
 
 
 def machine_press(press_path=None, *, dry_run: bool = False) -> tuple[PressConfig, str]:

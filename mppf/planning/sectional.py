@@ -17,15 +17,16 @@ from mppf.core.progress import NULL_REPORTER
 from mppf.core.rigid import fit_rigid
 from mppf.core.transform import apply_tf, invert_tf, make_tf
 from mppf.geometry.surface import fit_plate
+from mppf.model.job import Job
+from mppf.model.job_parts import PlateLayout
+from mppf.model.job_sections import Section
 from mppf.planning.belongs import check_flat_belongs, design_area_mm2
 from mppf.planning.contact import PlacedSurface, tip_heights
-from mppf.planning.job import Job, PlateLayout
-from mppf.planning.job_sections import Section
 from mppf.planning.placement import FlatPlacement, fits_bed, lay_flat, register_design
 from mppf.planning.plan import (SURFACE_DEGREE, SURFACE_KIND, _active_punches, _check_inputs, _check_trim,
                                 _on_grid, _optimise_pose, _reports, _split, first_press_material,
                                 first_press_report, plan_job)
-from mppf.planning.press import PressConfig
+from mppf.model.press import PressConfig
 from mppf.planning.sectional_borders import BORDER_STEP_LIMIT_MM, border_steps, border_warnings, recovered_residual
 from mppf.planning.sectional_overbend import closer_fit, whole_target
 from mppf.planning.sections import (TRANSITION_PITCHES, earlier_weight, index_offset, mark_punches, shifted,

@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 from mppf.core.transform import apply_tf, invert_tf
-from mppf.planning.job_sections import Section
-from mppf.planning.press import PressConfig
+from mppf.model.job_sections import Section
+from mppf.model.press import PressConfig
 
 
 def recovered_residual(press: PressConfig, fitted, section: Section, thickness_mm: float) -> np.ndarray:

@@ -29,7 +29,7 @@ from mppf.sim.plate.scatter import PhysicalPlate, Scatter, sample_plate
 
 from mppf.core.errors import InputError
 from mppf.core.validate import check_number
-from mppf.planning.press import PressConfig, press_from_dict
+from mppf.model.press import PressConfig, press_from_dict
 
 CELLS_PER_PITCH = 1
 """Default element edges between neighbouring punch axes (docs/simulator-fe.md, mesh study)."""

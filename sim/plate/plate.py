@@ -24,7 +24,7 @@ import numpy as np
 
 from mppf.core.errors import GeometryError, InputError
 from mppf.core.validate import check_number, check_positive
-from mppf.planning.press import PressConfig, press_from_dict
+from mppf.model.press import PressConfig, press_from_dict
 from mppf.sim.plate.contact import Compliance, Punches, refuse_crushing
 from mppf.sim.plate.formed import FormedSteelPlate
 from mppf.sim.plate.grid import PlateGrid

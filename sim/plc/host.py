@@ -19,7 +19,7 @@ from collections.abc import Iterator
 import numpy as np
 
 from mppf.core.errors import InputError, LinkError
-from mppf.planning.press import PressConfig, example_press_path, load_press
+from mppf.model.press import PressConfig, example_press_path, load_press
 from mppf.sim.faults import FaultSpec
 from mppf.sim.plc.program import PlcProgram
 from mppf.sim.plc.server import PlcServer

@@ -28,7 +28,7 @@ from __future__ import annotations
 from mppf.core.errors import PlcError
 from mppf.drivers import codec
 from mppf.drivers.plc_press import PlcPress
-from mppf.planning.press import PressConfig
+from mppf.model.press import PressConfig
 from mppf.sim.faults import FaultSpec
 from mppf.sim.plc.program import PlcProgram
 

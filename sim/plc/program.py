@@ -35,7 +35,7 @@ from mppf.core.errors import InputError
 from mppf.drivers.codec import (check_word_order, counts_to_mm, decode_int32, encode_int32, mm_to_counts, pack_bits,
                                 u32_to_words, words_to_u32)
 from mppf.drivers.regmap import RegisterMap, load_register_map
-from mppf.planning.press import PressConfig
+from mppf.model.press import PressConfig
 from mppf.sim.hydraulics import Hydraulics
 from mppf.sim.plc.commands import MATRICES, Commands
 from mppf.sim.plc.motion import MAX_STEP_S, MAX_STEPS_PER_SCAN, Motion  # noqa: F401 - re-exported

@@ -10,8 +10,8 @@ from plan_helpers import cylinder_points, developed_cylinder
 from mppf.cli import main
 from mppf.forming.material import DEFAULT_YIELD_UNCERTAINTY_PCT
 from mppf.geometry.write import write_points
+from mppf.model.press import example_press_path
 from mppf.planning.job import load_job
-from mppf.planning.press import example_press_path
 
 RADIUS_MM = 4000.0
 

@@ -91,7 +91,7 @@ def test_flat_for_the_cutter_beside_the_flat_file(sphere_cap, tmp_path, capsys):
 
 
 def test_the_default_margin_is_the_example_press_margin(sphere_cap, tmp_path, capsys):
-    from mppf.planning.press import example_press_path, load_press
+    from mppf.model.press import example_press_path, load_press
 
     assert main(["unfold", str(sphere_cap), "-o", str(tmp_path / "flat.dxf"), "--json"]) == 0
     margin = json.loads(capsys.readouterr().out)["dxf"]["margin_mm"]
@@ -114,7 +114,8 @@ def test_a_job_marks_its_punch_centres_on_the_flat(sphere_cap, tmp_path, capsys)
 
     from mppf.core.polygon import contains
     from mppf.core.transform import apply_tf
-    from mppf.planning.job import load_job, reference_corner_xy
+    from mppf.model.job_parts import reference_corner_xy
+    from mppf.planning.job import load_job
 
     flat, job_path, dxf = tmp_path / "flat.csv", tmp_path / "job.json", tmp_path / "flat.dxf"
     assert main(["unfold", str(sphere_cap), "-o", str(flat)]) == 0

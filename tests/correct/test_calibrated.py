@@ -12,7 +12,7 @@ from mppf.correct.calibrated import MIN_EXPLAINED, calibrated_correction, calibr
 from mppf.correct.limits import limit_correction
 from mppf.correct.result import Correction
 from mppf.forming.precompensate import deviation, predict_mid_heights
-from mppf.planning.job import PlateLayout, StepStrokes
+from mppf.model.job_parts import PlateLayout, StepStrokes
 from plan_helpers import MODEL_THICKNESS_MM as T
 from plan_helpers import NOMINAL as STEEL
 from plan_helpers import model_grid, model_press, neighbour_diffs, softer_plate_pressed

@@ -15,8 +15,8 @@ from mppf.correct.learned import learned_correction, steps_towards
 from mppf.correct.memory import PressedCycle, loaded_curvatures, replay
 from mppf.correct.punch_grid import PunchGrid
 from mppf.correct.section import Section
-from mppf.forming.material import Material
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.material import Material
+from mppf.model.press import example_press_path, load_press
 
 T = 20.0
 NOMINAL = Material()  # 235 MPa, what the correction is told

@@ -6,7 +6,7 @@ import numpy as np
 
 from mppf.correct.compensate import compensate
 from mppf.correct.model_step import MAX_STEP_RATIO, MIN_SLOPE, model_correction, springback_slopes
-from mppf.forming.material import Material
+from mppf.model.material import Material
 from plan_helpers import grid, press  # noqa: F401 (fixtures)
 
 THICKNESS_MM = 20.0

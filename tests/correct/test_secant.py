@@ -8,7 +8,7 @@ import pytest
 
 from mppf.correct.punch_grid import PunchGrid
 from mppf.correct.secant import LOCAL_RANGE, ModeGain
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 
 
 @pytest.fixture(scope="module")

@@ -15,8 +15,9 @@ from mppf.loop.plate import record_plate
 from mppf.loop.records import CycleRecord
 from mppf.loop.settings import LoopSettings
 from mppf.loop.states import CycleState, Decision
-from mppf.planning.job import StepStrokes, grid_to_json, load_job
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.job_parts import StepStrokes, grid_to_json
+from mppf.model.press import example_press_path, load_press
+from mppf.planning.job import load_job
 from mppf.sim.plc.link import InProcessPress
 from mppf.sim.shop import SimulatedPlateScanner
 

@@ -21,8 +21,9 @@ from mppf.loop.history import History
 from mppf.loop.plate import plan_first_cycle, record_plate
 from mppf.loop.section_steps import section_spans
 from mppf.loop.settings import LoopSettings
-from mppf.planning.job import grid_from_json, load_job
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.job_parts import grid_from_json
+from mppf.model.press import example_press_path, load_press
+from mppf.planning.job import load_job
 from mppf.planning.sections import index_offset, shifted
 from mppf.sim.plc.link import InProcessPress
 from mppf.sim.shop import SimulatedPlateScanner

@@ -30,7 +30,8 @@ def test_plane_strain_values_and_the_named_steels():
     assert MATERIALS["steel"] == Material() and MATERIALS["ah36"].yield_stress_mpa == 355.0
 
 
-def test_the_forming_stage_takes_the_same_class():
-    from mppf.forming import material
+def test_the_forming_stage_works_on_the_same_class():
+    from mppf.forming.material import weakest_material
 
-    assert material.Material is Material and material.MATERIALS is MATERIALS
+    weaker = weakest_material(MATERIALS["ah36"], 10.0)
+    assert type(weaker) is Material and weaker.yield_stress_mpa == pytest.approx(319.5)

@@ -10,10 +10,10 @@ import pytest
 from mppf.core.errors import FileFormatError, InputError
 from mppf.examples.analytic import cylinder_plate
 from mppf.geometry.write import write_points
+from mppf.model.press import example_press_path
 from mppf.planning.batch import BatchOptions, input_key, plates_from_files, read_manifest, run_batch
 from mppf.planning.batch_summary import COLUMNS, totals, write_csv, write_html
 from mppf.planning.job import load_job
-from mppf.planning.press import example_press_path
 
 
 @pytest.fixture(scope="module")

@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 
 from mppf.core.errors import InputError
-from mppf.forming.material import (DEFAULT_YIELD_UNCERTAINTY_PCT, Material, check_yield_uncertainty,
-                                   weakest_material)
+from mppf.forming.material import DEFAULT_YIELD_UNCERTAINTY_PCT, check_yield_uncertainty, weakest_material
 from mppf.forming.precompensate import predict_mid_heights
 from mppf.forming.springback import loaded_curvature, unloaded_curvature
 from mppf.loop.settings import LoopSettings
+from mppf.model.material import Material
+from mppf.model.press import example_press_path, load_press
 from mppf.planning.plan import plan_job
-from mppf.planning.press import example_press_path, load_press
 from plan_helpers import cylinder_points, developed_cylinder
 
 T = 20.0

@@ -9,11 +9,11 @@ import pytest
 
 from mppf.core.errors import GeometryError, InputError, LimitError
 from mppf.geometry.read import read_points
+from mppf.model.material import Material
+from mppf.model.press import example_press_path, load_press, press_from_dict
 from mppf.planning.job import load_job, save_job
 from mppf.planning.plan import plan_job, plan_summary
 from mppf.forming.precompensate import predict_mid_heights
-from mppf.planning.press import example_press_path, load_press, press_from_dict
-from mppf.forming.material import Material
 from mppf.forming.springback import loaded_curvature
 from mppf.core.transform import apply_rotation, apply_tf
 from mppf.geometry.unfold import unfold

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 from mppf.planning.sectional import plan_plate
 from mppf.planning.sectional_borders import _collinear
 

@@ -12,7 +12,7 @@ from mppf.sim.fe.results import last_of_steps, read_dat_forces, read_frd
 from mppf.sim.plate.material import PlateSteel
 
 from mppf.core.errors import FileFormatError, GeometryError, InputError
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 
 OUTLINE = np.array([[-500.0, -320.0], [500.0, -320.0], [500.0, 320.0], [-500.0, 320.0]])
 

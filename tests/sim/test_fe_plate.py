@@ -17,7 +17,7 @@ from mppf.sim.fe.plate import FEPlate
 from mppf.sim.plate.material import PlateSteel
 from mppf.sim.plate.scatter import NO_SCATTER
 
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 
 pytestmark = pytest.mark.slow
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from mppf.core.errors import GeometryError, InputError
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.material import Material
+from mppf.model.press import example_press_path, load_press
 from mppf.sim.forming import PlateSample, form_plate, sample_plate
-from mppf.forming.material import Material
 from mppf.forming.springback import springback_ratio
 
 THICKNESS_MM = 20.0
@@ -154,8 +154,8 @@ def test_bad_steps_are_refused(press):
 
 def test_overbend_field_follows_a_curvature_that_changes_over_the_plate():
     """A saddle whose curvature grows along u: over-bent point by point, not only at the centre."""
+    from mppf.model.material import Material
     from mppf.planning.overbend import overbend
-    from mppf.forming.material import Material
     from mppf.forming.springback import loaded_curvature
     from mppf.geometry.curvature import curvatures
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mppf.planning.press import example_press_path, load_press, press_from_dict
+from mppf.model.press import example_press_path, load_press, press_from_dict
 from mppf.sim.plate.contact import Compliance
 from mppf.sim.plate.material import PlateSteel
 from mppf.sim.plate.plate import SteelPlate

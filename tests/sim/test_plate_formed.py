@@ -7,7 +7,7 @@ import pytest
 
 from mppf.core.errors import InputError
 from mppf.core.transform import apply_tf, invert_tf
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 from mppf.sim.plate.grid import plate_frame
 from mppf.sim.plate.plate import SteelPlate
 from mppf.sim.plate.scatter import Scatter

@@ -7,7 +7,7 @@ import pytest
 
 from mppf.core.errors import InputError
 from mppf.core.grid import without_plane
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 from mppf.sim.plate.contact import Compliance
 from mppf.sim.plate.material import PlateSteel
 from mppf.sim.plate.mismatch import Mismatch, edge_field, mismatched_parts

@@ -7,7 +7,7 @@ import pytest
 
 from mppf.core.errors import InputError
 from mppf.core.scanner import PressedStep
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 from mppf.sim.plate.plate import SteelPlate
 from mppf.sim.shop import SimulatedPlateScanner
 

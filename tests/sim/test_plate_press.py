@@ -7,7 +7,7 @@ import pytest
 
 from mppf.core.errors import GeometryError, InputError
 from mppf.core.grid import without_plane
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 from mppf.sim.plate.contact import RIGID, Compliance
 from mppf.sim.plate.plate import SteelPlate
 from mppf.sim.plate.scatter import NO_SCATTER

@@ -16,7 +16,7 @@ from driver_helpers import RawMaster
 from mppf.core.errors import InputError
 from mppf.drivers import codec, regmap as rm
 from mppf.drivers.follow import motion_time_s
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 from mppf.sim.plc.program import PlcProgram
 
 MAP = rm.load_register_map()

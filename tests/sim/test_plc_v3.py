@@ -18,7 +18,7 @@ from mppf.sim.plc.program import PlcProgram
 from mppf.sim.plc.quirks import FOREIGN_MASTER, parse_quirk
 
 from mppf.core.errors import InputError
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 
 MAP = rm.load_register_map()
 PRESS = dataclasses.replace(load_press(example_press_path()), rows=4, cols=6)

@@ -11,10 +11,10 @@ from scipy.spatial import cKDTree
 
 from mppf.core.errors import InputError
 from mppf.geometry.read import read_points
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.material import Material
+from mppf.model.press import example_press_path, load_press
 from mppf.sim.forming import PlateSample, form_plate
 from mppf.sim.scanner import SimulatedScanner
-from mppf.forming.material import Material
 from mppf.core.transform import apply_tf, invert_tf, rotation_angle_deg
 
 THICKNESS_MM = 20.0
@@ -109,7 +109,7 @@ def test_reference_mark_is_picked_in_the_scan_and_written_beside_it(formed, tmp_
     import json
 
     from mppf.measure.mark import MARK_SUFFIX
-    from mppf.planning.job import reference_corner_xy
+    from mppf.model.job_parts import reference_corner_xy
 
     corner = reference_corner_xy(formed.outline_xy_mm)
     sample = SimulatedScanner(seed=4).sample(formed, corner)

@@ -9,7 +9,7 @@ from scipy.spatial import cKDTree
 from mppf.core.progress import NULL_REPORTER
 from mppf.core.scanner import PressedStep, ScanContext
 from mppf.geometry.read import read_points
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 from mppf.sim.scanner import SimulatedScanner
 from mppf.sim.shop import SimulatedPlateScanner
 

@@ -10,7 +10,7 @@ import pytest
 from mppf.core.errors import InputError
 from mppf.core.progress import NULL_REPORTER
 from mppf.core.scanner import PressedStep, ScanContext
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 from mppf.sim.shop import INTERRUPTED_SHARE, STATE_FILE, SimulatedPlateScanner
 
 T = 20.0

@@ -21,7 +21,7 @@ from mppf.cli import main
 from mppf.drivers import codec, regmap as rm
 from mppf.drivers.url import parse_plc_url
 from mppf.core.errors import InputError
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 from mppf.sim.faults import parse_fault_spec
 from mppf.sim.plc.host import run_simulated_plc
 from mppf.sim.serial_pty import PtyPair

@@ -23,7 +23,7 @@ from mppf.loop.history import History
 from mppf.loop.plate import record_plate
 from mppf.loop.scanners import DirectoryScanner
 from mppf.loop.settings import LoopSettings
-from mppf.planning.press import example_press_path, load_press
+from mppf.model.press import example_press_path, load_press
 from mppf.sim.plc.link import InProcessPress
 from mppf.sim.shop import SimulatedPlateScanner
 from mppf.sim.station import MotionLog, ScanStation, active_pairs
