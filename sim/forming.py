@@ -261,7 +261,7 @@ def form_plate(
     GeometryError
         Too few active punches, or an outline that is not a polygon of at least 3 points.
     """
-    upper, lower, act = _check_step(press, upper_mm, lower_mm, active)
+    upper, lower, act = check_step_grids(press, upper_mm, lower_mm, active)
     t = plate.thickness_mm
     gap = upper[act] - lower[act]
     if np.any(gap < t * 0.5):
@@ -299,7 +299,30 @@ def form_plate(
     )
 
 
-def _check_step(press: PressConfig, upper_mm, lower_mm, active):
+def check_step_grids(press: PressConfig, upper_mm, lower_mm, active):
+    """The tip heights and active punches of one press step as arrays, checked against the press.
+
+    Parameters
+    ----------
+    press : PressConfig
+    upper_mm, lower_mm : (rows, cols) float, mm
+        Tip heights of the upper and lower matrix.
+    active : (rows, cols) bool
+        The punches under the plate.
+
+    Returns
+    -------
+    upper : (rows, cols) float, mm
+    lower : (rows, cols) float, mm
+    active : (rows, cols) bool
+
+    Raises
+    ------
+    InputError
+        A grid of another shape than the press's, a NaN or infinite height at an active punch.
+    GeometryError
+        Fewer than 3 active punches.
+    """
     shape = press.shape
     upper = np.asarray(upper_mm, dtype=float)
     lower = np.asarray(lower_mm, dtype=float)

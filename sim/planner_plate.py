@@ -16,7 +16,7 @@ from mppf.core.errors import InputError
 from mppf.core.validate import check_number
 from mppf.model.material import Material
 from mppf.model.press import PressConfig
-from mppf.sim.forming import FormedPlate, _check_step, form_plate, sample_plate
+from mppf.sim.forming import FormedPlate, check_step_grids, form_plate, sample_plate
 
 
 class PlannerModelPlate:
@@ -53,7 +53,7 @@ class PlannerModelPlate:
     def press_step(self, upper_mm, lower_mm, active, *, share: float = 1.0) -> FormedPlate:
         """Form the plate between this step's tips (see the class docstring); returns :attr:`formed`."""
         share = check_number("share of the step", share, low=0.0, high=1.0, low_open=True)
-        upper, lower, act = _check_step(self.press, upper_mm, lower_mm, active)
+        upper, lower, act = check_step_grids(self.press, upper_mm, lower_mm, active)
         if share < 1.0:
             was_upper, was_lower = (np.full(self.press.shape, self.plate.thickness_mm), np.zeros(self.press.shape)) \
                 if self.tips is None else self.tips[:2]

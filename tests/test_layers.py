@@ -34,11 +34,7 @@ FOLDERS = {"mppf": ROOT / "mppf", "mppf.drivers": ROOT / "drivers", "mppf.sim": 
 KNOWN_UPWARD: dict[tuple[str, str], str] = {}
 """Upward imports still to remove, (importer, imported module) -> why it is still there."""
 
-KNOWN_PRIVATE = {
-    ("mppf.planning.sectional", "mppf.planning.plan"): "issue 42 makes the planner's shared steps public",
-    ("mppf.planning.sectional_overbend", "mppf.planning.plan"): "issue 42 makes the springback report public",
-    ("mppf.sim.planner_plate", "mppf.sim.forming"): "one simulated plate family (issue 41, item 3) removes it",
-}
+KNOWN_PRIVATE: dict[tuple[str, str], str] = {}
 """Private names still imported across modules, (importer, imported module) -> why."""
 
 

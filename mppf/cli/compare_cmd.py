@@ -141,7 +141,7 @@ def compare_command(design: str, measured: str, tolerance: float, rms_tolerance:
         check_positive("--scale", scale_mm, unit="mm")
     mark_mm = parse_mark(mark)
     if margin is not None:
-        from mppf.planning.plan import MAX_MARGIN_MM
+        from mppf.planning.plan_steps import MAX_MARGIN_MM
 
         check_number("--margin", margin, low=0.0, high=MAX_MARGIN_MM, unit="mm",
                      hint="the trim margin the scanned plate still carries, e.g. --margin 100 (0: trimmed)")

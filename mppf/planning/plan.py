@@ -14,11 +14,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from mppf.core.errors import GeometryError, InputError, LimitError
-from mppf.core.polygon import contains, convex_outline, distance_outside, offset_convex
+from mppf.core.errors import GeometryError
+from mppf.core.polygon import convex_outline, offset_convex
 from mppf.core.progress import NULL_REPORTER
-from mppf.core.transform import apply_tf, as_points, rotation_angle_deg
-from mppf.core.validate import check_number
+from mppf.core.transform import apply_tf
 from mppf.correct.virtual_cycles import refine_strokes
 from mppf.forming.material import check_yield_uncertainty, weakest_material
 from mppf.geometry.surface import fit_plate
@@ -30,14 +29,21 @@ from mppf.planning.belongs import check_flat_belongs, design_area_mm2
 from mppf.planning.contact import PlacedSurface, tip_heights
 from mppf.planning.overbend import overbend
 from mppf.planning.placement import place_flat, register_design
-from mppf.planning.pose import optimise_pose
-from mppf.planning.steps import MAX_STEPS, split_steps, steps_needed
+from mppf.planning.plan_steps import (
+    active_punches,
+    check_plan_inputs,
+    check_trim,
+    least_travel_pose,
+    on_grid,
+    overbend_report,
+    planner_reports,
+    steps_within_limit,
+)
+from mppf.planning.steps import steps_needed
 from mppf.planning.validate import validate_steps
 
 SURFACE_KIND = "poly"
 SURFACE_DEGREE = 4
-MAX_MARGIN_MM = 500.0
-"""Largest trim margin accepted (mm)."""
 
 
 def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float, *, steps: int | None = None,
@@ -94,8 +100,8 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
         belong to the design; LimitError for a plate that does not fit or strokes
         that cannot be kept inside the press limits (nothing is planned).
     """
-    design, flat, t, margin = _check_inputs(design_points, flat_points, press, thickness_mm, steps, material,
-                                            springback, margin_mm)
+    design, flat, t, margin = check_plan_inputs(design_points, flat_points, press, thickness_mm, steps, material,
+                                                springback, margin_mm)
     planned_material = first_press_material(material, springback, yield_uncertainty_pct)
     # 1. lay the flat plate on the bed: centred, long side along x, bottom skin at z = 0
     reporter.info("placing the flat plate on the bed")
@@ -114,11 +120,12 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
     # 4. active punches: axes inside the plate as cut (the design's outline seen from above, grown by the margin)
     design_press = apply_tf(registration.tf, design)
     outline_xy = offset_convex(convex_outline(design_press[:, :2], "the placed design"), margin)
-    active = _active_punches(press, outline_xy)
+    active = active_punches(press, outline_xy)
     # 5. strokes: exact ball contact, with the offset and tilt of least travel
     reporter.info(f"solving the contact of {2 * int(active.sum())} punches")
-    pose = _optimise_pose(press, PlacedSurface(surface, registration.tf @ fitted.frame.tf_world_local), active, t)
-    upper, lower = _on_grid(press, active, pose.upper_mm), _on_grid(press, active, pose.lower_mm)
+    placed = PlacedSurface(surface, registration.tf @ fitted.frame.tf_world_local)
+    pose = least_travel_pose(press, placed, active, t)
+    upper, lower = on_grid(press, active, pose.upper_mm), on_grid(press, active, pose.lower_mm)
     tf_press_design = pose.tf_adjust @ registration.tf
     net_outline = convex_outline(apply_tf(pose.tf_adjust, design_press)[:, :2], "the placed design")
     outline = offset_convex(net_outline, margin)
@@ -132,13 +139,13 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
         springback_report["first_press"] = first_press_report(material, yield_uncertainty_pct)
     # 8. press steps from flat to the target, within the dimpling limit
     n_steps = steps if steps is not None else steps_needed(upper, lower, active, press, t)
-    step_list = _split(upper, lower, active, press, t, n_steps)
+    step_list = steps_within_limit(upper, lower, active, press, t, n_steps)
     # 9. validate everything before a job exists
     validation = validate_steps(step_list, press, t)
     validation["contact_exact_fraction"] = float(np.mean(pose.exact))
-    validation["contact_beyond_edge_mm"] = _check_trim(pose.contact_xy_mm, outline_xy, press)
-    extra = _reports(fitted, registration, belongs, pose, upper, lower, active, t, validation, placement,
-                     int(n_steps), inputs, springback_report)
+    validation["contact_beyond_edge_mm"] = check_trim(pose.contact_xy_mm, outline_xy, press)
+    extra = planner_reports(fitted, registration, belongs, pose, upper, lower, active, t, validation, placement,
+                            int(n_steps), inputs, springback_report)
     layout = PlateLayout(outline_mm=outline, net_outline_mm=net_outline, margin_mm=margin, design_mid_mm=target,
                          material=material)
     return Job(press=press, thickness_mm=t, steps=step_list, tf_press_design=tf_press_design,
@@ -184,25 +191,6 @@ def first_press_report(material: Material, yield_uncertainty_pct: float) -> dict
                     "every plate within it is under-bent, the corrections add bend (docs/planning.md)"}
 
 
-def _check_inputs(design_points, flat_points, press: PressConfig, thickness_mm, steps, material, springback,
-                  margin_mm):
-    """Points as (n, 3) arrays, the thickness and margin as floats; every option checked before any work."""
-    design = as_points(design_points, "design points")
-    flat = as_points(flat_points, "flat points")
-    t = check_number("the plate thickness", thickness_mm, low=0.0, low_open=True, unit="mm",
-                     hint="give e.g. --thickness 20")
-    if springback and material is None:
-        raise InputError("springback compensation needs the plate material",
-                         hint="give --material steel|ah36 or --youngs/--poisson/--yield")
-    if steps is not None:
-        check_number("the number of steps", steps, low=1, high=MAX_STEPS, integer=True,
-                     hint="leave --steps out to get the fewest steps within the dimpling limit")
-    margin = check_number("the trim margin", press.margin_mm if margin_mm is None else margin_mm, low=0.0,
-                          high=MAX_MARGIN_MM, unit="mm",
-                          hint="give e.g. --margin 100 (or 0 to cut the plate to its net outline)")
-    return design, flat, float(t), float(margin)
-
-
 def _surface_to_press(fitted, design, press: PressConfig, t: float, material, springback: bool, margin: float):
     """The design surface, or its over-bent version for springback; and the springback report."""
     if not springback:
@@ -213,31 +201,7 @@ def _surface_to_press(fitted, design, press: PressConfig, t: float, material, sp
         surface = overbend(fitted.surface, t, material, reach)
     except GeometryError as exc:  # the over-bent arcs do not reach: start the refinement from the design
         return fitted.surface, {"enabled": True, "method": f"design start ({exc})"}
-    return surface, _springback_report(surface)
-
-
-def _active_punches(press: PressConfig, outline_xy) -> np.ndarray:
-    """(rows, cols) bool: the punch axes inside the plate as cut."""
-    gx, gy = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
-    active = contains(outline_xy, np.column_stack([gx.ravel(), gy.ravel()])).reshape(press.shape)
-    if not active.any():
-        raise LimitError("the plate covers no punch axis", hint="check the plate size and the press pitch")
-    return active
-
-
-def _optimise_pose(press: PressConfig, placed: PlacedSurface, active, t: float):
-    """The pose of least travel of the active punches, tilted about the plate centre."""
-    gx, gy = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
-    rows, cols = np.nonzero(active)
-    return optimise_pose(placed, gx[active], gy[active], [f"[{r},{c}]" for r, c in zip(rows, cols)], press, t,
-                         np.array([0.0, 0.0, t / 2.0]))
-
-
-def _on_grid(press: PressConfig, active, values) -> np.ndarray:
-    """Values of the active punches on the (rows, cols) grid, NaN elsewhere."""
-    grid = np.full(press.shape, np.nan)
-    grid[active] = values
-    return grid
+    return surface, overbend_report(surface)
 
 
 def _design_heights(press: PressConfig, fitted, tf_press_design, active, t: float) -> np.ndarray:
@@ -248,7 +212,7 @@ def _design_heights(press: PressConfig, fitted, tf_press_design, active, t: floa
     gx, gy = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
     placed = PlacedSurface(fitted.surface, tf_press_design @ fitted.frame.tf_world_local)
     up, lo = tip_heights(placed, gx[active], gy[active], tip_radius_mm=press.tip_radius_mm, thickness_mm=t)
-    return _on_grid(press, active, 0.5 * (up.tip_mm + lo.tip_mm))
+    return on_grid(press, active, 0.5 * (up.tip_mm + lo.tip_mm))
 
 
 def _refine(press: PressConfig, upper, lower, active, target, outline, t: float, material):
@@ -257,62 +221,6 @@ def _refine(press: PressConfig, upper, lower, active, target, outline, t: float,
     report = {"virtual_cycles": len(refined.history_mm) - 1, "predicted_max_mm": refined.predicted_max_mm,
               "history_mm": refined.history_mm}
     return refined.upper_mm, refined.lower_mm, report
-
-
-def _split(upper, lower, active, press: PressConfig, t: float, n_steps: int):
-    """The press steps from flat to the final strokes; refused beyond ``MAX_STEPS``."""
-    if n_steps > MAX_STEPS:
-        raise LimitError(f"the plate needs {n_steps} press steps to keep within the dimpling limit of "
-                         f"{press.max_neighbour_diff_mm:g} mm, more than the {MAX_STEPS} one job may hold",
-                         hint="check [forming] max_neighbour_diff_mm in the press description")
-    return split_steps(upper, lower, active, t, int(n_steps))
-
-
-def _reports(fitted, registration, belongs, pose, upper, lower, active, t, validation, placement, n_steps, inputs,
-             springback_report) -> dict:
-    """The planner's reports stored in the job (``Job.extra``)."""
-    return {
-        "planner": {"surface_kind": fitted.kind, "surface_degree": fitted.degree,
-                    "surface_fit_rms_mm": fitted.rms_mm, "surface_fit_max_mm": fitted.max_abs_mm},
-        "registration": {**registration.to_dict(), **belongs,
-                         "rotation_deg": rotation_angle_deg(registration.tf)},
-        "pose": {"tilt_x_deg": pose.tilt_x_deg, "tilt_y_deg": pose.tilt_y_deg, "offset_mm": pose.offset_mm,
-                 "max_travel_mm": float(max(np.abs(upper[active] - t).max(), np.abs(lower[active]).max())),
-                 "travel_definition": "largest |tip height - flat-plate tip height| (upper t, lower 0)"},
-        "validation": validation,
-        "plate_corners_mm": placement.corners_mm.tolist(),
-        "plate_size_mm": placement.size_mm.tolist(),
-        "n_active": int(active.sum()),
-        "n_steps": n_steps,
-        "inputs": inputs or {},
-        "springback": springback_report,
-    }
-
-
-def _check_trim(contact_xy_mm, outline_xy, press: PressConfig) -> float:
-    """Largest distance of a ball contact past the plate edge; refuse it beyond the trim allowance."""
-    beyond = float(distance_outside(outline_xy, contact_xy_mm).max())
-    if beyond > press.trim_allowance_mm:
-        raise GeometryError(
-            f"a punch ball touches the design surface {beyond:.0f} mm past the plate edge, beyond the "
-            f"press's trim allowance of {press.trim_allowance_mm:g} mm",
-            hint="raise [forming] trim_allowance_mm in the press description if the surface may be "
-                 "extended that far",
-        )
-    return beyond
-
-
-def _springback_report(surface) -> dict:
-    def radii(k):
-        return [None if abs(v) < 1e-12 else float(1.0 / v) for v in k]
-
-    return {
-        "enabled": True,
-        "method": "principal arcs at the plate centre replaced by over-bent arcs (docs/planning.md)",
-        "target_radii_mm": radii(surface.target_k),
-        "loaded_radii_mm": radii(surface.loaded_k),
-        "directions_uv": surface.directions.tolist(),
-    }
 
 
 def plan_summary(job: Job) -> dict:

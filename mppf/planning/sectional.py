@@ -20,13 +20,13 @@ from mppf.geometry.surface import fit_plate
 from mppf.model.job import Job
 from mppf.model.job_parts import PlateLayout
 from mppf.model.job_sections import Section
+from mppf.model.press import PressConfig
 from mppf.planning.belongs import check_flat_belongs, design_area_mm2
 from mppf.planning.contact import PlacedSurface, tip_heights
 from mppf.planning.placement import FlatPlacement, fits_bed, lay_flat, register_design
-from mppf.planning.plan import (SURFACE_DEGREE, SURFACE_KIND, _active_punches, _check_inputs, _check_trim,
-                                _on_grid, _optimise_pose, _reports, _split, first_press_material,
-                                first_press_report, plan_job)
-from mppf.model.press import PressConfig
+from mppf.planning.plan import SURFACE_DEGREE, SURFACE_KIND, first_press_material, first_press_report, plan_job
+from mppf.planning.plan_steps import (active_punches, check_plan_inputs, check_trim, least_travel_pose, on_grid,
+                                      planner_reports, steps_within_limit)
 from mppf.planning.sectional_borders import BORDER_STEP_LIMIT_MM, border_steps, border_warnings, recovered_residual
 from mppf.planning.sectional_overbend import closer_fit, whole_target
 from mppf.planning.sections import (TRANSITION_PITCHES, earlier_weight, index_offset, mark_punches, shifted,
@@ -45,9 +45,9 @@ def plan_plate(design_points, flat_points, press: PressConfig, thickness_mm: flo
     Parameters are those of :func:`mppf.planning.plan.plan_job` (``options``), and
     ``transition_mm``, the least width two neighbouring sections share (:func:`split_plate`).
     """
-    design, flat, t, _ = _check_inputs(design_points, flat_points, press, thickness_mm, options.get("steps"),
-                                       options.get("material"), options.get("springback", False),
-                                       options.get("margin_mm"))
+    design, flat, t, _ = check_plan_inputs(design_points, flat_points, press, thickness_mm, options.get("steps"),
+                                           options.get("material"), options.get("springback", False),
+                                           options.get("margin_mm"))
     if fits_bed(lay_flat(flat, press, t), press):
         return plan_job(design, flat, press, t, **options)
     return plan_sectional(design, flat, press, t, transition_mm=transition_mm, **options)
@@ -72,8 +72,8 @@ def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm:
         section 1's; ``extra["sectional"]`` the split and the largest step between sections of the
         design recovered from the strokes.
     """
-    design, flat, t, margin = _check_inputs(design_points, flat_points, press, thickness_mm, steps, material,
-                                            springback, margin_mm)
+    design, flat, t, margin = check_plan_inputs(design_points, flat_points, press, thickness_mm, steps, material,
+                                                springback, margin_mm)
     planned_material = first_press_material(material, springback, yield_uncertainty_pct)
     # 1. lay the flat on an unlimited bed: the plate coordinates
     placement = lay_flat(flat, press, t)
@@ -117,30 +117,30 @@ def _plan_section(index, cell, centre, earlier, zone, steps, placement, ctx) -> 
     target_plate, surface = ctx["target"], fitted.surface
     shape_press = apply_tf(tf_reg, ctx["points"])
     outline_xy = offset_convex(convex_outline(shape_press[:, :2], "the placed design"), margin)
-    active = _active_punches(press, outline_xy)
+    active = active_punches(press, outline_xy)
     # the section's pose of least travel; the exact ball contact of the surface so placed (the design's or the
     # whole plate's over-bent target: the same for every section, so no blend of corrections is needed)
-    pose = _optimise_pose(press, PlacedSurface(surface, tf_reg @ fitted.frame.tf_world_local), active, t)
+    pose = least_travel_pose(press, PlacedSurface(surface, tf_reg @ fitted.frame.tf_world_local), active, t)
     tf_press_design = pose.tf_adjust @ tf_reg
-    upper, lower = _on_grid(press, active, pose.upper_mm), _on_grid(press, active, pose.lower_mm)
+    upper, lower = on_grid(press, active, pose.upper_mm), on_grid(press, active, pose.lower_mm)
     net = convex_outline(apply_tf(pose.tf_adjust, shape_press)[:, :2], "the placed design")
     outline = offset_convex(net, margin)
     # the design's own mid heights in the section's pose (the loop's target)
     design_up, design_lo = (upper, lower) if target_plate is None else _contact(press, ctx["fitted"],
                                                                                 tf_press_design, active, t)
     target = 0.5 * (design_up + design_lo)
-    trim = _check_trim(pose.contact_xy_mm, outline_xy, press)
+    trim = check_trim(pose.contact_xy_mm, outline_xy, press)
     zero = np.zeros(press.shape)
     weight, d_up, d_lo = _blend(press, centre, active, zero, zero, earlier, zone, placement.size_mm / 2.0)
     final_up, final_lo = np.where(active, upper + d_up, np.nan), np.where(active, lower + d_lo, np.nan)
     # press steps from flat, validated
     n_steps = steps if steps is not None else steps_needed(final_up, final_lo, active, press, t)
-    step_list = _split(final_up, final_lo, active, press, t, n_steps)
+    step_list = steps_within_limit(final_up, final_lo, active, press, t, n_steps)
     validation = validate_steps(step_list, press, t)
     validation["contact_beyond_edge_mm"] = trim
     tf_press_flat = tf_press_plate @ placement.tf_press_flat
     placed = PlacedSurface(surface, tf_press_design @ fitted.frame.tf_world_local)
-    marks = _marks(press, active & _active_punches(press, net), centre, tf_press_flat, placed, fitted, ctx, on_bed)
+    marks = _marks(press, active & active_punches(press, net), centre, tf_press_flat, placed, fitted, ctx, on_bed)
     travel = float(max(np.abs(final_up[active] - t).max(), np.abs(final_lo[active]).max()))
     extra = {"pose": {"tilt_x_deg": pose.tilt_x_deg, "tilt_y_deg": pose.tilt_y_deg, "offset_mm": pose.offset_mm,
                       "max_travel_mm": travel},
@@ -202,7 +202,7 @@ def _contact(press: PressConfig, fitted, tf_press_design, active, t: float):
     gx, gy = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
     placed = PlacedSurface(fitted.surface, tf_press_design @ fitted.frame.tf_world_local)
     up, lo = tip_heights(placed, gx[active], gy[active], tip_radius_mm=press.tip_radius_mm, thickness_mm=t)
-    return _on_grid(press, active, up.tip_mm), _on_grid(press, active, lo.tip_mm)
+    return on_grid(press, active, up.tip_mm), on_grid(press, active, lo.tip_mm)
 
 
 def _blend(press, centre, active, own_up, own_lo, earlier, zone, plate_half):
@@ -261,8 +261,9 @@ def _assemble(planned, border, split, zone, fitted, registration, belongs, place
     placed1 = FlatPlacement(s1.tf_press_flat, placement.flat_press_mm + shift, placement.size_mm,
                             placement.corners_mm + shift)
     final = s1.steps[-1]
-    extra = _reports(fitted, registration, belongs, first["pose"], final.upper_mm, final.lower_mm, first["active"],
-                     t, s1.extra["validation"], placed1, len(s1.steps), inputs, springback_report)
+    extra = planner_reports(fitted, registration, belongs, first["pose"], final.upper_mm, final.lower_mm,
+                            first["active"], t, s1.extra["validation"], placed1, len(s1.steps), inputs,
+                            springback_report)
     extra["pose"]["max_travel_mm"] = s1.extra["pose"]["max_travel_mm"]
     extra["sectional"] = {
         "n_sections": split.n_sections, "counts": list(split.counts), "spacing_mm": split.spacing_mm.tolist(),
@@ -315,7 +316,7 @@ def apply_section_corrections(job: Job, corrections, *, steps: int | None = None
         up = np.where(final.active, np.clip(final.upper_mm + d_up, press.upper.min_mm, press.upper.max_mm), np.nan)
         lo = np.where(final.active, np.clip(final.lower_mm + d_lo, press.lower.min_mm, press.lower.max_mm), np.nan)
         n = steps if steps is not None else steps_needed(up, lo, final.active, press, t)
-        step_list = _split(up, lo, final.active, press, t, n)
+        step_list = steps_within_limit(up, lo, final.active, press, t, n)
         validation = validate_steps(step_list, press, t)
         done.append({"centre": centre, "active": final.active, "delta": (d_up, d_lo)})
         sections.append(dataclasses.replace(s, steps=step_list, extra={**s.extra, "validation": validation,

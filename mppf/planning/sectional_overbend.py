@@ -33,7 +33,8 @@ from mppf.forming.springback import loaded_curvature
 from mppf.geometry.curvature import curvatures
 from mppf.geometry.surface import fit_plate
 from mppf.planning.overbend import FLAT_RADIUS_MM, overbend
-from mppf.planning.plan import SURFACE_DEGREE, SURFACE_KIND, _springback_report
+from mppf.planning.plan import SURFACE_DEGREE, SURFACE_KIND
+from mppf.planning.plan_steps import overbend_report
 
 POLY_ENOUGH_MM = 0.1
 """Largest residual of a polynomial fit still used for a surface every section presses (above: the B-spline,
@@ -213,7 +214,7 @@ def whole_target(whole, design, press, thickness_mm: float, material, margin_mm:
         field, how = overbend(whole.surface, thickness_mm, material, reach).field, "principal arcs and field"
     except GeometryError:
         field, how = None, "principal arcs only: over-bent beyond a height field over the whole plate"
-    report = {**_springback_report(_Radii(target, loaded, dirs_uv)),
+    report = {**overbend_report(_Radii(target, loaded, dirs_uv)),
               "method": f"one over-bent target for the whole plate ({how}), pressed by every section in its own "
                         "pose (docs/sections.md)"}
     return WholeTarget(fitted=whole, tf_world_centre=tf_world_centre, directions=directions, target_k=target,
@@ -241,7 +242,7 @@ def _arc_curvature(surface, direction_uv, along_mm, at_centre: float) -> float:
 
 @dataclass(frozen=True)
 class _Radii:
-    """What :func:`mppf.planning.plan._springback_report` reads of an over-bent surface."""
+    """What :func:`mppf.planning.plan_steps.overbend_report` reads of an over-bent surface."""
 
     target_k: np.ndarray
     loaded_k: np.ndarray
