@@ -120,7 +120,7 @@ class SimulatedPlateScanner:
     suffix : str
         Scan file format (".ply" or ".csv").
     reference_mark : bool
-        Pick the plate's reference-corner mark (:func:`mppf.planning.job.reference_corner_xy` of the
+        Pick the plate's reference-corner mark (:func:`mppf.model.job_parts.reference_corner_xy` of the
         outline as cut, margin included) in every scan and write it next to the scan (``<scan>.mark.json``), as
         the operator does on the shop floor; the scan's pose stays arbitrary.
     net_outline_xy_mm : (j, 2) float, optional
@@ -155,7 +155,7 @@ class SimulatedPlateScanner:
         self.suffix = suffix
         self.net_outline_xy_mm = (self.outline_xy_mm if net_outline_xy_mm is None
                                   else np.asarray(net_outline_xy_mm, dtype=float))
-        # the mark is on the corner of the plate as cut (mppf.planning.job.PlateLayout.reference_corner_mm)
+        # the mark is on the corner of the plate as cut (mppf.model.job_parts.PlateLayout.reference_corner_mm)
         self.mark_xy_mm = reference_corner_xy(self.outline_xy_mm) if reference_mark else None
         self.plate = self.new_plate()
         self.pressed: list[list[int]] = []  # (cycle, step) pressed on self.plate, in order

@@ -117,7 +117,7 @@ class PressLink(Protocol):
         ----------
         upper_mm, lower_mm : (rows, cols) float
             Tip-height setpoints for every punch (no NaN: parking heights filled in,
-            see :meth:`mppf.planning.job.StepStrokes.setpoints_mm`).
+            see :meth:`mppf.model.job_parts.StepStrokes.setpoints_mm`).
 
         Raises
         ------

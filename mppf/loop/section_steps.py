@@ -1,6 +1,6 @@
 """The steps of a cycle of a plate larger than the bed: one list for the history, each step's section.
 
-A sectional job (:mod:`mppf.planning.job_sections`, version 3) presses its sections one after another,
+A sectional job (:mod:`mppf.model.job_sections`, version 3) presses its sections one after another,
 the plate shifted on the bed between them. The loop records the steps of all sections of a cycle as
 one list, in pressing order (section 1's steps, then section 2's...), so the history's step counters
 (``step_started``, ``steps_done``) say which steps of which section are done, and a resumed cycle

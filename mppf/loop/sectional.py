@@ -1,6 +1,6 @@
 """The loop on a plate larger than the bed: press every section, one scan, correct every section.
 
-A cycle of a sectional job (version 3, :mod:`mppf.planning.job_sections`):
+A cycle of a sectional job (version 3, :mod:`mppf.model.job_sections`):
 
 1. every section's steps in pressing order (:func:`press_sections`); before a section the plate is
    shifted to its placement: the ``place`` callback tells the operator (and on a real press waits

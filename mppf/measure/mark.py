@@ -2,8 +2,8 @@
 
 The mark is the corner of the plate AS CUT (the net outline grown by the trim margin: the
 physical corner the operator sees and the cutter's DXF marks), the one with the smallest
-press x + y (:func:`mppf.planning.job.reference_corner_xy`,
-:attr:`mppf.planning.job.PlateLayout.reference_corner_mm`). A scan carries it in the mark
+press x + y (:func:`mppf.model.job_parts.reference_corner_xy`,
+:attr:`mppf.model.job_parts.PlateLayout.reference_corner_mm`). A scan carries it in the mark
 file beside it, ``<scan>.mark.json`` (:data:`MARK_SUFFIX`), or in its header where the format
 has room for a line of text (:func:`mppf.geometry.scans.read_header_mark`); the mark file
 wins when there are both. See ``docs/file-formats.md``, "The reference mark".
@@ -103,8 +103,8 @@ def design_mark(design_points: np.ndarray, job: Job | None, *, margin_mm: float 
     """The point (3,) of the design surface, design coordinates, under the reference corner of the plate as cut.
 
     With a job that has a layout: the layout's reference corner on the press
-    (:attr:`mppf.planning.job.PlateLayout.reference_corner_mm`, a corner of the outline as
-    cut), the design placed by the job. Without: :func:`mppf.planning.job.reference_corner_xy`
+    (:attr:`mppf.model.job_parts.PlateLayout.reference_corner_mm`, a corner of the outline as
+    cut), the design placed by the job. Without: :func:`mppf.model.job_parts.reference_corner_xy`
     of the design's convex outline grown by ``margin_mm``, in the design's own frame (u along
     its longest extent, v across; :mod:`mppf.geometry.frame`). The corner of a plate cut with
     a margin lies off the design: the design surface is extended to it

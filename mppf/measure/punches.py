@@ -193,7 +193,7 @@ def edge_at_punches(punch_xy_mm, tf_press_design, skin, dev, use_net, on_plate) 
 
 def punch_label(row: int, col: int, label_base: int = 1) -> str:
     """How a punch is named in messages, reports and pictures: ``"row 3, col 4"`` counted from ``label_base``
-    (the press file's; :meth:`mppf.planning.press.PressConfig.punch_label` says the same)."""
+    (the press file's; :meth:`mppf.model.press.PressConfig.punch_label` says the same)."""
     return f"row {int(row) + label_base}, col {int(col) + label_base}"
 
 

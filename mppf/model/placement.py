@@ -76,7 +76,7 @@ class Placement:
         Corners of the net outline (the plate after trimming).
     mark_mm : (2,) float
         The reference mark: on the corner of the plate as cut (corner A, the cut outline's
-        corner nearest punch R1 C1; :attr:`mppf.planning.job.PlateLayout.reference_corner_mm`).
+        corner nearest punch R1 C1; :attr:`mppf.model.job_parts.PlateLayout.reference_corner_mm`).
     margin_mm : float
     cut_outline_mm, net_outline_mm : (k, 2) float
         The full outlines, for drawing.

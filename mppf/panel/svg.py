@@ -5,7 +5,7 @@ operator's panel, the placement output and the per-plate report draw the same pi
 Matrices are drawn as the press is seen from above: columns left to right, row 1 at the
 bottom (press y up), like :mod:`mppf.panel.placement`'s bed. Punches are named 1-based
 ("R3 C5" is the 3rd row, 5th column), the way the press is labelled
-(:func:`mppf.planning.job.reference_corner_xy`: "row 1, column 1").
+(:func:`mppf.model.job_parts.reference_corner_xy`: "row 1, column 1").
 """
 
 from __future__ import annotations

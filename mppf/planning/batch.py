@@ -49,7 +49,7 @@ class Plate:
         Path of its flat; None: unfolded in the batch (``<name>.flat.csv`` written).
     thickness_mm : float
     material : str or None
-        A name of :data:`mppf.forming.material.MATERIALS`.
+        A name of :data:`mppf.model.material.MATERIALS`.
     springback : bool
     """
 

@@ -33,7 +33,7 @@ def check_plan(job) -> None:
 
     Parameters
     ----------
-    job : mppf.planning.job.Job
+    job : mppf.model.job.Job
 
     Raises
     ------

@@ -2,7 +2,7 @@
 
 :func:`plan_plate` plans a plate in one piece when it fits the bed (:func:`mppf.planning.plan.plan_job`)
 and in sections otherwise (:func:`plan_sectional`). The split, the order, the marks and the blend
-weights are :mod:`mppf.planning.sections`; the job's sections :mod:`mppf.planning.job_sections`.
+weights are :mod:`mppf.planning.sections`; the job's sections :mod:`mppf.model.job_sections`.
 See ``docs/sections.md``.
 """
 

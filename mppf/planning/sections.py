@@ -1,7 +1,7 @@
 """Sections of a plate larger than the bed: the split, the pressing order, the marks, the blend.
 
 Pure geometry of sectional forming; :mod:`mppf.planning.sectional` plans the strokes of every
-section with it, :mod:`mppf.planning.job_sections` stores them. Plate coordinates: the flat laid
+section with it, :mod:`mppf.model.job_sections` stores them. Plate coordinates: the flat laid
 on an unlimited bed (:func:`mppf.planning.placement.lay_flat`: long side along press x, centred on
 the origin). A section is the plate shifted so that the bed's centre lies over the plate point
 ``bed_centre_mm``; the plate centre then lies at press x, y ``-bed_centre_mm``. The shifts between
@@ -200,7 +200,7 @@ def press_sequence(job) -> list:
 
 
 def section_job(job, index: int):
-    """One section of a sectional job as a single-piece :class:`~mppf.planning.job.Job`.
+    """One section of a sectional job as a single-piece :class:`~mppf.model.job.Job`.
 
     Its steps, transforms and plate layout are the section's; ``extra`` holds the section's
     reports, the job's inputs and ``section`` (``index``, ``of``, ``plate_centre_mm``,

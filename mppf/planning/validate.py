@@ -25,7 +25,7 @@ match (:mod:`mppf.core.seal`).
 
 A violation raises :class:`~mppf.core.errors.LimitError` or
 :class:`~mppf.core.errors.ConfigError` (exit code 2) naming the punch the way the press
-labels punches (:meth:`~mppf.planning.press.PressConfig.punch_label`), the value and the limit.
+labels punches (:meth:`~mppf.model.press.PressConfig.punch_label`), the value and the limit.
 """
 
 from __future__ import annotations
@@ -76,7 +76,7 @@ def check_job_document(doc, source: str = "job") -> None:
     boolean, not a string), and ``null`` for a parked punch (``active`` false: it stands at
     its park height, a stroke there would silently not be pressed); every ``active`` entry
     ``true`` or ``false``; the thickness a number. The rest of the format is
-    :func:`mppf.planning.job.job_from_dict`'s.
+    :func:`mppf.model.job.job_from_dict`'s.
 
     Raises
     ------

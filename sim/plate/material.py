@@ -87,7 +87,7 @@ class PlateSteel:
 
     @classmethod
     def from_material(cls, material, **changes) -> PlateSteel:
-        """The steel with E, nu and the yield stress of a :class:`mppf.forming.material.Material`.
+        """The steel with E, nu and the yield stress of a :class:`mppf.model.material.Material`.
 
         Parameters
         ----------
