@@ -14,7 +14,6 @@ the planning to the end: one loop per plate.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 import click
@@ -22,47 +21,25 @@ import click
 from mppf.cli._common import (
     RichReporter,
     check_db_path,
-    check_design_size,
     console,
-    err_console,
     esc,
     print_json,
-    read_input,
     units_option,
 )
 from mppf.cli._cycles import cycle_table, print_cycle
+from mppf.cli._loop_run import SCAN_SIM, Draft, RunOptions, draft_plate, run_plate
 from mppf.cli._plate_report import write_report
 from mppf.cli.history_cmd import history_option, open_history
-from mppf.cli.press_policy import (
-    confirm_motion,
-    press_description,
-    press_link,
-    sigterm_as_ctrl_c,
-    time_scale_option,
-)
+from mppf.cli.press_policy import sigterm_as_ctrl_c, time_scale_option
 from mppf.core.errors import InputError
 from mppf.core.validate import check_number, check_positive
 from mppf.forming.material import check_yield_uncertainty
 from mppf.loop.settings import MAX_RESCANS, LoopSettings
 from mppf.model.material import MATERIALS
 
-SCAN_SIM = "sim"
 _DEFAULTS = LoopSettings()  # the loop's defaults (tolerances from mppf.core.defaults), written once
 THICKNESS_MAX_MM = 200.0
 """Thickest plate the loop takes (mm): beyond it a value is a typing error (or metres / micrometres)."""
-
-
-@dataclass(frozen=True)
-class _Draft:
-    """A new plate read and planned, not yet recorded."""
-
-    plate_id: str
-    design: object
-    flat: object
-    press: object
-    job: object
-    press_path: Path
-    reach: dict | None = None
 
 
 def _check_options(thickness, scan_timeout, seed, audit_path) -> None:
@@ -78,24 +55,6 @@ def _check_options(thickness, scan_timeout, seed, audit_path) -> None:
 
 def _positive(option: str, value: float) -> float:
     return check_positive(option, value, unit="s", hint="give the wait in s, above 0")
-
-
-def _scanner(history, plate, spec: str, press, scan_timeout_s: float):
-    """The Scanner named by ``--scanner``: "sim" (from the plate's recorded flat, first job and seed) or a folder."""
-    if spec != SCAN_SIM:
-        from mppf.loop.scanners import DirectoryScanner
-
-        return DirectoryScanner(spec, timeout_s=scan_timeout_s)
-    from mppf.geometry.read import read_points
-    from mppf.planning.job import load_job
-    from mppf.sim.shop import PHYSICS, SimulatedPlateScanner
-
-    flat = read_points(plate.flat_path, units=plate.settings.get("units", "mm"))
-    first_job = load_job(history.cycle(plate.plate_id, 1).job_path)
-    material = MATERIALS[plate.settings.get("material", "steel")]
-    return SimulatedPlateScanner.for_job(press, plate.thickness_mm, first_job, flat.points,
-                                         seed=int(plate.settings.get("seed", 0)), material=material,
-                                         plate_model=PHYSICS[plate.settings.get("physics", "fd")])
 
 
 def _check_link_and_scanner(plc_url: str | None, scanner_spec: str) -> None:
@@ -137,29 +96,6 @@ def _new_plate_id(history, design, flat, press_path, thickness, plate_id) -> str
     return plate_id
 
 
-def _draft_plate(plate_id, design, flat, press_path, thickness, plc_url, scanner_spec, settings, material, units,
-                 reporter) -> _Draft:
-    """Check the link and the scanner, read the files and plan the new plate (nothing recorded)."""
-    from mppf.loop.plate import plan_first_cycle, plate_reach
-    from mppf.model.press import load_press
-
-    _check_link_and_scanner(plc_url, scanner_spec)  # before planning and recording anything
-    if plc_url and scanner_spec == SCAN_SIM:
-        err_console.print("[yellow]note:[/] real PLC with the simulated scanner: the scans are simulated")
-    press = load_press(press_path)
-    design_cloud = read_input(design, units=units)
-    flat_cloud = read_input(flat, units=units)
-    for path, cloud in ((design, design_cloud), (flat, flat_cloud)):
-        check_design_size(path, cloud.n_points)
-    reporter.info(f"planning plate {plate_id}")
-    job = plan_first_cycle(design_cloud, flat_cloud, press, thickness, settings=settings,
-                           material=MATERIALS[material], reporter=reporter)
-    reach = plate_reach(press, job, design_cloud.points, settings.tolerance_mm)
-    if reach is not None:
-        reporter.info(reach["text"])
-    return _Draft(plate_id, design_cloud, flat_cloud, press, job, Path(press_path), reach)
-
-
 def _resumed_plate(history, design, flat, plate_id, press_path):
     """The unfinished plate to continue (a --press given must be the press it was planned for)."""
     if design or flat:
@@ -186,75 +122,13 @@ def _resumed_plate(history, design, flat, plate_id, press_path):
     return plate
 
 
-def _record(history, draft: _Draft, settings, work_dir, setup):
+def _record(history, draft: Draft, settings, work_dir, setup):
     """Record the drafted plate with its first cycle (one transaction)."""
     from mppf.loop.plate import record_plate
 
     work = work_dir or history.path.parent / "plates" / draft.plate_id
     return record_plate(history, draft.design, draft.flat, draft.press, draft.job.thickness_mm, draft.job,
                         plate_id=draft.plate_id, work_dir=work, settings=settings, setup=setup)
-
-
-def run_plate(history, plate_id, draft, *, plc_url, scanner_spec, time_scale, audit, reporter, scan_timeout_s,
-              yes=False, record=None, on_cycle=print_cycle):
-    """Connect the press and scanner, check the job against the PLC, confirm, record a drafted plate, run its loop.
-
-    ``draft`` is a new plate (recorded by ``record(history, draft)`` once the press took
-    its job and the operator confirmed), or None to continue the recorded ``plate_id``.
-    """
-    from mppf.cli._placement import placement_lines
-    from mppf.loop.cycle import run_loop
-    from mppf.model.press import press_from_dict
-
-    plate = history.plate(plate_id) if draft is None else None
-    press = draft.press if plate is None else press_from_dict(plate.press, source=f"history of plate {plate_id}")
-    if plc_url:  # a real PLC: the press is this machine's installed one, when there is one (issue 38)
-        from mppf.planning.press import check_installed_press
-
-        check_installed_press(press, f"the press of plate {plate_id}")
-    with sigterm_as_ctrl_c(), press_link(press, plc_url, audit=audit, time_scale=time_scale,
-                                         reporter=reporter, yes=yes) as link:
-        # the one job validator against this PLC (its matrix, its limits) before anything is recorded
-        if draft is not None:
-            link.check_job(draft.job, draft.press, str(draft.press_path))
-        # where to lay the plate; at --plc the operator confirms it lies there and the press is clear
-        for line in placement_lines(draft.job if draft is not None else _latest_job(history, plate_id)):
-            reporter.info(line)
-        if plc_url:
-            confirm_motion(link, f"plate {plate_id} on {press_description(link)}, with the plate laid as printed "
-                                 "above", yes)
-        # a new plate is recorded now, with its first cycle; the loop takes everything from the history
-        if draft is not None:
-            plate = record(history, draft)
-        recorded = press_from_dict(plate.press, source=f"history of plate {plate_id}")
-        scanner = _scanner(history, plate, scanner_spec, recorded, scan_timeout_s)
-        return run_loop(history, plate.plate_id, link, scanner, reporter=reporter, on_cycle=on_cycle,
-                        place=_placer(reporter, yes, dry_run=not plc_url))
-
-
-def _placer(reporter, yes: bool, *, dry_run: bool):
-    """Before each section of a plate larger than the bed: the placement line; at --plc the operator confirms it."""
-    from mppf.cli._sections import confirm_placement
-    from mppf.core.errors import PressRefused
-    from mppf.planning.sections import placement_text
-
-    def place(section, previous) -> None:
-        text = placement_text(section, previous)
-        reporter.info(text)
-        try:
-            confirm_placement(text, yes, dry_run)
-        except PressRefused as exc:  # nothing of the section was sent; the loop goes on from there when resumed
-            raise PressRefused(exc.message,
-                               hint="place the plate by its marks and continue with 'mppf loop --resume'") from None
-
-    return place
-
-
-def _latest_job(history, plate_id):
-    """The job of a recorded plate's latest cycle (the plate lies the same way in every cycle)."""
-    from mppf.planning.job import load_job
-
-    return load_job(history.cycles(plate_id)[-1].job_path)
 
 
 @click.command("loop")
@@ -378,12 +252,16 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
         else:
             scanner_spec = scanner_spec or SCAN_SIM
             plate_id = _new_plate_id(history, design, flat, press_path, thickness, plate_id)
+        run = RunOptions(plc_url=plc_url, scanner_spec=scanner_spec, time_scale=time_scale,
+                         scan_timeout_s=scan_timeout, yes=yes, material=material, units=units)
         # one loop per plate: the lease is held from here to the end
         with history.lease(plate_id) as taken_over:
             if taken_over:
                 reporter.info(f"plate {plate_id}: took over the stale lease of {taken_over}")
-            draft = None if resume else _draft_plate(plate_id, design, flat, press_path, thickness, plc_url,
-                                                     scanner_spec, settings, material, units, reporter)
+            draft = None
+            if not resume:
+                _check_link_and_scanner(plc_url, scanner_spec)  # before planning and recording anything
+                draft = draft_plate(plate_id, design, flat, press_path, thickness, settings, run, reporter)
             setup = {"plc": plc_url, "scanner": scanner_spec, "seed": seed, "units": units, "material": material,
                      "physics": physics,
                      "reach": None if draft is None else draft.reach}
@@ -396,9 +274,7 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
                     comparisons[record.cycle] = comparison
 
             try:
-                result = run_plate(history, plate_id, draft, plc_url=plc_url, scanner_spec=scanner_spec,
-                                   time_scale=time_scale, audit=audit, reporter=reporter,
-                                   scan_timeout_s=scan_timeout, yes=yes,
+                result = run_plate(history, plate_id, draft, run, audit=audit, reporter=reporter,
                                    record=lambda h, d: _record(h, d, settings, work_dir, setup), on_cycle=on_cycle)
                 # the plate's report, into its work folder
                 if write_report_:
