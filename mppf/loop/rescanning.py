@@ -38,8 +38,8 @@ from mppf.geometry.read import read_points
 from mppf.loop.measuring import compare_union, rescan_paths
 from mppf.loop.pressing import scan_context
 from mppf.loop.records import load_cycle_job
+from mppf.loop.scan_request import RescanAsk, post_request
 from mppf.measure.decision import OUT_OF_TOLERANCE
-from mppf.loop.scan_request import post_request
 from mppf.registration.scan_start import AmbiguousStart
 
 AGREE_NOISE = 3.0
@@ -328,8 +328,8 @@ def _take_rescan(run, record, job, number: int, regions: list, scans: list, spot
         No rescan came (the scanner's wait ended): the cycle stays "scanned", ``--resume`` asks again.
     """
     first = {"path": scans[0]["path"], "sha256": scans[0]["sha256"]}
-    request = post_request(run.plate, record, job, run.settings, run.scan_folder, run.reporter, rescan=number,
-                           regions=regions, first_scan=first, spots_total=spots)
+    ask = RescanAsk(number, tuple(regions), first, spots)
+    request = post_request(run.plate, record, job, run.settings, run.scan_folder, run.reporter, rescan=ask)
     try:
         context = scan_context(run.history, run.plate, record, run.press, run.reporter)
         taken = tuple(s["path"] for s in scans) + rescan_paths(run.history, run.plate.plate_id)

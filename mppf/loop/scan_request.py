@@ -77,6 +77,36 @@ class PostedRequest:
             pass
 
 
+@dataclass(frozen=True)
+class RescanAsk:
+    """What a rescan request asks for: which rescan, of which regions, in the frame of which scan.
+
+    Attributes
+    ----------
+    number : int
+        K >= 1: the cycle's K-th rescan (of at most ``settings.rescans``).
+    regions : tuple of dict
+        What to rescan, each with a ``kind``: "uncovered", areas not measured
+        (:func:`mppf.loop.rescanning.region_doc`); "artefacts", spots of set-aside points beyond
+        the tolerance (:func:`mppf.loop.rescanning.artefact_spots`).
+    first_scan : dict or None
+        The cycle's first scan, ``{"path", "sha256"}``: the rescan is in its frame and the
+        union of the scans is compared.
+    spots_total : int
+        How many artefact spots there are (the request lists at most
+        :data:`mppf.loop.rescanning.SPOTS_LISTED` of them).
+    """
+
+    number: int
+    regions: tuple = ()
+    first_scan: dict | None = None
+    spots_total: int = 0
+
+
+NO_RESCAN = RescanAsk(0)
+"""The cycle's own scan: no rescan, no regions."""
+
+
 def _stem(plate_id: str, cycle: int, rescan: int = 0) -> str:
     return f"{plate_id}-cycle-{int(cycle):02d}" + (f"-rescan-{int(rescan)}" if rescan else "")
 
@@ -92,8 +122,8 @@ def scan_name(plate_id: str, cycle: int, rescan: int = 0) -> str:
 
 
 def build_request(plate: PlateRecord, record: CycleRecord, job: Job, settings: LoopSettings, folder,
-                  *, mark_required: bool | None = None, now: datetime | None = None, rescan: int = 0,
-                  regions: list | None = None, first_scan: dict | None = None, spots_total: int = 0) -> dict:
+                  *, mark_required: bool | None = None, now: datetime | None = None,
+                  rescan: RescanAsk = NO_RESCAN) -> dict:
     """The request document of a pressed cycle (see ``docs/scanner-station.md`` for every key).
 
     Parameters
@@ -109,18 +139,12 @@ def build_request(plate: PlateRecord, record: CycleRecord, job: Job, settings: L
         The folder the scan is expected in.
     mark_required : bool or None
         Whether the loop compares a scan of this plate only with its mark (None: not decided).
-    rescan : int
-        0: the cycle's scan; K >= 1: its K-th rescan (of at most ``settings.rescans``), of the
-        ``regions`` (dicts with a ``kind``: "uncovered", areas not measured,
-        :func:`mppf.loop.rescanning.region_doc`; "artefacts", spots of set-aside points beyond the
-        tolerance, :func:`mppf.loop.rescanning.artefact_spots`), in the frame of ``first_scan``
-        (``{"path", "sha256"}``): the union of the scans is compared.
-    spots_total : int
-        How many artefact spots there are (the request lists at most
-        :data:`mppf.loop.rescanning.SPOTS_LISTED` of them): ``artefact_spots``.
+    rescan : RescanAsk
+        :data:`NO_RESCAN`: the cycle's scan; else its ``rescan.number``-th rescan, of the
+        regions of ``rescan`` in the frame of its first scan.
     """
     folder = Path(folder).resolve()
-    scan_path = folder / scan_name(plate.plate_id, record.cycle, rescan)
+    scan_path = folder / scan_name(plate.plate_id, record.cycle, rescan.number)
     layout = job.layout
     offset_mm = plate.thickness_mm / 2.0 if settings.offset_mm is None else float(settings.offset_mm)
     doc = {
@@ -155,13 +179,13 @@ def build_request(plate: PlateRecord, record: CycleRecord, job: Job, settings: L
             "outline_cut_press_mm": None if layout is None else _rounded(layout.outline_mm),
             "net_outline_press_mm": None if layout is None else _rounded(layout.net_outline_mm),
         },
-        "rescan": int(rescan),
+        "rescan": int(rescan.number),
         "rescans": int(settings.rescans),
-        "regions": list(regions or []),
-        "artefact_spots": int(spots_total),
-        "first_scan": first_scan,
+        "regions": list(rescan.regions),
+        "artefact_spots": int(rescan.spots_total),
+        "first_scan": rescan.first_scan,
     }
-    if rescan:  # the rescan is placed by the first scan's frame: no mark of its own
+    if rescan.number:  # the rescan is placed by the first scan's frame: no mark of its own
         doc["mark"].update(required=False, settle_s=0.0,
                            note="a rescan needs no mark: it must be in the frame of the cycle's first scan "
                                 "(a fixed station), whose mark places the union")
@@ -235,9 +259,8 @@ def run_on_pressed(command: str, request_path, reporter: Reporter, timeout_s: fl
 
 
 def post_request(plate: PlateRecord, record: CycleRecord, job: Job, settings: LoopSettings, folder, reporter: Reporter,
-                 *, mark_required: bool | None = None, rescan: int = 0, regions: list | None = None,
-                 first_scan: dict | None = None, spots_total: int = 0) -> PostedRequest:
-    """Write the pressed cycle's request (or its ``rescan``-th rescan's) into ``folder``, say so, and run the
+                 *, mark_required: bool | None = None, rescan: RescanAsk = NO_RESCAN) -> PostedRequest:
+    """Write the pressed cycle's request (or its ``rescan.number``-th rescan's) into ``folder``, say so, and run the
     ``on_pressed`` command.
 
     A folder the request cannot be written into is reported and the loop goes on waiting for
@@ -246,17 +269,16 @@ def post_request(plate: PlateRecord, record: CycleRecord, job: Job, settings: Lo
     from mppf.core.errors import InputError
 
     # 1. the request, atomically, where the station looks
-    doc = build_request(plate, record, job, settings, folder, mark_required=mark_required, rescan=rescan,
-                        regions=regions, first_scan=first_scan, spots_total=spots_total)
-    what = f"rescan {rescan} of {settings.rescans} asked" if rescan else "pressed"
+    doc = build_request(plate, record, job, settings, folder, mark_required=mark_required, rescan=rescan)
+    what = f"rescan {rescan.number} of {settings.rescans} asked" if rescan.number else "pressed"
     try:
         posted = write_request(folder, doc)
     except InputError as exc:
         reporter.info(f"cycle {record.cycle}: {what}; {exc.message}: no scan request for the station, "
                       f"the on-pressed command not run; waiting for the scan all the same")
-        return PostedRequest(Path(folder) / request_name(plate.plate_id, record.cycle, rescan),
+        return PostedRequest(Path(folder) / request_name(plate.plate_id, record.cycle, rescan.number),
                              Path(doc["scan"]["path"]), Path(doc["mark"]["path"]), written=False)
-    if rescan:
+    if rescan.number:
         kinds = [r.get("kind", "uncovered") for r in doc["regions"]]
         listed = [f"{kinds.count('uncovered')} area(s)"] if "uncovered" in kinds else []
         listed += [f"{kinds.count('artefacts')} artefact spot(s)"] if "artefacts" in kinds else []
