@@ -10,10 +10,35 @@ run shows the placements and goes on. See ``docs/sections.md``.
 from __future__ import annotations
 
 import sys
+from dataclasses import dataclass
 
 import click
 
 from mppf.core.errors import InputError, PressRefused
+
+
+@dataclass(frozen=True)
+class SectionRun:
+    """How ``mppf press`` presses a sectional job (its options).
+
+    Attributes
+    ----------
+    job_name : str
+        For the questions.
+    dry_run, yes : bool
+        As in ``mppf press``.
+    timeout_s : float or None
+        Motion timeout per step (s).
+    section, step : int or None
+        Only this section (1-based) and, in it, only this step.
+    """
+
+    job_name: str
+    dry_run: bool
+    yes: bool = False
+    timeout_s: float | None = None
+    section: int | None = None
+    step: int | None = None
 
 
 def select_sections(job, section: int | None) -> list:
@@ -50,8 +75,7 @@ def confirm_placement(text: str, yes: bool, dry_run: bool) -> None:
                            hint="press the remaining sections later with --section N")
 
 
-def press_sections(plc, job, *, job_name: str, dry_run: bool, yes: bool, timeout_s, show_result, echo,
-                   make_reporter, section: int | None = None, step: int | None = None, placement_lines=None) -> int:
+def press_sections(plc, job, run: SectionRun, *, show_result, echo, make_reporter, placement_lines=None) -> int:
     """Press a sectional job section by section; returns the number of steps pressed.
 
     Parameters
@@ -60,20 +84,14 @@ def press_sections(plc, job, *, job_name: str, dry_run: bool, yes: bool, timeout
         Connected, the job already checked by ``plc.check_job``.
     job : Job
         With ``sections``.
-    job_name : str
-        For the questions.
-    dry_run, yes : bool
-        As in ``mppf press``.
-    timeout_s : float or None
-        Motion timeout per step.
+    run : SectionRun
+        The options: dry run or not, ``--yes``, the motion timeout, only one section or step.
     show_result : callable(step_label, result)
         Prints the result of one step (``press_cmd``'s table).
     echo : callable(str)
         Prints a line for the operator.
     make_reporter : callable() -> Reporter
         The progress reporter of one step.
-    section, step : int, optional
-        Only this section (1-based) and, in it, only this step.
     placement_lines : callable(Job) -> list of str, optional
         Where the plate lies for a single-piece job (e.g. the corners of ``mppf press``'s placement
         output); given, its lines for each section (:func:`mppf.planning.sections.section_job`) are
@@ -81,36 +99,39 @@ def press_sections(plc, job, *, job_name: str, dry_run: bool, yes: bool, timeout
     """
     from mppf.planning.sections import placement_text, section_job
 
-    chosen = select_sections(job, section)
-    label = job.press.punch_label
     # the plan's own warnings (a section that steps at its border with the plate formed before it) first
     for warning in (job.extra or {}).get("sectional", {}).get("warnings", []):
         echo(f"warning: {warning}")
-    plan = [(s, _steps_of(s, step)) for s in chosen]
-    # every setpoint is checked before anything moves
-    for s, ks in plan:
-        for k in ks:
-            plc.check_setpoints(*s.steps[k - 1].setpoints_mm(job.press), active=s.steps[k - 1].active)
-    if not dry_run:
+    plan = [(s, _steps_of(s, run.step)) for s in select_sections(job, run.section)]
+    _check_plan(plc, job, plan)  # every setpoint is checked before anything moves
+    if not run.dry_run:
         from mppf.cli.press_policy import confirm_motion, press_description
 
-        confirm_motion(plc, f"job {job_name}, {len(plan)} section(s), on {press_description(plc)}", yes)
+        confirm_motion(plc, f"job {run.job_name}, {len(plan)} section(s), on {press_description(plc)}", run.yes)
     pressed = 0
-    previous = None if section is None else (job.sections[section - 2] if section > 1 else None)
+    previous = None if run.section is None else (job.sections[run.section - 2] if run.section > 1 else None)
     for s, ks in plan:
-        text = placement_text(s, previous, label)
+        text = placement_text(s, previous, job.press.punch_label)
         echo(text)
         for line in placement_lines(section_job(job, s.index)) if placement_lines else []:
             echo(line)
-        confirm_placement(text, yes, dry_run)
+        confirm_placement(text, run.yes, run.dry_run)
         for k in ks:
             reporter = make_reporter()
             reporter.info(f"section {s.index} of {len(job.sections)}, step {k} of {len(s.steps)}")
-            result = plc.run_step(*s.steps[k - 1].setpoints_mm(job.press), reporter=reporter, timeout_s=timeout_s)
+            result = plc.run_step(*s.steps[k - 1].setpoints_mm(job.press), reporter=reporter,
+                                  timeout_s=run.timeout_s)
             show_result(f"{k} of section {s.index}", result)
             pressed += 1
         previous = s
     return pressed
+
+
+def _check_plan(plc, job, plan) -> None:
+    """Check every setpoint of the ``(section, step numbers)`` pairs of ``plan`` against the PLC's limits."""
+    for s, ks in plan:
+        for k in ks:
+            plc.check_setpoints(*s.steps[k - 1].setpoints_mm(job.press), active=s.steps[k - 1].active)
 
 
 def _steps_of(section, step: int | None) -> list[int]:

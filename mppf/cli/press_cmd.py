@@ -176,13 +176,14 @@ def press_command(job_path, plc_url, step, section, yes, press_path, audit_path,
         except (ConfigError, LimitError) as exc:  # name the job file (the refusal is in the audit log)
             raise type(exc)(f"job {job_path}: {exc.message}", hint=exc.hint) from None
         if job.sections is not None:  # a plate larger than the bed: section by section (docs/sections.md)
-            from mppf.cli._sections import press_sections
+            from mppf.cli._sections import SectionRun, press_sections
 
-            n = press_sections(plc, job, job_name=job_path.name, dry_run=dry_run, yes=yes, timeout_s=timeout_s,
-                               show_result=lambda what, r: console.print(
+            run = SectionRun(job_name=job_path.name, dry_run=dry_run, yes=yes, timeout_s=timeout_s,
+                             section=section, step=step)
+            n = press_sections(plc, job, run, show_result=lambda what, r: console.print(
                                    _result_table(what, r, job.press.position_tolerance_mm)),
                                echo=console.print, make_reporter=lambda: RichReporter(enabled=True),
-                               section=section, step=step, placement_lines=placement_lines)
+                               placement_lines=placement_lines)
             console.print(f"{'dry run: ' if dry_run else ''}{n} step(s) pressed, all punches in position "
                           f"within {job.press.position_tolerance_mm} mm")
             return

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mppf.cli._sections import press_sections
+from mppf.cli._sections import SectionRun, press_sections
 from mppf.core.errors import InputError, PressRefused
 from mppf.core.progress import NULL_REPORTER
 from mppf.examples.analytic import cylinder_plate
@@ -34,9 +34,10 @@ def job(press):
 
 
 def _run(job, plc, lines, shown, **kw):
-    return press_sections(plc, job, job_name="long.job.json", timeout_s=None,
+    placement_lines = kw.pop("placement_lines", None)
+    return press_sections(plc, job, SectionRun(job_name="long.job.json", timeout_s=None, **kw),
                           show_result=lambda what, r: shown.append((what, r)), echo=lines.append,
-                          make_reporter=lambda: NULL_REPORTER, **kw)
+                          make_reporter=lambda: NULL_REPORTER, placement_lines=placement_lines)
 
 
 def test_dry_run_presses_every_section_in_order_with_its_placement(job):
