@@ -16,7 +16,7 @@ import os
 import shlex
 import subprocess
 from dataclasses import dataclass
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 from mppf.core.progress import Reporter
@@ -150,7 +150,7 @@ def build_request(plate: PlateRecord, record: CycleRecord, job: Job, settings: L
     doc = {
         "format": REQUEST_FORMAT,
         "version": REQUEST_VERSION,
-        "written_utc": (now or datetime.now(timezone.utc)).isoformat(timespec="seconds"),
+        "written_utc": (now or datetime.now(UTC)).isoformat(timespec="seconds"),
         "plate_id": plate.plate_id,
         "cycle": int(record.cycle),
         "job": {"path": str(record.job_path), "sha256": record.job_sha256},
@@ -163,16 +163,7 @@ def build_request(plate: PlateRecord, record: CycleRecord, job: Job, settings: L
             "skin_offset_mm": offset_mm,
             "skin_meaning": SKIN_MEANING,
         },
-        "mark": {
-            "path": str(mark_path(scan_path)),
-            "file": {"reference_mark_mm": ["x", "y", "z"]},
-            "header_line": {"ply": "comment reference_mark_mm X Y Z", "text": "# reference_mark_mm X Y Z"},
-            "corner_press_mm": None if layout is None else [round(float(v), 3) for v in layout.reference_corner_mm],
-            "corner": "the corner of the plate as cut (margin included) with the smallest press x + y",
-            "required": mark_required,
-            "settle_s": float(settings.mark_settle_s),
-            "timeout_s": float(settings.mark_timeout_s),
-        },
+        "mark": _mark_doc(scan_path, layout, settings, mark_required),
         "plate": {
             "thickness_mm": float(plate.thickness_mm),
             "margin_mm": None if layout is None else float(layout.margin_mm),
@@ -190,6 +181,20 @@ def build_request(plate: PlateRecord, record: CycleRecord, job: Job, settings: L
                            note="a rescan needs no mark: it must be in the frame of the cycle's first scan "
                                 "(a fixed station), whose mark places the union")
     return doc
+
+
+def _mark_doc(scan_path: Path, layout, settings: LoopSettings, mark_required: bool | None) -> dict:
+    """The request's ``mark`` block: where the scan's reference mark goes, the plate's corner, the waits (s)."""
+    return {
+        "path": str(mark_path(scan_path)),
+        "file": {"reference_mark_mm": ["x", "y", "z"]},
+        "header_line": {"ply": "comment reference_mark_mm X Y Z", "text": "# reference_mark_mm X Y Z"},
+        "corner_press_mm": None if layout is None else [round(float(v), 3) for v in layout.reference_corner_mm],
+        "corner": "the corner of the plate as cut (margin included) with the smallest press x + y",
+        "required": mark_required,
+        "settle_s": float(settings.mark_settle_s),
+        "timeout_s": float(settings.mark_timeout_s),
+    }
 
 
 def _rounded(points) -> list:
