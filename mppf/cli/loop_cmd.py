@@ -283,6 +283,11 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
             finally:
                 reporter.finish()
                 audit.close()
+    _print_result(result, as_json)
+
+
+def _print_result(result, as_json: bool) -> None:
+    """Print the plate's result (a table and the verdict, or JSON); exit 5 or 6 when it did not end in tolerance."""
     end = result.ending
     if as_json:
         print_json({"plate_id": result.plate_id, "status": result.status, "resumed_state": result.resumed_state,
