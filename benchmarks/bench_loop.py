@@ -222,7 +222,7 @@ def worse_cycles(maxima) -> int:
     return sum(1 for k in range(1, len(maxima)) if maxima[k] > (1.0 + WORSE_SHARE) * min(maxima[:k]))
 
 
-def _series(values) -> str:
+def series_text(values) -> str:
     return " ".join(f"{v:5.2f}" for v in values)
 
 
@@ -247,8 +247,8 @@ def report(results: dict, mode: str) -> list[tuple[str, dict]]:
         rows.sort(key=lambda r: (PLATES.index(r["plate"]) if r["plate"] in PLATES else 99, r["seed"]))
         print(f"\n## {physics} ({mode})\n")
         for r in rows:
-            print(f"{r['plate']:26s} {r['seed']:3d} ok at {str(r['ok_at']):>4s}  max {_series(r['max']):32s} "
-                  f"rms {_series(r['rms']):32s} {r['decisions'][-1] if r['decisions'] else ''}")
+            print(f"{r['plate']:26s} {r['seed']:3d} ok at {str(r['ok_at']):>4s}  max {series_text(r['max']):32s} "
+                  f"rms {series_text(r['rms']):32s} {r['decisions'][-1] if r['decisions'] else ''}")
             if r.get("verdict"):
                 print(f"{'':36s}verdict: {r['verdict'][:200]}")
         summaries.append((physics, summary(rows)))
@@ -263,11 +263,11 @@ def report(results: dict, mode: str) -> list[tuple[str, dict]]:
     return summaries + [("all", total)]
 
 
-def _load(path: Path) -> dict:
+def load_results(path: Path) -> dict:
     return json.loads(path.read_text()) if path.exists() else {}
 
 
-def _save(path: Path, results: dict) -> None:
+def save_results(path: Path, results: dict) -> None:
     tmp = path.with_suffix(".tmp")
     tmp.write_text(json.dumps(results, indent=1))
     os.replace(tmp, path)
@@ -306,9 +306,9 @@ def run_part(args, results: dict, path: Path) -> bool:
                        "verdict": f"{type(exc).__name__}: {exc.message[:160]}"}
             row["seconds"] = round(time.monotonic() - t0, 1)
             results[f"{physics}|{name}|{seed}|{args.mode}|{args.max_cycles}"] = row
-            _save(path, results)
-            print(f"[{physics}] {name} seed {seed}: ok at {row['ok_at']} max {_series(row['max'])} "
-                  f"rms {_series(row['rms'])} ({row['seconds']:.0f} s)", flush=True)
+            save_results(path, results)
+            print(f"[{physics}] {name} seed {seed}: ok at {row['ok_at']} max {series_text(row['max'])} "
+                  f"rms {series_text(row['rms'])} ({row['seconds']:.0f} s)", flush=True)
     return True
 
 
@@ -333,7 +333,7 @@ def main(argv=None) -> int:
                              "benchmarks/results/2026-12-06-loop-first-press.md)")
     args = parser.parse_args(argv)
     threadpool_limits(1, "blas")
-    results = _load(args.results)
+    results = load_results(args.results)
     done = True if args.table else run_part(args, results, args.results)
     summaries = report(results, args.mode)
     total = summaries[-1][1]

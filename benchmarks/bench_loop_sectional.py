@@ -58,10 +58,10 @@ from bench_loop import (
     RMS_TOL_MM,
     THICKNESS_MM,
     TOL_MM,
-    _load,
-    _save,
-    _series,
+    load_results,
     physics_parts,
+    save_results,
+    series_text,
 )
 
 from mppf.core.errors import MppfError
@@ -356,9 +356,9 @@ def run_part(args, results: dict) -> bool:
                        "verdict": f"{type(exc).__name__}: {exc.message[:200]}"}
             row["seconds"] = round(time.monotonic() - t0, 1)
             results[_key(physics, name, seed, args)] = row
-            _save(args.results, results)
-            print(f"[{physics}] {name} seed {seed}: ok at {row['ok_at']} max {_series(row['max'])} "
-                  f"rms {_series(row['rms'])} kink {_series(row['kink'])} ({row['seconds']:.0f} s)"
+            save_results(args.results, results)
+            print(f"[{physics}] {name} seed {seed}: ok at {row['ok_at']} max {series_text(row['max'])} "
+                  f"rms {series_text(row['rms'])} kink {series_text(row['kink'])} ({row['seconds']:.0f} s)"
                   + (f" {row['verdict']}" if row.get("verdict") else ""), flush=True)
     return True
 
@@ -388,7 +388,7 @@ def main(argv=None) -> int:
     parser.add_argument("--table", action="store_true", help="only print the tables of --results")
     args = parser.parse_args(argv)
     threadpool_limits(1, "blas")
-    results = _load(args.results)
+    results = load_results(args.results)
     done = True if args.table else run_part(args, results)
     report(results)
     ok = all(r["ok_at"] is not None and (r["kink"] or [0.0])[-1] <= TOL_MM for r in results.values())
