@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import numpy as np
@@ -86,3 +87,14 @@ def _press_and_compare(history: History, plate_id: str, cycle: int, job: Job, de
     rms = float(np.sqrt(np.mean(deviation ** 2)))
     history.mark_compared(plate_id, cycle, rms_mm=rms, max_abs_mm=float(np.abs(deviation).max()), within_pct=40.0,
                           punch_deviation_mm=deviation, comparison={"rms_mm": rms}, decision=Decision.CONTINUE)
+
+
+def wait_until(predicate, timeout_s: float = 10.0, what: str = "the condition", poll_s: float = 0.05):
+    """``predicate()``'s first true value, polled every ``poll_s`` s; AssertionError naming ``what`` after ``timeout_s`` s."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(poll_s)
+    raise AssertionError(f"{what}: not within {timeout_s} s")

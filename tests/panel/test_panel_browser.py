@@ -11,6 +11,7 @@ of a panel with a token (which never appears in its log). Each view is photograp
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import shutil
@@ -25,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from panel_helpers import record_loop
+from panel_helpers import record_loop, wait_until
 
 from mppf.model.placement import placement_of
 from mppf.planning.job import load_job
@@ -82,14 +83,8 @@ def _mppf(*args, log: Path, env: dict) -> subprocess.Popen:
                                 stdin=subprocess.DEVNULL)
 
 
-def _wait(predicate, timeout_s: float, what: str):
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(0.1)
-    raise AssertionError(f"{what}: not within {timeout_s} s")
+_wait = functools.partial(wait_until, poll_s=0.1)
+"""Wait for a page or process condition, polled every 0.1 s."""
 
 
 def _answers(url: str) -> bool:

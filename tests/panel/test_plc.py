@@ -10,6 +10,7 @@ import pytest
 from starlette.testclient import TestClient
 
 from driver_helpers import small_press
+from panel_helpers import wait_until
 
 from mppf.core.errors import MppfError
 from mppf.drivers.audit import AuditLog
@@ -19,16 +20,6 @@ from mppf.panel.config import PanelConfig
 from mppf.panel.plc import PlcMonitor, status_fields
 from mppf.panel.sources import PlcTarget
 from mppf.sim.plc.host import run_simulated_plc
-
-
-def _wait(predicate, timeout_s: float = 10.0, what: str = "the condition"):
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(0.05)
-    raise AssertionError(f"{what} not met within {timeout_s} s")
 
 
 @pytest.fixture
@@ -79,7 +70,7 @@ def test_the_monitor_reads_the_press_and_says_when_the_link_is_lost(press):
     with run_simulated_plc(press, time_scale=1.0) as sim:
         monitor = PlcMonitor(lambda: PlcTarget(sim.url, "test"), press).start()
         try:
-            snap = _wait(lambda: monitor.snapshot() if monitor.snapshot()["link"]["ok"] else None, what="a reading")
+            snap = wait_until(lambda: monitor.snapshot() if monitor.snapshot()["link"]["ok"] else None, what="a reading")
             assert snap["state"] == "READY"
             assert np.array(snap["matrices"]["upper"]["actual"]).shape == press.shape
             np.testing.assert_allclose(snap["matrices"]["lower"]["actual"], sim.actual_positions_mm()[1], atol=0.01)
@@ -87,7 +78,7 @@ def test_the_monitor_reads_the_press_and_says_when_the_link_is_lost(press):
         finally:
             sim.stop()
         try:
-            lost = _wait(lambda: monitor.snapshot() if not monitor.snapshot()["link"]["ok"] else None,
+            lost = wait_until(lambda: monitor.snapshot() if not monitor.snapshot()["link"]["ok"] else None,
                          what="link lost")
             assert lost["state"] == "LINK LOST" and lost["link"]["url"] == sim.url and lost["link"]["error"]
             assert lost["matrices"] is not None  # the last values stay on the page, marked as old
@@ -100,10 +91,10 @@ def test_a_stuck_punch_is_marked_lagging_while_another_master_drives(press):
         monitor = PlcMonitor(lambda: PlcTarget(sim.url, "test"), press).start()
         driver = _Driver(sim.url, press)
         try:
-            _wait(lambda: monitor.snapshot()["link"]["ok"], what="a reading")
+            wait_until(lambda: monitor.snapshot()["link"]["ok"], what="a reading")
             sim.inject("stuck", matrix="lower", row=2, col=3, percent=10.0)
             driver.start()
-            snap = _wait(lambda: monitor.snapshot() if monitor.snapshot()["n_flagged"] else None, what="a mark")
+            snap = wait_until(lambda: monitor.snapshot() if monitor.snapshot()["n_flagged"] else None, what="a mark")
             names = [f["name"] for f in snap["flagged"]]
             assert names == ["lower R3 C4"], names
             assert snap["moving"] and 0 < snap["progress_pct"] < 100
@@ -123,11 +114,11 @@ def test_stop_in_the_panel_stops_a_press_driven_by_another_master(press, tmp_pat
         driver = _Driver(sim.url, press)
         with TestClient(create_app(cfg), base_url="http://127.0.0.1:8450") as client:
             driver.start()
-            _wait(lambda: sim.status_bits()["busy"], what="the motion")
+            wait_until(lambda: sim.status_bits()["busy"], what="the motion")
             time.sleep(0.5)
             reply = client.post("/stop", headers={"Origin": "http://127.0.0.1:8450"})
             assert reply.status_code == 200 and reply.json()["ok"], reply.text
-            _wait(lambda: not sim.status_bits()["busy"], what="the press to stand still")
+            wait_until(lambda: not sim.status_bits()["busy"], what="the press to stand still")
             driver.join(30)
         stopped = sim.actual_positions_mm()[1]
     target = _far_setpoints(press)[1]
@@ -144,10 +135,10 @@ def test_a_panel_started_before_the_first_plate_finds_the_press_later(press):
         monitor = PlcMonitor(lambda: PlcTarget(sim.url, "test"), None, find_press=lambda: found[0] if found else None)
         monitor.start()
         try:
-            snap = _wait(lambda: monitor.snapshot() if monitor.snapshot()["link"]["ok"] else None, what="a reading")
+            snap = wait_until(lambda: monitor.snapshot() if monitor.snapshot()["link"]["ok"] else None, what="a reading")
             assert snap["matrices"] is None and monitor.press is None  # status only
             found.append(press)  # the first plate is recorded
-            snap = _wait(lambda: monitor.snapshot() if monitor.snapshot()["matrices"] else None, what="the matrices")
+            snap = wait_until(lambda: monitor.snapshot() if monitor.snapshot()["matrices"] else None, what="the matrices")
             assert monitor.press is press and np.array(snap["matrices"]["upper"]["target"]).shape == press.shape
         finally:
             monitor.close()
@@ -156,7 +147,7 @@ def test_a_panel_started_before_the_first_plate_finds_the_press_later(press):
 def test_no_plc_known_is_not_a_lost_link(press):
     monitor = PlcMonitor(lambda: None, press).start()
     try:
-        snap = _wait(lambda: monitor.snapshot() if "no PLC known" in monitor.snapshot()["link"]["error"] else None,
+        snap = wait_until(lambda: monitor.snapshot() if "no PLC known" in monitor.snapshot()["link"]["error"] else None,
                      what="the monitor's first look")
         assert snap["state"] == "NO PLC" and snap["link"]["url"] == "" and "--plc" in snap["link"]["error"]
     finally:
