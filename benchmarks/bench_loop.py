@@ -143,6 +143,19 @@ def true_deviation(press, formed, planned: Planned, active):
     return float(np.nanmax(np.abs(dev))), float(np.sqrt(np.nanmean(dev**2))), punch, edge
 
 
+def cycle_ended(row: dict, cycle: int, max_cycles: int, form_max_mm: float, rms_mm: float) -> bool:
+    """Whether the run ends after ``cycle``: in tolerance (``row["ok_at"]`` set) or at the cycle limit; the
+    decision is appended to ``row["decisions"]``."""
+    if form_max_mm <= TOL_MM and rms_mm <= RMS_TOL_MM:
+        row["decisions"].append("in_tolerance")
+        row["ok_at"] = cycle
+        return True
+    if cycle == max_cycles:
+        row["decisions"].append("max_cycles")
+        return True
+    return False
+
+
 def run_direct(press, planned: Planned, plate, max_cycles: int, policy: bool = True) -> dict:
     """The loop's correction (:func:`mppf.correct.step.correct_step`) on the plate in process, true deviations.
 
@@ -165,12 +178,7 @@ def run_direct(press, planned: Planned, plate, max_cycles: int, policy: bool = T
         cycles.append(PressedCycle([np.where(s.active, 0.5 * (s.upper_mm + s.lower_mm), np.nan) for s in steps], punch))
         outcomes.append(outcome(form_max, rms, punch, promised))
         strokes.append((final.upper_mm, final.lower_mm))
-        if form_max <= TOL_MM and rms <= RMS_TOL_MM:
-            row["decisions"].append("in_tolerance")
-            row["ok_at"] = cycle
-            break
-        if cycle == max_cycles:
-            row["decisions"].append("max_cycles")
+        if cycle_ended(row, cycle, max_cycles, form_max, rms):
             break
         step = correct_step(press, job.layout.design_mid_mm, THICKNESS_MM, NOMINAL, cycles, outcomes, strokes,
                             active, edge, tolerances, policy=policy)

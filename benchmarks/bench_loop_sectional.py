@@ -58,6 +58,7 @@ from bench_loop import (
     RMS_TOL_MM,
     THICKNESS_MM,
     TOL_MM,
+    cycle_ended,
     load_results,
     physics_parts,
     save_results,
@@ -294,12 +295,7 @@ def run_direct(press, planned: Planned, plate, max_cycles: int, how: str = "blen
         row["kink"].append(border_kink(press, planned, dev))
         row.setdefault("inner_max", []).append(inner_max(planned, dev))
         row["steps"].append([len(s.steps) for s in job.sections])
-        if row["max"][-1] <= TOL_MM and row["rms"][-1] <= RMS_TOL_MM:
-            row["decisions"].append("in_tolerance")
-            row["ok_at"] = cycle
-            break
-        if cycle == max_cycles:
-            row["decisions"].append("max_cycles")
+        if cycle_ended(row, cycle, max_cycles, row["max"][-1], row["rms"][-1]):
             break
         if how == "learned":
             job = learned.correct(press, planned, job, dev, (row["max"][-1], row["rms"][-1]))
