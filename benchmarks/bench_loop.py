@@ -31,7 +31,10 @@ Two ways to run a plate:
 Resumable parts: every finished run is written at once to ``--results`` (JSON, keyed by
 physics, plate, seed, mode and max cycles); a later call with the same file skips what is
 there. ``--budget-s`` (default 540) stops starting new runs after that long, so each part
-ends within 10 minutes; call again to go on. ``--table`` prints the tables of the file only.
+ends within 10 minutes: a run is not started when the longest finished run of its physics and mode
+in the file would end past the budget. Call again to go on. A run that fails (an exception, the FE
+solver not converging) is kept as failed with its reason and the cycles it measured (decision
+``error``); it is not run again. ``--table`` prints the tables of the file only.
 
 Run:  python benchmarks/bench_loop.py [--physics steel yield:1.2 ...] [--sweep] [--seeds 1 2 3]
           [--plates P1_midbody_bilge_smooth ...] [--mode direct|loop] [--results FILE.json]
@@ -58,6 +61,7 @@ from mppf.core.grid import without_plane
 from mppf.core.transform import apply_tf
 from mppf.correct.learned import steps_towards
 from mppf.correct.memory import PressedCycle
+from mppf.correct.policy import outer_ring, step_plan
 from mppf.correct.step import Tolerances, correct_step, outcome
 from mppf.forming.precompensate import deviation
 from mppf.geometry.read import read_points
@@ -156,17 +160,28 @@ def cycle_ended(row: dict, cycle: int, max_cycles: int, form_max_mm: float, rms_
     return False
 
 
-def run_direct(press, planned: Planned, plate, max_cycles: int, policy: bool = True) -> dict:
+def new_row() -> dict:
+    """An empty run: per cycle form max, RMS and decision (mm); filled while the run goes, kept if it fails."""
+    return {"max": [], "rms": [], "decisions": [], "ok_at": None, "verdict": None, "share": [],
+            "punch_rms": [], "promised_rms": [], "stroke_change_rms": []}
+
+
+def run_direct(press, planned: Planned, plate, max_cycles: int, policy: bool = True, row: dict | None = None) -> dict:
     """The loop's correction (:func:`mppf.correct.step.correct_step`) on the plate in process, true deviations.
 
     ``policy=False``: without the step policy (every step at scale 1 from the last strokes), to measure what it
-    does.
+    does. ``row`` (:func:`new_row`) is filled cycle by cycle, so a run that fails keeps the cycles it measured.
+    Besides form max and RMS the row keeps, per cycle, the RMS deviation at the punches (``punch_rms``), per
+    correction the RMS deviation it promised there (``promised_rms``), the RMS change of the final step's mid
+    strokes it asked (``stroke_change_rms``, mm) and, at the end, the plate's measured response to each correction
+    (``response`` inside the outer punches, ``edge_response`` at them: measured over promised change,
+    :func:`mppf.correct.policy.step_plan`).
     """
     job = planned.job
     final = job.steps[-1]
     active = final.active
     steps, cycles, outcomes, strokes = job.steps, [], [], []
-    row = {"max": [], "rms": [], "decisions": [], "ok_at": None, "verdict": None, "share": []}
+    row = new_row() if row is None else row
     promised = None
     tolerances = Tolerances(TOL_MM, RMS_TOL_MM)
     for cycle in range(1, max_cycles + 1):
@@ -175,11 +190,13 @@ def run_direct(press, planned: Planned, plate, max_cycles: int, policy: bool = T
             plate.press_step(upper, lower, s.active)
         form_max, rms, punch, edge = true_deviation(press, plate.formed, planned, active)
         row["max"].append(form_max), row["rms"].append(rms)
+        row["punch_rms"].append(round(float(np.sqrt(np.nanmean(np.where(active, punch, np.nan) ** 2))), 3))
         cycles.append(PressedCycle([np.where(s.active, 0.5 * (s.upper_mm + s.lower_mm), np.nan) for s in steps], punch))
         outcomes.append(outcome(form_max, rms, punch, promised))
         strokes.append((final.upper_mm, final.lower_mm))
         if cycle_ended(row, cycle, max_cycles, form_max, rms):
             break
+        row["response"], row["edge_response"] = _responses(outcomes, active)
         step = correct_step(press, job.layout.design_mid_mm, THICKNESS_MM, NOMINAL, cycles, outcomes, strokes,
                             active, edge, tolerances, policy=policy)
         row["share"].append(round(step.plan.share, 3))
@@ -189,9 +206,19 @@ def run_direct(press, planned: Planned, plate, max_cycles: int, policy: bool = T
             break
         row["decisions"].append("continue")
         promised = step.learned.predicted_mm
+        row["promised_rms"].append(round(float(np.sqrt(np.nanmean(np.where(active, promised, np.nan) ** 2))), 3))
         steps = steps_towards(press, steps[-1].setpoints_mm(press), step.learned, active)
+        change = 0.5 * (steps[-1].upper_mm + steps[-1].lower_mm - final.upper_mm - final.lower_mm)
+        row["stroke_change_rms"].append(round(float(np.sqrt(np.nanmean(change[active] ** 2))), 2))
         final = steps[-1]
+    row["response"], row["edge_response"] = _responses(outcomes, active)
     return row
+
+
+def _responses(outcomes, active) -> tuple[list, list]:
+    """The plate's measured response to each correction so far, inside and at the outer punches (rounded)."""
+    plan = step_plan(outcomes, outer_ring(active), TOL_MM, RMS_TOL_MM)
+    return [round(r, 3) for r in plan.ratios], [round(r, 3) for r in plan.edge_ratios]
 
 
 def run_loop_mode(press, planned: Planned, seed: int, max_cycles: int, true_yield_mpa: float, work: Path,
@@ -281,6 +308,13 @@ def save_results(path: Path, results: dict) -> None:
     os.replace(tmp, path)
 
 
+def longest_run_s(results: dict, physics: str, mode: str) -> float:
+    """Wall time of the longest finished run of ``physics`` in ``mode`` in ``results`` (s; 0 if none)."""
+    times = [row.get("seconds", 0.0) for key, row in results.items()
+             if key.split("|")[0] == physics and key.split("|")[3] == mode]
+    return float(max(times, default=0.0))
+
+
 def run_part(args, results: dict, path: Path) -> bool:
     """Run what is not in ``results`` yet, until ``--budget-s``; True when everything asked for is done."""
     press = load_press(example_press_path())
@@ -297,21 +331,26 @@ def run_part(args, results: dict, path: Path) -> bool:
     with tempfile.TemporaryDirectory(prefix="bench-loop-") as tmp:
         work, planned = Path(tmp), {}
         for physics, name, seed in todo:
-            if time.monotonic() - started > args.budget_s:
-                print(f"budget of {args.budget_s:.0f} s spent: call again with the same --results to go on")
+            expected_s = longest_run_s(results, physics, args.mode)
+            if time.monotonic() - started + expected_s > args.budget_s:
+                print(f"budget of {args.budget_s:.0f} s: the next run (up to {expected_s:.0f} s) would end past it; "
+                      "call again with the same --results to go on")
                 return False
-            if name not in planned:
-                planned[name] = Planned(press, name, work, args.yield_uncertainty)
-            p, t0 = planned[name], time.monotonic()
+            t0 = time.monotonic()
+            row = new_row()
             try:
+                if name not in planned:
+                    planned[name] = Planned(press, name, work, args.yield_uncertainty)
+                p = planned[name]
                 if args.mode == "loop":
                     row = run_loop_mode(press, p, seed, args.max_cycles, args.true_yield, work, physics)
                 else:
                     plate = direct_plate(press, p, physics, seed, args.true_yield)
-                    row = run_direct(press, p, plate, args.max_cycles, not args.no_policy)
-            except MppfError as exc:  # a failed run counts as not in tolerance
-                row = {"max": [], "rms": [], "decisions": ["error"], "ok_at": None,
-                       "verdict": f"{type(exc).__name__}: {exc.message[:160]}"}
+                    run_direct(press, p, plate, args.max_cycles, not args.no_policy, row)
+            except Exception as exc:  # noqa: BLE001 - a failed run is kept as failed with its reason, never dropped
+                text = exc.message if isinstance(exc, MppfError) else str(exc)
+                row["decisions"].append("error")
+                row["ok_at"], row["verdict"] = None, f"{type(exc).__name__}: {text[:300]}"
             row["seconds"] = round(time.monotonic() - t0, 1)
             results[f"{physics}|{name}|{seed}|{args.mode}|{args.max_cycles}"] = row
             save_results(path, results)
