@@ -12,6 +12,7 @@ from mppf.cli._common import (PICTURE_SUFFIXES, RichReporter, check_design_size,
 from mppf.core.errors import InputError
 from mppf.forming.material import DEFAULT_YIELD_UNCERTAINTY_PCT, check_yield_uncertainty
 from mppf.model.material import MATERIALS, Material
+from mppf.model.plan_options import PlanOptions
 
 
 THICKNESS_MAX_MM = 200.0
@@ -205,9 +206,10 @@ def plan_command(design, flat, press_path, thickness_mm, steps, springback, marg
         "units": units,
     }
     reporter = RichReporter(enabled=not as_json)
-    job = plan_plate(design_cloud.points, flat_cloud.points, press, thickness_mm, steps=steps, material=mat,
-                     springback=springback, design_faces=design_cloud.faces, reporter=reporter, inputs=inputs,
-                     margin_mm=margin_mm, transition_mm=transition_mm, yield_uncertainty_pct=uncertainty_pct)
+    options = PlanOptions(steps=steps, material=mat, springback=springback, yield_uncertainty_pct=uncertainty_pct,
+                          margin_mm=margin_mm, transition_mm=transition_mm)
+    job = plan_plate(design_cloud.points, flat_cloud.points, press, thickness_mm, options,
+                     design_faces=design_cloud.faces, reporter=reporter, inputs=inputs)
     reporter.finish()
     if plot:  # the picture first: a job file exists only when the whole command succeeded
         from mppf.report.strokes import plot_strokes

@@ -15,6 +15,7 @@ from mppf.loop.section_steps import cycle_steps
 from mppf.loop.settings import LoopSettings
 from mppf.model.job import Job
 from mppf.model.material import Material
+from mppf.model.plan_options import PlanOptions
 from mppf.model.press import PressConfig
 from mppf.planning.job import save_job
 from mppf.planning.sectional import plan_plate
@@ -52,9 +53,9 @@ def plan_first_cycle(design: PointCloud, flat: PointCloud, press: PressConfig, t
     """
     inputs = {"design": {"path": str(design.path), "sha256": design.sha256},
               "flat": {"path": str(flat.path), "sha256": flat.sha256}}
-    return plan_plate(design.points, flat.points, press, thickness_mm, material=material,
-                      springback=settings.springback, reporter=reporter, inputs=inputs, margin_mm=settings.margin_mm,
-                      yield_uncertainty_pct=settings.yield_uncertainty_pct)
+    options = PlanOptions(material=material, springback=settings.springback,
+                          yield_uncertainty_pct=settings.yield_uncertainty_pct, margin_mm=settings.margin_mm)
+    return plan_plate(design.points, flat.points, press, thickness_mm, options, reporter=reporter, inputs=inputs)
 
 
 def plate_reach(press: PressConfig, job: Job, design_points, tolerance_mm: float) -> dict | None:

@@ -242,6 +242,7 @@ def finished_row(plate: Plate, options: BatchOptions, key: str) -> dict | None:
 def plan_plate_files(plate: Plate, options: BatchOptions, key: str) -> dict:
     """Read, unfold (unless a flat is given), plan and save one plate; its summary row. Runs in a worker."""
     from mppf.geometry.read import read_points
+    from mppf.model.plan_options import PlanOptions
     from mppf.model.press import load_press
     from mppf.planning.job import save_job
     from mppf.planning.sectional import plan_plate
@@ -257,9 +258,10 @@ def plan_plate_files(plate: Plate, options: BatchOptions, key: str) -> dict:
     inputs = {"design": {"path": plate.design, "sha256": design.sha256},
               "flat": {"path": flat_path, "sha256": file_sha256(flat_path)},
               "press": {"path": options.press_path, "sha256": file_sha256(options.press_path)}, "units": options.units}
-    job = plan_plate(design.points, flat_points, press, plate.thickness_mm, material=material,
-                     springback=plate.springback, design_faces=design.faces, inputs=inputs,
-                     margin_mm=options.margin_mm, transition_mm=options.transition_mm)
+    plan_options = PlanOptions(material=material, springback=plate.springback, margin_mm=options.margin_mm,
+                               transition_mm=options.transition_mm)
+    job = plan_plate(design.points, flat_points, press, plate.thickness_mm, plan_options, design_faces=design.faces,
+                     inputs=inputs)
     if strain_pct is None:
         strain_pct = job.extra.get("registration", {}).get("neighbour_strain_p95_pct")
     # 3. the summary row, stored in the job so a resumed batch can show it without planning again

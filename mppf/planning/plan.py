@@ -1,6 +1,7 @@
 """Stroke planning: a design surface and its flat plate -> strokes of both punch matrices.
 
-:func:`plan_job` is the whole planner as a short sequence of calls; each stage is a
+:func:`plan_job` is the whole planner as a short sequence of calls, its options one frozen
+:class:`mppf.model.plan_options.PlanOptions`; each stage is a
 small module: :mod:`mppf.planning.placement` (flat on the bed, registration),
 :mod:`mppf.planning.belongs` (the flat is the design's), :mod:`mppf.planning.pose` (offset and
 tilt of least travel), :mod:`mppf.planning.contact` (exact ball-tip contact),
@@ -12,6 +13,8 @@ tilt of least travel), :mod:`mppf.planning.contact` (exact ball-tip contact),
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from mppf.core.errors import GeometryError
@@ -20,15 +23,16 @@ from mppf.core.progress import NULL_REPORTER
 from mppf.core.transform import apply_tf
 from mppf.correct.virtual_cycles import refine_strokes
 from mppf.forming.material import check_yield_uncertainty, weakest_material
-from mppf.geometry.surface import fit_plate
+from mppf.geometry.surface import FittedPlate, fit_plate
 from mppf.model.job import Job
 from mppf.model.job_parts import PlateLayout
 from mppf.model.material import Material
+from mppf.model.plan_options import PlanOptions
 from mppf.model.press import PressConfig
 from mppf.planning.belongs import check_flat_belongs, design_area_mm2
 from mppf.planning.contact import PlacedSurface, tip_heights
 from mppf.planning.overbend import overbend
-from mppf.planning.placement import place_flat, register_design
+from mppf.planning.placement import FlatPlacement, place_flat, register_design
 from mppf.planning.plan_steps import (
     active_punches,
     check_plan_inputs,
@@ -41,72 +45,103 @@ from mppf.planning.plan_steps import (
 )
 from mppf.planning.steps import steps_needed
 from mppf.planning.validate import validate_steps
+from mppf.registration.register import Registration
 
 SURFACE_KIND = "poly"
 SURFACE_DEGREE = 4
 
 
-def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float, *, steps: int | None = None,
-             material: Material | None = None, springback: bool = False, design_faces=None,
-             reporter=NULL_REPORTER, inputs: dict | None = None, margin_mm: float | None = None,
-             yield_uncertainty_pct: float = 0.0) -> Job:
-    """Plan the strokes of every punch of both matrices for one plate.
+def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float, options: PlanOptions = PlanOptions(),
+             *, design_faces=None, inputs: dict | None = None, reporter=NULL_REPORTER) -> Job:
+    """Plan the strokes of every punch of both matrices for one plate (in one piece on the bed).
 
     Parameters
     ----------
     design_points : (n, 3) float, mm
         The design (curved) plate's mid-surface, any coordinates (e.g. hull).
     flat_points : (k, 3) float, mm
-        Its unfolded (flat) plate; with k == n the points are taken as paired with
-        the design's, in the same order (as :func:`mppf.geometry.unfold.unfold` gives them).
+        Its unfolded (flat) plate; with k == n paired with the design's points in order (as from unfold).
     press : PressConfig
     thickness_mm : float
-        Plate thickness t, > 0.
-    steps : int, optional
-        Number of press steps; by default the fewest within the dimpling limit.
-    material : Material, optional
-        Needed for ``springback``.
-    springback : bool
-        Pre-compensate springback: over-bend the principal arcs, then refine the strokes
-        by virtual press cycles on the plate model with the nominal material
-        (:func:`mppf.correct.virtual_cycles.refine_strokes`).
+        Plate thickness t, mm, > 0.
+    options : PlanOptions
+        Steps, material, springback, yield uncertainty and trim margin (``transition_mm`` is not used).
     design_faces : (m, 3) int, optional
         Mesh triangles of the design (better fold and area checks).
-    reporter : Reporter
     inputs : dict, optional
         ``{"design": {"path", "sha256"}, "flat": {...}}`` recorded in the job.
-    margin_mm : float, optional
-        Trim margin: the flat plate is cut with this excess band around its net outline
-        (trimmed after forming), so punches under the band are used too; default the
-        press's ``[forming] margin_mm``. The design surface is extended smoothly over it.
-    yield_uncertainty_pct : float
-        With ``springback``: the declared scatter of the yield stress (+- %, in [0, 50)). The
-        springback is compensated for the weakest plate of the range (:func:`first_press_material`),
-        so every plate within it is under-bent, never over-bent; the layout keeps the nominal
-        material and ``extra["springback"]["first_press"]`` records what was assumed.
+    reporter : Reporter
 
     Returns
     -------
     Job
-        Validated; its ``layout`` holds the plate as cut (margin included), the net
-        outline, the margin, the reference corner, the design heights at the punches and
-        the material; ``extra`` the reports ``registration``, ``validation``,
-        ``plate_corners_mm``, ``pose``, ``inputs``, ``springback``, ``n_steps``.
+        Validated; ``layout``: the plate as cut, net outline, margin, design heights at the punches, material.
 
     Raises
     ------
-    InputError
-        Bad thickness, step count or points; GeometryError for a flat that does not
-        belong to the design; LimitError for a plate that does not fit or strokes
-        that cannot be kept inside the press limits (nothing is planned).
+    InputError, GeometryError, LimitError
+        Bad inputs or options; a flat that is not the design's; a plate or strokes beyond the press.
     """
-    design, flat, t, margin = check_plan_inputs(design_points, flat_points, press, thickness_mm, steps, material,
-                                                springback, margin_mm)
-    planned_material = first_press_material(material, springback, yield_uncertainty_pct)
-    # 1. lay the flat plate on the bed: centred, long side along x, bottom skin at z = 0
+    design, flat, t, margin = check_plan_inputs(design_points, flat_points, press, thickness_mm, options.steps,
+                                                options.material, options.springback, options.margin_mm)
+    planned_material = first_press_material(options.material, options.springback, options.yield_uncertainty_pct)
+    # 1. lay the flat on the bed, fit the design and register it onto the flat (which must be its unfolding)
+    laid = _lay_and_register(design, flat, press, t, design_faces, reporter)
+    # 2. the surface to press: the design, over-bent for springback (of the weakest plate declared) if asked
+    surface, springback_report = _surface_to_press(laid.fitted, design, press, t, planned_material,
+                                                   options.springback, margin)
+    # 3. strokes: exact ball contact at the punches under the plate as cut, in the pose of least travel
+    strokes = _contact_strokes(press, laid, surface, design, t, margin, reporter)
+    # 4. the design's mid-surface height at each active punch (the refinement's and the loop's target)
+    target = _design_heights(press, laid.fitted, strokes.tf_press_design, strokes.active, t)
+    # 5. springback: virtual press cycles on the plate model (the planned material) against the design
+    upper, lower = strokes.upper_mm, strokes.lower_mm
+    if options.springback:
+        reporter.info("refining the springback pre-compensation on the plate model")
+        upper, lower, springback_report["refinement"] = _refine(press, upper, lower, strokes.active, target,
+                                                                strokes.outline_mm, t, planned_material)
+        springback_report["first_press"] = first_press_report(options.material, options.yield_uncertainty_pct)
+    # 6. press steps from flat to the target, within the dimpling limit; validated before a job exists
+    n_steps = options.steps if options.steps is not None else steps_needed(upper, lower, strokes.active, press, t)
+    step_list = steps_within_limit(upper, lower, strokes.active, press, t, n_steps)
+    validation = _validation(step_list, press, t, strokes)
+    extra = planner_reports(laid.fitted, laid.registration, laid.belongs, strokes.pose, upper, lower, strokes.active,
+                            t, validation, laid.placement, int(n_steps), inputs, springback_report)
+    layout = PlateLayout(outline_mm=strokes.outline_mm, net_outline_mm=strokes.net_outline_mm, margin_mm=margin,
+                         design_mid_mm=target, material=options.material)
+    return Job(press=press, thickness_mm=t, steps=step_list, tf_press_design=strokes.tf_press_design,
+               tf_press_flat=laid.placement.tf_press_flat, layout=layout, extra=extra)
+
+
+@dataclass(frozen=True)
+class _Laid:
+    """The flat on the bed and the design registered onto it (:func:`_lay_and_register`)."""
+
+    placement: FlatPlacement
+    fitted: FittedPlate
+    registration: Registration
+    belongs: dict
+
+
+@dataclass(frozen=True)
+class _Strokes:
+    """The contact strokes in the pose of least travel (:func:`_contact_strokes`); heights and outlines in mm."""
+
+    active: np.ndarray  # (rows, cols) bool
+    pose: object  # the pose report of least_travel_pose
+    upper_mm: np.ndarray  # (rows, cols), NaN where inactive
+    lower_mm: np.ndarray
+    tf_press_design: np.ndarray  # (4, 4)
+    outline_xy_mm: np.ndarray  # (p, 2): the plate as cut around the registered design, before the pose
+    net_outline_mm: np.ndarray  # (q, 2): the net outline in the pose
+    outline_mm: np.ndarray  # (r, 2): the net outline grown by the margin
+
+
+def _lay_and_register(design, flat, press: PressConfig, t: float, design_faces, reporter) -> _Laid:
+    """Lay the flat plate on the bed (centred, long side along x, bottom skin at z = 0), fit the design in its
+    own frame, register it onto the flat and check that the flat is its unfolding."""
     reporter.info("placing the flat plate on the bed")
     placement = place_flat(flat, press, t)
-    # 2. fit the design in its own frame; register it onto the flat on the bed; the flat must be its unfolding
     fitted = fit_plate(design, degree=SURFACE_DEGREE, kind=SURFACE_KIND, faces=design_faces)
     reporter.info("registering the design onto the flat plate")
     registration = register_design(design, placement.flat_press_mm, reporter=reporter)
@@ -115,41 +150,32 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
                       "(registration start was ambiguous)")
     belongs = check_flat_belongs(design, placement.flat_press_mm, registration.method == "paired",
                                  design_area_mm2(fitted, design, design_faces))
-    # 3. the surface to press: the design, over-bent for springback (of the weakest plate declared) if asked
-    surface, springback_report = _surface_to_press(fitted, design, press, t, planned_material, springback, margin)
-    # 4. active punches: axes inside the plate as cut (the design's outline seen from above, grown by the margin)
-    design_press = apply_tf(registration.tf, design)
+    return _Laid(placement, fitted, registration, belongs)
+
+
+def _contact_strokes(press: PressConfig, laid: _Laid, surface, design, t: float, margin: float,
+                     reporter) -> _Strokes:
+    """The active punches (axes inside the plate as cut: the design's outline seen from above, grown by the
+    margin) and their exact ball-contact strokes with the offset and tilt of least travel."""
+    design_press = apply_tf(laid.registration.tf, design)
     outline_xy = offset_convex(convex_outline(design_press[:, :2], "the placed design"), margin)
     active = active_punches(press, outline_xy)
-    # 5. strokes: exact ball contact, with the offset and tilt of least travel
     reporter.info(f"solving the contact of {2 * int(active.sum())} punches")
-    placed = PlacedSurface(surface, registration.tf @ fitted.frame.tf_world_local)
+    placed = PlacedSurface(surface, laid.registration.tf @ laid.fitted.frame.tf_world_local)
     pose = least_travel_pose(press, placed, active, t)
-    upper, lower = on_grid(press, active, pose.upper_mm), on_grid(press, active, pose.lower_mm)
-    tf_press_design = pose.tf_adjust @ registration.tf
     net_outline = convex_outline(apply_tf(pose.tf_adjust, design_press)[:, :2], "the placed design")
-    outline = offset_convex(net_outline, margin)
-    # 6. the design's mid-surface height at each active punch (the refinement's and the loop's target)
-    target = _design_heights(press, fitted, tf_press_design, active, t)
-    # 7. springback: virtual press cycles on the plate model (the planned material) against the design
-    if springback:
-        reporter.info("refining the springback pre-compensation on the plate model")
-        upper, lower, springback_report["refinement"] = _refine(press, upper, lower, active, target, outline, t,
-                                                                planned_material)
-        springback_report["first_press"] = first_press_report(material, yield_uncertainty_pct)
-    # 8. press steps from flat to the target, within the dimpling limit
-    n_steps = steps if steps is not None else steps_needed(upper, lower, active, press, t)
-    step_list = steps_within_limit(upper, lower, active, press, t, n_steps)
-    # 9. validate everything before a job exists
+    return _Strokes(active=active, pose=pose, upper_mm=on_grid(press, active, pose.upper_mm),
+                    lower_mm=on_grid(press, active, pose.lower_mm),
+                    tf_press_design=pose.tf_adjust @ laid.registration.tf, outline_xy_mm=outline_xy,
+                    net_outline_mm=net_outline, outline_mm=offset_convex(net_outline, margin))
+
+
+def _validation(step_list, press: PressConfig, t: float, strokes: _Strokes) -> dict:
+    """The job validation of the steps (:func:`mppf.planning.validate.validate_steps`) with the contact's figures."""
     validation = validate_steps(step_list, press, t)
-    validation["contact_exact_fraction"] = float(np.mean(pose.exact))
-    validation["contact_beyond_edge_mm"] = check_trim(pose.contact_xy_mm, outline_xy, press)
-    extra = planner_reports(fitted, registration, belongs, pose, upper, lower, active, t, validation, placement,
-                            int(n_steps), inputs, springback_report)
-    layout = PlateLayout(outline_mm=outline, net_outline_mm=net_outline, margin_mm=margin, design_mid_mm=target,
-                         material=material)
-    return Job(press=press, thickness_mm=t, steps=step_list, tf_press_design=tf_press_design,
-               tf_press_flat=placement.tf_press_flat, layout=layout, extra=extra)
+    validation["contact_exact_fraction"] = float(np.mean(strokes.pose.exact))
+    validation["contact_beyond_edge_mm"] = check_trim(strokes.pose.contact_xy_mm, strokes.outline_xy_mm, press)
+    return validation
 
 
 def first_press_material(material: Material | None, springback: bool, yield_uncertainty_pct: float):

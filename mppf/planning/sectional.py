@@ -20,6 +20,7 @@ from mppf.geometry.surface import fit_plate
 from mppf.model.job import Job
 from mppf.model.job_parts import PlateLayout
 from mppf.model.job_sections import Section
+from mppf.model.plan_options import PlanOptions
 from mppf.model.press import PressConfig
 from mppf.planning.belongs import check_flat_belongs, design_area_mm2
 from mppf.planning.contact import PlacedSurface, tip_heights
@@ -38,19 +39,20 @@ __all__ = ["BORDER_STEP_LIMIT_MM", "apply_section_corrections", "border_warnings
            "recovered_residual", "sections_summary"]
 
 
-def plan_plate(design_points, flat_points, press: PressConfig, thickness_mm: float, *,
-               transition_mm: float | None = None, **options) -> Job:
+def plan_plate(design_points, flat_points, press: PressConfig, thickness_mm: float,
+               options: PlanOptions = PlanOptions(), *, design_faces=None, inputs: dict | None = None,
+               reporter=NULL_REPORTER) -> Job:
     """Plan a plate in one piece when its net flat fits the bed, in sections otherwise.
 
-    Parameters are those of :func:`mppf.planning.plan.plan_job` (``options``), and
-    ``transition_mm``, the least width two neighbouring sections share (:func:`split_plate`).
+    Parameters are those of :func:`mppf.planning.plan.plan_job`; ``options.transition_mm`` is the least
+    width two neighbouring sections share (:func:`split_plate`).
     """
-    design, flat, t, _ = check_plan_inputs(design_points, flat_points, press, thickness_mm, options.get("steps"),
-                                           options.get("material"), options.get("springback", False),
-                                           options.get("margin_mm"))
+    design, flat, t, _ = check_plan_inputs(design_points, flat_points, press, thickness_mm, options.steps,
+                                           options.material, options.springback, options.margin_mm)
     if fits_bed(lay_flat(flat, press, t), press):
-        return plan_job(design, flat, press, t, **options)
-    return plan_sectional(design, flat, press, t, transition_mm=transition_mm, **options)
+        return plan_job(design, flat, press, t, options, design_faces=design_faces, inputs=inputs, reporter=reporter)
+    return plan_sectional(design, flat, press, t, design_faces=design_faces, inputs=inputs, reporter=reporter,
+                          **options.as_keywords())
 
 
 def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm: float, *, steps: int | None = None,

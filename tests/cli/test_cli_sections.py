@@ -9,6 +9,7 @@ from mppf.cli._sections import SectionRun, press_sections
 from mppf.core.errors import InputError, PressRefused
 from mppf.core.progress import NULL_REPORTER
 from mppf.examples.analytic import cylinder_plate
+from mppf.model.plan_options import PlanOptions
 from mppf.planning.sectional import plan_plate
 from plan_helpers import press  # noqa: F401 (fixture)
 
@@ -30,7 +31,7 @@ class RecordingPress:
 @pytest.fixture(scope="module")
 def job(press):
     design, flat = cylinder_plate(5000.0, 2000.0, 15000.0, spacing_mm=150.0)
-    return plan_plate(design, flat, press, 20.0, steps=2)
+    return plan_plate(design, flat, press, 20.0, PlanOptions(steps=2))
 
 
 def _run(job, plc, lines, shown, **kw):

@@ -7,8 +7,8 @@ import re
 import pytest
 from starlette.testclient import TestClient
 
-
 from mppf.examples.analytic import cylinder_plate
+from mppf.model.plan_options import PlanOptions
 from mppf.panel.app import create_app
 from mppf.panel.config import PanelConfig
 from mppf.planning.job import save_job
@@ -40,7 +40,7 @@ def sectional_job(tmp_path_factory):
     from mppf.model.press import example_press_path, load_press
 
     design, flat = cylinder_plate(5000.0, 2000.0, 15000.0, spacing_mm=150.0)
-    job = plan_plate(design, flat, load_press(example_press_path()), 20.0, steps=2)
+    job = plan_plate(design, flat, load_press(example_press_path()), 20.0, PlanOptions(steps=2))
     return save_job(job, tmp_path_factory.mktemp("sections") / "job.json"), job
 
 

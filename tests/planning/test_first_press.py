@@ -13,6 +13,7 @@ from mppf.forming.precompensate import predict_mid_heights
 from mppf.forming.springback import loaded_curvature, unloaded_curvature
 from mppf.loop.settings import LoopSettings
 from mppf.model.material import Material
+from mppf.model.plan_options import PlanOptions
 from mppf.model.press import example_press_path, load_press
 from mppf.planning.plan import plan_job
 from plan_helpers import cylinder_points, developed_cylinder
@@ -28,7 +29,8 @@ def cylinder_plans():
     """The same cylinder planned for 0 % and 10 % declared yield scatter."""
     design = cylinder_points(RADIUS_MM, 2800.0, 1500.0)
     flat = developed_cylinder(RADIUS_MM, 2800.0, 1500.0)
-    return {pct: plan_job(design, flat, PRESS, T, material=STEEL, springback=True, yield_uncertainty_pct=pct)
+    return {pct: plan_job(design, flat, PRESS, T,
+                          PlanOptions(material=STEEL, springback=True, yield_uncertainty_pct=pct))
             for pct in (0.0, 10.0)}
 
 
@@ -85,7 +87,7 @@ def test_ten_percent_plan_is_less_bent_by_what_the_springback_law_predicts(cylin
 def test_bad_uncertainty_is_refused_before_planning(pct):
     flat = developed_cylinder(1e9, 2400.0, 1600.0)
     with pytest.raises(InputError, match="yield-stress uncertainty") as info:
-        plan_job(flat, flat, PRESS, T, material=STEEL, springback=True, yield_uncertainty_pct=pct)
+        plan_job(flat, flat, PRESS, T, PlanOptions(material=STEEL, springback=True, yield_uncertainty_pct=pct))
     assert "e.g. 10" in info.value.hint
     with pytest.raises(InputError, match="yield_uncertainty_pct"):
         LoopSettings(yield_uncertainty_pct=pct)
@@ -93,7 +95,7 @@ def test_bad_uncertainty_is_refused_before_planning(pct):
 
 def test_uncertainty_without_springback_changes_nothing():
     flat = developed_cylinder(1e9, 2400.0, 1600.0)
-    job = plan_job(flat, flat, PRESS, T, yield_uncertainty_pct=10.0)
+    job = plan_job(flat, flat, PRESS, T, PlanOptions(yield_uncertainty_pct=10.0))
     assert job.extra["springback"] == {"enabled": False}
 
 
@@ -109,7 +111,8 @@ def test_a_plate_planned_in_sections_is_under_bent_the_same_way():
 
     press = load_press(example_press_path())
     design, flat = cylinder_plate(4200.0, 2400.0, 6000.0, spacing_mm=100.0)
-    jobs = {pct: plan_plate(design, flat, press, T, springback=True, material=STEEL, yield_uncertainty_pct=pct)
+    jobs = {pct: plan_plate(design, flat, press, T,
+                            PlanOptions(springback=True, material=STEEL, yield_uncertainty_pct=pct))
             for pct in (0.0, 10.0)}
     assert all(job.sections for job in jobs.values())  # larger than the bed
     radii = {}

@@ -10,6 +10,7 @@ import pytest
 from mppf.core.errors import GeometryError, InputError, LimitError
 from mppf.geometry.read import read_points
 from mppf.model.material import Material
+from mppf.model.plan_options import PlanOptions
 from mppf.model.press import example_press_path, load_press, press_from_dict
 from mppf.planning.job import load_job, save_job
 from mppf.planning.plan import plan_job, plan_summary
@@ -113,7 +114,7 @@ def test_dome_from_unfold_is_symmetric_and_within_gap():
 def test_multi_step_is_monotonic_and_ends_at_target(cylinder_job):
     job1, _ = cylinder_job
     flat = developed_cylinder(3000.0, 2800.0, 1500.0)
-    job = plan_job(cylinder_points(3000.0, 2800.0, 1500.0), flat, PRESS, T, steps=4)
+    job = plan_job(cylinder_points(3000.0, 2800.0, 1500.0), flat, PRESS, T, PlanOptions(steps=4))
     assert len(job.steps) == 4 and job.extra["n_steps"] == 4
     act = job.steps[-1].active
     np.testing.assert_allclose(job.steps[-1].upper_mm[act], job1.steps[-1].upper_mm[act], atol=1e-9)
@@ -133,7 +134,7 @@ def test_step_count_follows_the_dimpling_limit():
     assert job.extra["validation"]["max_neighbour_step_mm"] <= 5.0 + 1e-6
     # one step fewer would exceed the limit: the validation refuses it
     with pytest.raises(LimitError, match="dimpling limit"):
-        plan_job(design, flat, strict, T, steps=n - 1)
+        plan_job(design, flat, strict, T, PlanOptions(steps=n - 1))
 
 
 def test_springback_over_bends_a_cylinder_then_refines_on_the_plate_model():
@@ -141,7 +142,7 @@ def test_springback_over_bends_a_cylinder_then_refines_on_the_plate_model():
     design = cylinder_points(radius, 2800.0, 1500.0)
     flat = developed_cylinder(radius, 2800.0, 1500.0)
     steel = Material(206000.0, 0.3, 235.0)
-    job = plan_job(design, flat, PRESS, T, material=steel, springback=True)
+    job = plan_job(design, flat, PRESS, T, PlanOptions(material=steel, springback=True))
     loaded_radius = 1.0 / float(loaded_curvature(1.0 / radius, T, steel))
     assert loaded_radius < radius
     report = job.extra["springback"]
@@ -172,7 +173,7 @@ def test_trim_margin_adds_the_punches_under_the_excess_band():
     design = cylinder_points(radius, 2800.0, 1500.0)
     flat = developed_cylinder(radius, 2800.0, 1500.0)
     net = plan_job(design, flat, PRESS, T)
-    grown = plan_job(design, flat, PRESS, T, margin_mm=100.0)
+    grown = plan_job(design, flat, PRESS, T, PlanOptions(margin_mm=100.0))
     assert net.layout.margin_mm == 0.0 and grown.layout.margin_mm == 100.0
     assert grown.extra["n_active"] > net.extra["n_active"]
     assert np.all(grown.steps[-1].active[net.steps[-1].active])  # the net punches stay
@@ -187,13 +188,13 @@ def test_trim_margin_adds_the_punches_under_the_excess_band():
 def test_bad_trim_margin(margin):
     flat = developed_cylinder(1e9, 2400.0, 1600.0)
     with pytest.raises(InputError, match="trim margin"):
-        plan_job(flat, flat, PRESS, T, margin_mm=margin)
+        plan_job(flat, flat, PRESS, T, PlanOptions(margin_mm=margin))
 
 
 def test_springback_needs_material():
     flat = developed_cylinder(1e9, 2400.0, 1600.0)
     with pytest.raises(InputError, match="material"):
-        plan_job(flat, flat, PRESS, T, springback=True)
+        plan_job(flat, flat, PRESS, T, PlanOptions(springback=True))
 
 
 @pytest.mark.parametrize("thickness", [0.0, -5.0, float("nan")])

@@ -14,6 +14,7 @@ from mppf.core.transform import apply_tf, invert_tf, make_tf
 from mppf.examples import analytic
 from mppf.examples.analytic import cylinder_plate, hull_pose, twisted_plate
 from mppf.geometry.unfold import unfold
+from mppf.model.plan_options import PlanOptions
 from mppf.planning.contact import PlacedSurface, tip_heights
 from mppf.model.job import JOB_VERSION, SECTIONS_VERSION, job_from_dict
 from mppf.planning.placement import place_flat
@@ -239,7 +240,7 @@ def springback_job(press):
     from mppf.model.material import MATERIALS
 
     design, flat = cylinder_plate(5000.0, 2000.0, RADIUS_MM, spacing_mm=150.0)
-    return plan_plate(design, flat, press, T_MM, springback=True, material=MATERIALS["steel"])
+    return plan_plate(design, flat, press, T_MM, PlanOptions(springback=True, material=MATERIALS["steel"]))
 
 
 def test_springback_corrections_blend_in_the_transition_zone(press, springback_job):
@@ -354,11 +355,11 @@ def test_sections_whose_over_bends_disagree_are_warned_of(press, springback_job)
 
     assert springback_job.extra["sectional"]["warnings"] == []
     design, flat = cylinder_plate(4200.0, 2400.0, RADIUS_MM, spacing_mm=200.0)
-    job = plan_plate(design, flat, press, T_MM, springback=True, material=MATERIALS["steel"])
+    job = plan_plate(design, flat, press, T_MM, PlanOptions(springback=True, material=MATERIALS["steel"]))
     sectional = job.extra["sectional"]
     assert sectional["counts"] == [2, 2] and sectional["max_border_step_mm"] < 0.2 and sectional["warnings"] == []
     kcs = read_points(LONG / "kcs_stern_bilge_9000x2400.csv").points
-    job = plan_plate(kcs, unfold(kcs).flat, press, T_MM, springback=True, material=MATERIALS["steel"])
+    job = plan_plate(kcs, unfold(kcs).flat, press, T_MM, PlanOptions(springback=True, material=MATERIALS["steel"]))
     sectional = job.extra["sectional"]
     assert sectional["max_border_step_mm"] > BORDER_STEP_LIMIT_MM
     warned = sectional["warnings"]

@@ -15,6 +15,7 @@ from mppf.core.transform import apply_tf, invert_tf, make_tf
 from mppf.examples.analytic import cylinder_plate, hull_pose
 from mppf.model.material import MATERIALS
 from mppf.forming.springback import loaded_curvature
+from mppf.model.plan_options import PlanOptions
 from mppf.planning.contact import PlacedSurface, tip_heights
 from mppf.planning.sectional import BORDER_STEP_LIMIT_MM, plan_plate
 from plan_helpers import CylinderSurface, press  # noqa: F401 (fixture)
@@ -36,7 +37,7 @@ def _loaded_radius(radius_mm):
 def case(request, press):
     length, width, radius, counts = CASES[request.param]
     design, flat = cylinder_plate(length, width, radius, spacing_mm=100.0)
-    job = plan_plate(design, flat, press, T_MM, springback=True, material=STEEL)
+    job = plan_plate(design, flat, press, T_MM, PlanOptions(springback=True, material=STEEL))
     plain = plan_plate(design, flat, press, T_MM)
     return {"job": job, "plain": plain, "radius": radius, "loaded": _loaded_radius(radius), "counts": counts,
             "design": design, "flat": flat}
