@@ -1,6 +1,6 @@
 """The model plate fitted to the measured cycles: effective yield stress and hardening.
 
-Two numbers of the section (:class:`mppf.correct.section.Section`) are not known for the
+Two numbers of the bending law (:class:`mppf.correct.through_thickness.BendingLaw`) are not known for the
 plate in the press and are fitted to what the scanner measured: the effective yield stress
 (it carries the scatter of the yield stress and of the thickness, which act alike on
 springback) and the linear hardening (it sets how much of a small re-press stays). The fit
@@ -24,7 +24,7 @@ import numpy as np
 
 from mppf.correct.memory import loaded_curvatures, replay
 from mppf.correct.punch_grid import PunchGrid
-from mppf.correct.section import Section
+from mppf.correct.through_thickness import BendingLaw
 
 ABSOLUTE_WEIGHT = 0.3
 """Weight of each cycle's shape misfit against the cycle-to-cycle changes."""
@@ -46,11 +46,11 @@ HARDENING_BOUNDS_MPA = (0.0, 20000.0)
 
 @dataclass(frozen=True, eq=False)
 class Calibration:
-    """The fitted section and how well it describes the measured cycles.
+    """The fitted bending law and how well it describes the measured cycles.
 
     Attributes
     ----------
-    section : Section
+    law : BendingLaw
     misfit_mm : float
         RMS height misfit of the shapes of the measured cycles (model minus measurement).
     secant_misfit_mm : float
@@ -59,19 +59,19 @@ class Calibration:
         RMS measured change between consecutive cycles (NaN with one).
     """
 
-    section: Section
+    law: BendingLaw
     misfit_mm: float
     secant_misfit_mm: float = float("nan")
     change_mm: float = float("nan")
 
 
-def calibrate(grid: PunchGrid, nominal: Section, cycles, measured_kappa) -> Calibration:
+def calibrate(grid: PunchGrid, nominal: BendingLaw, cycles, measured_kappa) -> Calibration:
     """Fit the yield stress and hardening of ``nominal`` to the measured cycles.
 
     Parameters
     ----------
     grid : PunchGrid
-    nominal : Section
+    nominal : BendingLaw
         Thickness, elasticity and the nominal yield stress.
     cycles : list of PressedCycle
     measured_kappa : list of (n, 3) float or None
@@ -87,11 +87,11 @@ def calibrate(grid: PunchGrid, nominal: Section, cycles, measured_kappa) -> Cali
     sy0 = nominal.yield_stress_mpa
     h0, h_sd = HARDENING_PRIOR_MPA
 
-    def section(p) -> Section:
+    def law(p) -> BendingLaw:
         return replace(nominal, yield_stress_mpa=sy0 * p[0], hardening_mpa=h0 + h_sd * p[1])
 
     def parts(p):
-        model = replay(section(p), loaded, cycles).unloaded
+        model = replay(law(p), loaded, cycles).unloaded
         return _misfits(grid, model, measured_kappa)
 
     def residuals(p):
@@ -106,7 +106,7 @@ def calibrate(grid: PunchGrid, nominal: Section, cycles, measured_kappa) -> Cali
                         max_nfev=60)
     absolute, secant = parts(fit.x)
     change = _changes(grid, measured_kappa)
-    return Calibration(section(fit.x), _rms(absolute), _rms(secant) if secant.size else float("nan"),
+    return Calibration(law(fit.x), _rms(absolute), _rms(secant) if secant.size else float("nan"),
                        _rms(change) if change.size else float("nan"))
 
 

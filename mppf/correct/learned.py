@@ -2,7 +2,7 @@
 
 :func:`learned_correction` is the loop's correction as a short sequence of steps:
 
-1. the model plate (:mod:`mppf.correct.section`, one per punch) is pressed through every step
+1. the model plate (:mod:`mppf.correct.through_thickness`, one per punch) is pressed through every step
    the press did, in order (:func:`mppf.correct.memory.replay`), with the share of an
    interrupted step fitted to its scan;
 2. its yield stress and hardening are fitted to the measured cycles, above all to the
@@ -41,7 +41,7 @@ from mppf.correct.memory import PressedCycle, interrupted_share, loaded_curvatur
 from mppf.correct.punch_grid import PunchGrid
 from mppf.correct.secant import ModeGain
 from mppf.correct.solve import STALLED, solve_change
-from mppf.correct.section import Section
+from mppf.correct.through_thickness import BendingLaw
 from mppf.model.job_parts import StepStrokes
 from mppf.model.material import Material
 from mppf.model.press import PressConfig
@@ -141,14 +141,14 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
     design = np.where(grid.active, design_mid_mm, np.nan)
     # 1. what the scanner measured, as curvatures of the plate at the punches
     measured = [grid.curvature(design + c.error_mm) if c.measured else None for c in cycles]
-    section = Section(thickness_mm, nominal.youngs_modulus_mpa, nominal.poisson, nominal.yield_stress_mpa)
+    law = BendingLaw(thickness_mm, nominal.youngs_modulus_mpa, nominal.poisson, nominal.yield_stress_mpa)
     loaded = loaded_curvatures(grid, cycles)
-    cycles = interrupted_share(section, grid, loaded, cycles, measured)
+    cycles = interrupted_share(law, grid, loaded, cycles, measured)
     # 2. the model plate's yield stress and hardening from the measured cycles
-    calibration = calibrate(grid, section, cycles, measured)
-    section = calibration.section
-    cycles = interrupted_share(section, grid, loaded, [_unknown_share(c) for c in cycles], measured)
-    model = replay(section, loaded, cycles)
+    calibration = calibrate(grid, law, cycles, measured)
+    law = calibration.law
+    cycles = interrupted_share(law, grid, loaded, [_unknown_share(c) for c in cycles], measured)
+    model = replay(law, loaded, cycles)
     # 3. the plate's response against the model's, learned on every secant
     gain = _learn_response(grid, model, cycles)
     # 4. the change wanted of the plate, and what to ask of the model for it
@@ -160,18 +160,18 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
     # 5. the loaded curvature for it, through the model with its memory, in virtual cycles
     base_mid = 0.5 * (np.asarray(base_upper_mm, dtype=float) + np.asarray(base_lower_mm, dtype=float))
     reach = (MIN_REACH_ELASTIC_LIMITS + (REACH_ELASTIC_LIMITS - MIN_REACH_ELASTIC_LIMITS) * trust) \
-        * section.elastic_limit_per_mm
+        * law.elastic_limit_per_mm
     largest = _stroke_room(press)
-    change, misfit, unreached = solve_change(grid, section, model.states[-1], model.unloaded[-1], base_mid, request,
+    change, misfit, unreached = solve_change(grid, law, model.states[-1], model.unloaded[-1], base_mid, request,
                                              reach, largest)
     # 6. what the model cannot make (a local error it does not describe): the displacement adjustment
-    direct = trust * _direct_part(grid, section, model, base_mid, change, request, misfit)
+    direct = trust * _direct_part(grid, law, model, base_mid, change, request, misfit)
     # 7. the strokes, held to the limits, and the steps they need
-    return _strokes(press, grid, base_upper_mm, base_lower_mm, change + direct, error, gain, section, model,
+    return _strokes(press, grid, base_upper_mm, base_lower_mm, change + direct, error, gain, law, model,
                     calibration, unreached, aim, direct)
 
 
-def _direct_part(grid: PunchGrid, section: Section, model, base_mid, change, request, misfit: float) -> np.ndarray:
+def _direct_part(grid: PunchGrid, law: BendingLaw, model, base_mid, change, request, misfit: float) -> np.ndarray:
     """The displacement adjustment of what the model step leaves, when it leaves much (else 0).
 
     Where the model finds no stroke change that makes the plate change as wanted (a local
@@ -184,7 +184,7 @@ def _direct_part(grid: PunchGrid, section: Section, model, base_mid, change, req
     if misfit <= STALLED * float(np.sqrt(np.mean(wanted[act] ** 2))):
         return np.zeros(grid.shape)
     kappa = grid.curvature(np.where(act, base_mid + change, np.nan))
-    made = grid.heights(section.press(kappa, model.states[-1])[0] - model.unloaded[-1])
+    made = grid.heights(law.press(kappa, model.states[-1])[0] - model.unloaded[-1])
     return np.where(act, DIRECT_GAIN * (wanted - np.where(act, made, 0.0)), 0.0)
 
 
@@ -213,7 +213,7 @@ def _learn_response(grid: PunchGrid, model, cycles) -> ModeGain:
     return gain
 
 
-def _strokes(press, grid, base_upper, base_lower, change, error, gain, section, model, calibration, unreached, aim,
+def _strokes(press, grid, base_upper, base_lower, change, error, gain, law, model, calibration, unreached, aim,
              direct):
     """The corrected strokes within the stroke limits, their steps and the expected deviation."""
     act = grid.active
@@ -226,10 +226,10 @@ def _strokes(press, grid, base_upper, base_lower, change, error, gain, section, 
     upper, lower, change = upper + shift, lower + shift, np.where(act, change + shift, 0.0)
     n_steps = max(1, int(np.ceil(largest_neighbour_difference(change, act) / press.max_neighbour_diff_mm - 1e-9)))
     kappa = grid.curvature(0.5 * (upper + lower))
-    made = grid.heights(section.press(kappa, model.states[-1])[0] - model.unloaded[-1])
+    made = grid.heights(law.press(kappa, model.states[-1])[0] - model.unloaded[-1])
     predicted = np.where(act, error + gain.plate_response(made) + direct, np.nan)
     notes = [f"plate model calibrated on {sum(1 for k in model.unloaded)} cycle(s): effective yield stress "
-             f"{section.yield_stress_mpa:.0f} MPa, hardening {section.hardening_mpa:.0f} MPa; shape misfit "
+             f"{law.yield_stress_mpa:.0f} MPa, hardening {law.hardening_mpa:.0f} MPa; shape misfit "
              f"{calibration.misfit_mm:.2f} mm RMS", f"aim {aim:.0%} of the way; learned response "
              f"{', '.join(f'{g:.2f}' for g in gain.gains[:3])} ({gain.updates} secant(s))"]
     if np.any(direct != 0.0):

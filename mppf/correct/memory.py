@@ -2,7 +2,7 @@
 
 :class:`PressedCycle` is one cycle as the press did it (the tips read back after each step it
 completed; a step interrupted during its motion last, its share of the way unknown) and as
-the scanner measured it. :func:`replay` presses the model section (:mod:`mppf.correct.section`)
+the scanner measured it. :func:`replay` presses the model's bending law (:mod:`mppf.correct.through_thickness`)
 at every punch through the same steps in the same order, so the model plate carries the
 same plastic memory as the real one: what it was bent to, where it yielded, where it would
 yield again.
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mppf.correct.punch_grid import PunchGrid
-from mppf.correct.section import Section, SectionState
+from mppf.correct.through_thickness import BendingLaw, BendingState
 
 SHARES = np.linspace(0.1, 1.0, 10)
 """Shares of its way an interrupted step may have gone, tried by :func:`interrupted_share`."""
@@ -65,25 +65,25 @@ def loaded_curvatures(grid: PunchGrid, cycles) -> list[list[np.ndarray]]:
     return [[grid.curvature(mid) for mid in c.steps_mid_mm] for c in cycles]
 
 
-def replay(section: Section, loaded, cycles) -> Replay:
+def replay(law: BendingLaw, loaded, cycles) -> Replay:
     """The model plate pressed through every step of every cycle, from flat and stress free.
 
     Parameters
     ----------
-    section : Section
+    law : BendingLaw
     loaded : list of list of (n, 3) float
         :func:`loaded_curvatures` of the cycles.
     cycles : list of PressedCycle
         For the shares of interrupted steps (an unknown share counts as the whole way).
     """
     n = loaded[0][0].shape[0]
-    state, unloaded, last = SectionState.virgin(n), np.zeros((n, 3)), np.zeros((n, 3))
+    state, unloaded, last = BendingState.virgin(n), np.zeros((n, 3)), np.zeros((n, 3))
     out = Replay([], [], [])
     for steps, cycle in zip(loaded, cycles):
         for index, kappa in enumerate(steps):
             if cycle.interrupted and index == len(steps) - 1 and cycle.share is not None:
                 kappa = last + cycle.share * (kappa - last)  # stopped on its way
-            unloaded, state = section.press(kappa, state)
+            unloaded, state = law.press(kappa, state)
             last = kappa
         out.unloaded.append(unloaded)
         out.states.append(state)
@@ -91,7 +91,7 @@ def replay(section: Section, loaded, cycles) -> Replay:
     return out
 
 
-def interrupted_share(section: Section, grid: PunchGrid, loaded, cycles, measured_kappa) -> list:
+def interrupted_share(law: BendingLaw, grid: PunchGrid, loaded, cycles, measured_kappa) -> list:
     """The cycles with the share of each interrupted step fitted to its scan (or 1: the whole way).
 
     The share is the one of :data:`SHARES` whose model plate is nearest the measured one
@@ -107,7 +107,7 @@ def interrupted_share(section: Section, grid: PunchGrid, loaded, cycles, measure
         costs = []
         for share in SHARES:
             trial = out[: k] + [_with_share(cycle, float(share))]
-            unloaded = replay(section, loaded[: k + 1], trial).unloaded[-1]
+            unloaded = replay(law, loaded[: k + 1], trial).unloaded[-1]
             costs.append(float(np.sum(np.nan_to_num(grid.heights(unloaded - measured_kappa[k])) ** 2)))
         out[k] = _with_share(cycle, float(SHARES[int(np.argmin(costs))]))
     return out

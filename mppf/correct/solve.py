@@ -4,11 +4,11 @@ The model's change for a stroke change ``dh`` at the active punches is
 
     made(dh) = H (F(C (h + dh) | state) - F(C h0 | state)),
 
-``C`` the loaded curvature of the strokes, ``F`` the section's press map at every punch
-from its plastic state (:meth:`mppf.correct.section.Section.press`), ``H`` the heights of a
+``C`` the loaded curvature of the strokes, ``F`` the bending law's press map at every punch
+from its plastic state (:meth:`mppf.correct.through_thickness.BendingLaw.press`), ``H`` the heights of a
 curvature field (:class:`mppf.correct.punch_grid.PunchGrid`). :func:`solve_change` minimises
 ``|made(dh) - request|^2 + (alpha |C dh|)^2`` by Levenberg-Marquardt with the Jacobian
-``H G C`` (``G`` the section's tangent at every punch, by finite differences). The map is
+``H G C`` (``G`` the bending law's tangent at every punch, by finite differences). The map is
 flat where a change stays elastic, so a Newton step from there can stall short of a
 reverse bend or of a curvature added across a bend; the search therefore also starts
 from the point-by-point inversion (:func:`mppf.correct.invert.invert`, which crosses the
@@ -21,7 +21,7 @@ import numpy as np
 
 from mppf.correct.invert import invert
 from mppf.correct.punch_grid import PunchGrid
-from mppf.correct.section import Section, SectionState
+from mppf.correct.through_thickness import BendingLaw, BendingState
 
 VIRTUAL_CYCLES = 4
 """Most virtual cycles on the model."""
@@ -36,22 +36,22 @@ STALLED = 0.5
 """The virtual cycles stalled when they leave more than this share of the request (RMS)."""
 
 FD_STEP_PER_MM = 2e-6
-"""Central-difference step of the section tangent (1/mm): the map has kinks where a point starts or
+"""Central-difference step of the bending law's tangent (1/mm): the map has kinks where a point starts or
 stops yielding, so its tangent is taken as the mean slope over a small change."""
 
 SMOOTHING = 0.05
 """Weight ``alpha`` (mm per 1/mm of curvature, scaled by the pitch squared) of the curvature of the change."""
 
 
-def solve_change(grid: PunchGrid, section: Section, state: SectionState, unloaded, base_mid_mm, request_mm,
+def solve_change(grid: PunchGrid, law: BendingLaw, state: BendingState, unloaded, base_mid_mm, request_mm,
                  reach_per_mm: float, largest_mm: float):
     """Stroke change (rows, cols) that makes the model change by ``request_mm`` (rows, cols).
 
     Parameters
     ----------
     grid : PunchGrid
-    section : Section
-    state : SectionState
+    law : BendingLaw
+    state : BendingState
         The model plate's state now (after its last press).
     unloaded : (n, 3) float
         Its unloaded curvature now.
@@ -75,7 +75,7 @@ def solve_change(grid: PunchGrid, section: Section, state: SectionState, unloade
     """
     base = grid.active_values(base_mid_mm)
     request = grid.active_values(request_mm)
-    model = _Model(grid, section, state, unloaded, base)
+    model = _Model(grid, law, state, unloaded, base)
     dh, unreached = np.zeros_like(base), np.zeros(len(base), dtype=bool)
     best = (_misfit(model, request, dh), dh, unreached)
     for _ in range(VIRTUAL_CYCLES):
@@ -85,7 +85,7 @@ def solve_change(grid: PunchGrid, section: Section, state: SectionState, unloade
         remaining = request - np.einsum("ipc,pc->i", model.h3, pressed - model.unloaded)
         # the loaded curvature that gives the rest, point by point (held to the trust region), as strokes
         target = pressed + grid.curvature(grid.to_field(remaining))
-        new, reached = invert(section, state, kappa, pressed, target, reach_per_mm)
+        new, reached = invert(law, state, kappa, pressed, target, reach_per_mm)
         step = grid.heights_matrix @ (new - kappa).ravel()
         # the longest share of that step that helps (a step that integrates badly overshoots somewhere)
         trial = next(((m, d) for m, d in ((_misfit(model, request, d), d) for d in
@@ -105,8 +105,8 @@ def solve_change(grid: PunchGrid, section: Section, state: SectionState, unloade
 class _Model:
     """The model plate's change at the active punches for a stroke change, and its Jacobian."""
 
-    def __init__(self, grid, section, state, unloaded, base):
-        self.grid, self.section = grid, section
+    def __init__(self, grid, law, state, unloaded, base):
+        self.grid, self.law = grid, law
         self.state = state
         self.unloaded = np.asarray(unloaded, dtype=float).reshape(-1, 3)
         self.base = base
@@ -117,7 +117,7 @@ class _Model:
         return (self.grid.stroke_curvature @ (self.base + dh)).reshape(-1, 3)
 
     def press(self, kappa):
-        return self.section.press(kappa, self.state)
+        return self.law.press(kappa, self.state)
 
     def made(self, dh) -> np.ndarray:
         kappa_f, _ = self.press(self.kappa(dh))

@@ -1,7 +1,7 @@
 """The learned correction against a plate it does not know: another yield stress and hardening, plastic
 memory from cycle to cycle, an interrupted cycle; and the next cycle's steps within the dimpling limit.
 
-The "true" plate here is the correction's own section law with parameters the correction is not
+The "true" plate here is the correction's own bending law with parameters the correction is not
 given (fast: no plate solve); the full steel plate is exercised by benchmarks/bench_loop.py.
 """
 
@@ -14,13 +14,13 @@ from mppf.core.grid import largest_neighbour_difference
 from mppf.correct.learned import learned_correction, steps_towards
 from mppf.correct.memory import PressedCycle, loaded_curvatures, replay
 from mppf.correct.punch_grid import PunchGrid
-from mppf.correct.section import Section
+from mppf.correct.through_thickness import BendingLaw
 from mppf.model.material import Material
 from mppf.model.press import example_press_path, load_press
 
 T = 20.0
 NOMINAL = Material()  # 235 MPa, what the correction is told
-TRUE = Section(T, NOMINAL.youngs_modulus_mpa, NOMINAL.poisson, 275.0, 2500.0)  # what the plate is
+TRUE = BendingLaw(T, NOMINAL.youngs_modulus_mpa, NOMINAL.poisson, 275.0, 2500.0)  # what the plate is
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""The correction's plate section: biaxial elastic-plastic bending with memory, point by point.
+"""The correction's through-thickness model: biaxial elastic-plastic bending with memory, point by point.
 
 A point of the plate is bent to the loaded curvature ``k = (k_xx, k_yy, 2 k_xy)`` (1/mm,
 the Hessian of the mid-surface height in press x, y with the twist doubled) and released.
@@ -14,7 +14,7 @@ release is elastic::
 This is the textbook moment-curvature law of a plate, biaxial: the two curvatures interact
 through Poisson's ratio and the yield criterion (a plate held flat across a bend springs
 back with an anticlastic curvature; a curvature added across a yielding bend springs back
-elastically until the section yields again), and it keeps the plastic strains, so pressing
+elastically until the layers yield again), and it keeps the plastic strains, so pressing
 less than before changes nothing and un-bending needs reverse bending (plastic memory).
 It is the model the correction learns with (:mod:`mppf.correct.learned`); its yield stress and
 hardening are fitted to the measured cycles (:mod:`mppf.correct.calibrate`), never given.
@@ -40,25 +40,25 @@ _YIELD_EIGEN = np.array([0.5, 1.5, 3.0])
 
 
 @dataclass(frozen=True, eq=False)
-class SectionState:
+class BendingState:
     """The plastic state of n points: strain (n, layers, 3) (engineering shear) and alpha (n, layers)."""
 
     plastic_strain: np.ndarray
     alpha: np.ndarray
 
     @classmethod
-    def virgin(cls, n: int) -> SectionState:
+    def virgin(cls, n: int) -> BendingState:
         """n points that never yielded."""
         return cls(np.zeros((n, LAYERS, 3)), np.zeros((n, LAYERS)))
 
-    def take(self, index) -> SectionState:
+    def take(self, index) -> BendingState:
         """The state of some points."""
-        return SectionState(self.plastic_strain[index], self.alpha[index])
+        return BendingState(self.plastic_strain[index], self.alpha[index])
 
 
 @dataclass(frozen=True)
-class Section:
-    """The section law of one plate.
+class BendingLaw:
+    """The through-thickness bending law of one plate.
 
     Attributes
     ----------
@@ -83,7 +83,7 @@ class Section:
         return 2.0 * (2.0 / np.sqrt(3.0)) * self.yield_stress_mpa * (1 - nu * nu) / (self.youngs_modulus_mpa
                                                                                   * self.thickness_mm)
 
-    def moment(self, kappa, state: SectionState) -> tuple[np.ndarray, SectionState]:
+    def moment(self, kappa, state: BendingState) -> tuple[np.ndarray, BendingState]:
         """Moments (n, 3) N mm/mm at loaded curvatures ``kappa`` (n, 3), and the new plastic state."""
         t, stiff = self.thickness_mm, self._stiffness()
         z = _XI * t / 2.0
@@ -95,7 +95,7 @@ class Section:
         dg[yielding] = self._return(trial[yielding], flow0[yielding], stiff)  # the elastic layers keep dg = 0
         stress = trial / (1.0 + dg[..., None] * _YIELD_EIGEN * stiff)
         sbar = np.sqrt(np.sum(_YIELD_EIGEN * stress**2, axis=-1))
-        new = SectionState(state.plastic_strain + _from_eigen(dg[..., None] * _YIELD_EIGEN * stress),
+        new = BendingState(state.plastic_strain + _from_eigen(dg[..., None] * _YIELD_EIGEN * stress),
                            state.alpha + dg * sbar)
         moment = (t * t / 2.0) * np.sum((_WEIGHT * _XI)[None, :, None] * _from_eigen(stress), axis=1)
         return moment, new
@@ -125,7 +125,7 @@ class Section:
                 break
         return dg
 
-    def press(self, kappa, state: SectionState) -> tuple[np.ndarray, SectionState]:
+    def press(self, kappa, state: BendingState) -> tuple[np.ndarray, BendingState]:
         """Bend to ``kappa`` (n, 3) and release: the unloaded curvatures (n, 3) and the new state."""
         kappa = np.asarray(kappa, dtype=float)
         moment, new = self.moment(kappa, state)
