@@ -31,8 +31,10 @@ Two ways to run a plate:
 Resumable parts: every finished run is written at once to ``--results`` (JSON, keyed by
 physics, plate, seed, mode and max cycles); a later call with the same file skips what is
 there. ``--budget-s`` (default 540) stops starting new runs after that long, so each part
-ends within 10 minutes: a run is not started when the longest finished run of its physics and mode
-in the file would end past the budget. Call again to go on. A run that fails (an exception, the FE
+ends within about 10 minutes: no cycle is started that is expected to end past the budget (its run's
+last cycle times ``CYCLE_GROWTH``, or the longest first cycle of its physics in the file); a direct-mode
+run that is not finished is pickled to ``--checkpoints`` and goes on from its next cycle in the next
+call (an FE run takes 10-40 minutes). Call again to go on. A run that fails (an exception, the FE
 solver not converging) is kept as failed with its reason and the cycles it measured (decision
 ``error``); it is not run again. ``--table`` prints the tables of the file only.
 
@@ -47,10 +49,11 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import pickle
 import sys
 import tempfile
 import time
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -163,7 +166,25 @@ def cycle_ended(row: dict, cycle: int, max_cycles: int, form_max_mm: float, rms_
 def new_row() -> dict:
     """An empty run: per cycle form max, RMS and decision (mm); filled while the run goes, kept if it fails."""
     return {"max": [], "rms": [], "decisions": [], "ok_at": None, "verdict": None, "share": [],
-            "punch_rms": [], "promised_rms": [], "stroke_change_rms": []}
+            "punch_rms": [], "promised_rms": [], "stroke_change_rms": [], "cycle_s": []}
+
+
+@dataclass(eq=False)
+class DirectRun:
+    """A direct-mode run between two cycles: the plate, the next cycle's steps and what was measured.
+
+    Pickled to a checkpoint file when a part's time is up, so that a run longer than a part goes
+    on in the next part (the FE plate's runs take 10-40 minutes).
+    """
+
+    plate: object
+    steps: list
+    final: object
+    row: dict
+    cycles: list = field(default_factory=list)
+    outcomes: list = field(default_factory=list)
+    strokes: list = field(default_factory=list)
+    promised: object = None
 
 
 def run_direct(press, planned: Planned, plate, max_cycles: int, policy: bool = True, row: dict | None = None) -> dict:
@@ -171,48 +192,66 @@ def run_direct(press, planned: Planned, plate, max_cycles: int, policy: bool = T
 
     ``policy=False``: without the step policy (every step at scale 1 from the last strokes), to measure what it
     does. ``row`` (:func:`new_row`) is filled cycle by cycle, so a run that fails keeps the cycles it measured.
-    Besides form max and RMS the row keeps, per cycle, the RMS deviation at the punches (``punch_rms``), per
-    correction the RMS deviation it promised there (``promised_rms``), the RMS change of the final step's mid
-    strokes it asked (``stroke_change_rms``, mm) and, at the end, the plate's measured response to each correction
-    (``response`` inside the outer punches, ``edge_response`` at them: measured over promised change,
-    :func:`mppf.correct.policy.step_plan`).
     """
-    job = planned.job
-    final = job.steps[-1]
-    active = final.active
-    steps, cycles, outcomes, strokes = job.steps, [], [], []
-    row = new_row() if row is None else row
-    promised = None
+    run = DirectRun(plate, planned.job.steps, planned.job.steps[-1], new_row() if row is None else row)
+    return continue_direct(press, planned, run, max_cycles, policy)
+
+
+def continue_direct(press, planned: Planned, run: DirectRun, max_cycles: int, policy: bool = True,
+                    pause=None) -> dict | None:
+    """Press, measure and correct ``run`` from its next cycle on; the row, or None when ``pause`` stopped it.
+
+    ``pause(run) -> bool`` is asked before every cycle; True stops the run there (the caller keeps ``run``).
+    Besides form max and RMS the row keeps, per cycle, the RMS deviation at the punches (``punch_rms``, mm) and
+    the wall time (``cycle_s``, s), per correction the RMS deviation it promised there (``promised_rms``), the
+    RMS change of the final step's mid strokes it asked (``stroke_change_rms``, mm) and the plate's measured
+    response to each correction (``response`` inside the outer punches, ``edge_response`` at them: measured
+    over promised change, :func:`mppf.correct.policy.step_plan`).
+    """
+    job, row = planned.job, run.row
+    active = job.steps[-1].active
     tolerances = Tolerances(TOL_MM, RMS_TOL_MM)
-    for cycle in range(1, max_cycles + 1):
-        for s in steps:  # press the cycle's steps, measure the plate
+    for cycle in range(len(row["max"]) + 1, max_cycles + 1):
+        if pause is not None and pause(run):
+            return None
+        t0 = time.monotonic()
+        for s in run.steps:  # press the cycle's steps, measure the plate
             upper, lower = s.setpoints_mm(press)
-            plate.press_step(upper, lower, s.active)
-        form_max, rms, punch, edge = true_deviation(press, plate.formed, planned, active)
+            run.plate.press_step(upper, lower, s.active)
+        form_max, rms, punch, edge = true_deviation(press, run.plate.formed, planned, active)
         row["max"].append(form_max), row["rms"].append(rms)
         row["punch_rms"].append(round(float(np.sqrt(np.nanmean(np.where(active, punch, np.nan) ** 2))), 3))
-        cycles.append(PressedCycle([np.where(s.active, 0.5 * (s.upper_mm + s.lower_mm), np.nan) for s in steps], punch))
-        outcomes.append(outcome(form_max, rms, punch, promised))
-        strokes.append((final.upper_mm, final.lower_mm))
-        if cycle_ended(row, cycle, max_cycles, form_max, rms):
+        run.cycles.append(PressedCycle([np.where(s.active, 0.5 * (s.upper_mm + s.lower_mm), np.nan)
+                                        for s in run.steps], punch))
+        run.outcomes.append(outcome(form_max, rms, punch, run.promised))
+        run.strokes.append((run.final.upper_mm, run.final.lower_mm))
+        row["response"], row["edge_response"] = _responses(run.outcomes, active)
+        ended = cycle_ended(row, cycle, max_cycles, form_max, rms) or _correct(press, job, run, edge, tolerances, policy)
+        row["cycle_s"].append(round(time.monotonic() - t0, 1))
+        if ended:
             break
-        row["response"], row["edge_response"] = _responses(outcomes, active)
-        step = correct_step(press, job.layout.design_mid_mm, THICKNESS_MM, NOMINAL, cycles, outcomes, strokes,
-                            active, edge, tolerances, policy=policy)
-        row["share"].append(round(step.plan.share, 3))
-        if step.verdict is not None:
-            row["decisions"].append("cannot_converge")
-            row["verdict"] = step.verdict.text
-            break
-        row["decisions"].append("continue")
-        promised = step.learned.predicted_mm
-        row["promised_rms"].append(round(float(np.sqrt(np.nanmean(np.where(active, promised, np.nan) ** 2))), 3))
-        steps = steps_towards(press, steps[-1].setpoints_mm(press), step.learned, active)
-        change = 0.5 * (steps[-1].upper_mm + steps[-1].lower_mm - final.upper_mm - final.lower_mm)
-        row["stroke_change_rms"].append(round(float(np.sqrt(np.nanmean(change[active] ** 2))), 2))
-        final = steps[-1]
-    row["response"], row["edge_response"] = _responses(outcomes, active)
     return row
+
+
+def _correct(press, job, run: DirectRun, edge_mm, tolerances: Tolerances, policy: bool) -> bool:
+    """The correction after a measured cycle, into ``run``'s next steps; True when its verdict ends the run."""
+    row, active = run.row, job.steps[-1].active
+    step = correct_step(press, job.layout.design_mid_mm, THICKNESS_MM, NOMINAL, run.cycles, run.outcomes,
+                        run.strokes, active, edge_mm, tolerances, policy=policy)
+    row["share"].append(round(step.plan.share, 3))
+    if step.verdict is not None:
+        row["decisions"].append("cannot_converge")
+        row["verdict"] = step.verdict.text
+        return True
+    row["decisions"].append("continue")
+    run.promised = step.learned.predicted_mm
+    row["promised_rms"].append(round(float(np.sqrt(np.nanmean(np.where(active, run.promised, np.nan) ** 2))), 3))
+    run.steps = steps_towards(press, run.steps[-1].setpoints_mm(press), step.learned, active)
+    new = run.steps[-1]
+    change = 0.5 * (new.upper_mm + new.lower_mm - run.final.upper_mm - run.final.lower_mm)
+    row["stroke_change_rms"].append(round(float(np.sqrt(np.nanmean(change[active] ** 2))), 2))
+    run.final = new
+    return False
 
 
 def _responses(outcomes, active) -> tuple[list, list]:
@@ -308,10 +347,15 @@ def save_results(path: Path, results: dict) -> None:
     os.replace(tmp, path)
 
 
-def longest_run_s(results: dict, physics: str, mode: str) -> float:
-    """Wall time of the longest finished run of ``physics`` in ``mode`` in ``results`` (s; 0 if none)."""
-    times = [row.get("seconds", 0.0) for key, row in results.items()
-             if key.split("|")[0] == physics and key.split("|")[3] == mode]
+CYCLE_GROWTH = 1.4
+"""The next cycle of a run is expected to take up to this many times its last one (the FE plate replays every
+earlier press step: its n-th step costs about n single steps)."""
+
+
+def first_cycle_s(results: dict, physics: str, mode: str) -> float:
+    """Wall time of the longest first cycle of ``physics`` in ``mode`` in ``results`` (s; 0 if none)."""
+    times = [row["cycle_s"][0] for key, row in results.items()
+             if key.split("|")[0] == physics and key.split("|")[3] == mode and row.get("cycle_s")]
     return float(max(times, default=0.0))
 
 
@@ -327,36 +371,63 @@ def run_part(args, results: dict, path: Path) -> bool:
         except ImportError:
             print("note: mppf.sim.fe is not there: the 'fe' physics is left out", flush=True)
             todo = [t for t in todo if t[0] != "fe"]
-    started = time.monotonic()
+    deadline, part = time.monotonic() + args.budget_s, {"asked": 0}
+    checkpoints = args.checkpoints or Path(tempfile.gettempdir()) / f"bench-loop-{path.stem}"
     with tempfile.TemporaryDirectory(prefix="bench-loop-") as tmp:
         work, planned = Path(tmp), {}
         for physics, name, seed in todo:
-            expected_s = longest_run_s(results, physics, args.mode)
-            if time.monotonic() - started + expected_s > args.budget_s:
-                print(f"budget of {args.budget_s:.0f} s: the next run (up to {expected_s:.0f} s) would end past it; "
-                      "call again with the same --results to go on")
-                return False
-            t0 = time.monotonic()
-            row = new_row()
+            key = f"{physics}|{name}|{seed}|{args.mode}|{args.max_cycles}"
+            t0, ckpt = time.monotonic(), checkpoints / (key.replace("|", "_").replace(":", "-") + ".pickle")
+            run, row = None, new_row()
             try:
                 if name not in planned:
                     planned[name] = Planned(press, name, work, args.yield_uncertainty)
-                p = planned[name]
                 if args.mode == "loop":
-                    row = run_loop_mode(press, p, seed, args.max_cycles, args.true_yield, work, physics)
+                    row = run_loop_mode(press, planned[name], seed, args.max_cycles, args.true_yield, work, physics)
                 else:
-                    plate = direct_plate(press, p, physics, seed, args.true_yield)
-                    run_direct(press, p, plate, args.max_cycles, not args.no_policy, row)
+                    run = (pickle.loads(ckpt.read_bytes()) if ckpt.exists() else
+                           DirectRun(direct_plate(press, planned[name], physics, seed, args.true_yield),
+                                     planned[name].job.steps, planned[name].job.steps[-1], row))
+                    row = run.row
+                    pause = _pauser(deadline, first_cycle_s(results, physics, args.mode), ckpt, (t0, part))
+                    if continue_direct(press, planned[name], run, args.max_cycles, not args.no_policy, pause) is None:
+                        print(f"budget of {args.budget_s:.0f} s: {key} paused after cycle {len(row['max'])} "
+                              f"(kept in {ckpt}); call again with the same --results to go on", flush=True)
+                        return False
             except Exception as exc:  # noqa: BLE001 - a failed run is kept as failed with its reason, never dropped
                 text = exc.message if isinstance(exc, MppfError) else str(exc)
                 row["decisions"].append("error")
                 row["ok_at"], row["verdict"] = None, f"{type(exc).__name__}: {text[:300]}"
-            row["seconds"] = round(time.monotonic() - t0, 1)
-            results[f"{physics}|{name}|{seed}|{args.mode}|{args.max_cycles}"] = row
+            row["seconds"] = round(row.get("seconds", 0.0) + time.monotonic() - t0, 1)
+            results[key] = row
             save_results(path, results)
+            ckpt.unlink(missing_ok=True)
             print(f"[{physics}] {name} seed {seed}: ok at {row['ok_at']} max {series_text(row['max'])} "
                   f"rms {series_text(row['rms'])} ({row['seconds']:.0f} s)", flush=True)
     return True
+
+
+def _pauser(deadline: float, first_s: float, ckpt: Path, started):
+    """``pause(run)`` for :func:`continue_direct`: True (the run pickled to ``ckpt``) when its next cycle
+    (:data:`CYCLE_GROWTH` times its last one, or ``first_s`` for a first cycle) would end past ``deadline``.
+
+    ``started`` is (when the run started in this part, {"asked": cycles asked so far in the part}): the part's
+    first cycle is always pressed, so that every part goes on."""
+    t0, part = started
+
+    def pause(run: DirectRun) -> bool:
+        cycle_s = run.row["cycle_s"]
+        expected_s = CYCLE_GROWTH * cycle_s[-1] if cycle_s else first_s
+        part["asked"] += 1
+        if part["asked"] == 1 or time.monotonic() + expected_s <= deadline:
+            return False
+        run.row["seconds"] = round(run.row.get("seconds", 0.0) + time.monotonic() - t0, 1)
+        ckpt.parent.mkdir(parents=True, exist_ok=True)
+        tmp = ckpt.with_suffix(".tmp")
+        tmp.write_bytes(pickle.dumps(run))
+        os.replace(tmp, ckpt)
+        return True
+    return pause
 
 
 def main(argv=None) -> int:
@@ -371,7 +442,11 @@ def main(argv=None) -> int:
     parser.add_argument("--mode", choices=("direct", "loop"), default="direct")
     parser.add_argument("--results", type=Path, default=Path("bench_loop_results.json"),
                         help="JSON file the runs are kept in (resumed from)")
-    parser.add_argument("--budget-s", type=float, default=540.0, help="start no new run after this long (s)")
+    parser.add_argument("--budget-s", type=float, default=540.0,
+                        help="end the part within about this long (s): a cycle expected to end past it is not "
+                             "started; a direct-mode run is paused to a checkpoint and goes on in the next call")
+    parser.add_argument("--checkpoints", type=Path, default=None,
+                        help="folder of the paused runs (default: <tmp>/bench-loop-<results name>)")
     parser.add_argument("--no-policy", action="store_true",
                         help="direct mode: every correction at full size from the last strokes (the step policy off)")
     parser.add_argument("--table", action="store_true", help="only print the tables of --results")
