@@ -1,11 +1,11 @@
-"""Closed-form check of the FE plate's section: a wide plate bent to a cylinder and released.
+"""Closed-form check of the FE plate through its thickness: a wide plate bent to a cylinder and released.
 
 A strip of the plate (length ``length_mm`` along x, one element wide, ``layers`` C3D8I through the
 thickness, the material of :func:`mppf.sim.fe.deck.model_lines`) is bent to a uniform curvature
 ``kappa`` by rotating its end face (x = L: u_x = -kappa L (z - t/2), x = 0 held by symmetry),
 ``wide=True`` holding u_y = 0 everywhere (plane strain: the middle of a wide plate), then released
 (the end face free). The residual curvature is read from the end face's rotation. Small
-displacements (no NLGEOM): the check is of the section (integration through the thickness, the
+displacements (no NLGEOM): the check is of the through-thickness law (integration through the thickness, the
 plastic flow and the elastic unloading), the closed form of docs/simulator-fe.md.
 """
 
@@ -60,7 +60,7 @@ def residual_curvature(steel, thickness_mm: float, kappa_per_mm: float, **option
 
 
 def moment_curvature_residual(steel, thickness_mm: float, kappa_per_mm: float, *, wide: bool = True) -> float:
-    """Closed-form residual curvature of an elastic-perfectly-plastic section, 1/mm.
+    """Closed-form residual curvature of an elastic-perfectly-plastic plate, 1/mm.
 
     ``M(kappa) = M_p (1 - (kappa_e / kappa)^2 / 3)`` for ``kappa > kappa_e``, elastic below;
     unloading is elastic: ``kappa_r = kappa - M / (E' I)``. Wide plate (plane strain):

@@ -35,7 +35,7 @@ CELLS_PER_PITCH = 1
 """Default element edges between neighbouring punch axes (docs/simulator-fe.md, mesh study)."""
 
 LAYERS = 4
-"""Default C3D8I elements through the thickness (8 integration points: the section law within 0.5 %)."""
+"""Default C3D8I elements through the thickness (8 integration points: the through-thickness law within 0.5 %)."""
 
 SMALLEST_STIFFNESS_N_MM = 1e4
 """Ball stiffness used for a rigid press (``punch_mm_per_kn`` 0)."""

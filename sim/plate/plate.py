@@ -32,7 +32,7 @@ from mppf.sim.plate.material import PlateSteel
 from mppf.sim.plate.mismatch import edge_field
 from mppf.sim.plate.predict import ContactPredictor
 from mppf.sim.plate.scatter import PhysicalPlate, Scatter, sample_plate
-from mppf.sim.plate.section import LAYERS, LayerLaw, SectionState
+from mppf.sim.plate.through_thickness import LAYERS, LayerLaw, LayerState
 from mppf.sim.plate.solve import PlateModel, PlateSolveError, solve_loaded, solve_unloaded
 
 GRID_SPACING_MM = 50.0
@@ -154,7 +154,7 @@ class SteelPlate:
         m = self.punches.count
         self.q = np.full(self.grid.n_dof, 0.5 * plate.thickness_mm)
         self.loaded_q = self.q.copy()
-        self.state = SectionState.virgin(len(self.grid.gauss_uv), self.options["layers"])
+        self.state = LayerState.virgin(len(self.grid.gauss_uv), self.options["layers"])
         self.force_n = np.zeros(2 * m)
         self.frame_mm = np.zeros(2)
         self.tips_lower_mm = np.zeros(m)
@@ -371,7 +371,7 @@ class SteelPlate:
             restored[name] = value
         for name in STATE_ARRAYS:
             setattr(self, name, restored[name])
-        self.state = SectionState(restored["plastic_strain"], restored["alpha"])
+        self.state = LayerState(restored["plastic_strain"], restored["alpha"])
         self.steps = int(np.asarray(state["steps"]))
         if "response_ref_q" in state:
             self.response_ref_q = np.array(state["response_ref_q"], dtype=float)

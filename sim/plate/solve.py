@@ -32,7 +32,7 @@ import numpy as np
 from mppf.core.errors import MppfError
 from mppf.sim.plate.grid import band_solver
 from mppf.sim.plate.material import GRAVITY_MM_S2
-from mppf.sim.plate.section import SectionState, section_response
+from mppf.sim.plate.through_thickness import LayerState, layered_response
 
 MAX_ITERATIONS = 40
 """Most Newton iterations of one equilibrium."""
@@ -63,7 +63,7 @@ class Equilibrium:
     ----------
     q : (n_dof,) float
         The plate's unknowns (B-spline coefficients of the mid-surface), mm.
-    state : SectionState
+    state : LayerState
         Plastic state at that shape.
     force_n : (2 m,) float
         Contact forces of the lower, then the upper constraints, N (zero when unloaded).
@@ -76,7 +76,7 @@ class Equilibrium:
     """
 
     q: np.ndarray
-    state: SectionState
+    state: LayerState
     force_n: np.ndarray
     frame_mm: np.ndarray
     iterations: int
@@ -103,7 +103,7 @@ class PlateModel:
         pressure_mpa = plate.steel.density_kg_mm3 * GRAVITY_MM_S2 * 1e-3 * self.thickness_mm
         self.weight_n = -grid.assemble_vector((grid.gauss_weight_mm2 * pressure_mpa)[:, None] * grid.value)
         self.all_cells = np.arange(len(grid.cell_dof))
-        _, tangent0, _ = self.response(np.zeros(grid.n_dof), SectionState.virgin(len(uv), len(law.xi)))
+        _, tangent0, _ = self.response(np.zeros(grid.n_dof), LayerState.virgin(len(uv), len(law.xi)))
         self.elastic_band = self.stiffness_band(tangent0)
         mass = grid.mass_band()
         self.stiffness_scale = float(np.mean(self.elastic_band[0]))
@@ -116,29 +116,29 @@ class PlateModel:
         self.cells2 = np.concatenate([punches.cell, punches.cell])
         self.newton_slots = grid.band_slots(self.all_cells, self.cells2, punches.cell)
 
-    def response(self, q, state: SectionState, hint: SectionState | None = None):
-        """Internal force (n_dof,) N, section tangent (SectionTangent) and trial state at ``q``.
+    def response(self, q, state: LayerState, hint: LayerState | None = None):
+        """Internal force (n_dof,) N, through-thickness tangent (LayeredTangent) and trial state at ``q``.
 
         ``hint`` is a nearby trial state (the previous Newton iterate's) that speeds up the
         return mapping.
         """
         grid = self.grid
-        moment, tangent, trial = section_response(self.law, grid.curvatures(q), state, self.thickness_mm,
+        moment, tangent, trial = layered_response(self.law, grid.curvatures(q), state, self.thickness_mm,
                                                   self.yield_factor, hint)
         force = grid.assemble_vector(np.einsum("gai,ga->gi", grid.curvature, moment * grid.gauss_weight_mm2[:, None]))
         return force, tangent, trial
 
-    def stiffness_blocks(self, section_tangent) -> np.ndarray:
-        """The cells' tangent stiffness matrices (e, 16, 16), N/mm, from a SectionTangent."""
+    def stiffness_blocks(self, layered_tangent) -> np.ndarray:
+        """The cells' tangent stiffness matrices (e, 16, 16), N/mm, from a LayeredTangent."""
         grid = self.grid
-        kb = np.matmul(section_tangent.matrix() * grid.gauss_weight_mm2[:, None, None], grid.curvature)
+        kb = np.matmul(layered_tangent.matrix() * grid.gauss_weight_mm2[:, None, None], grid.curvature)
         # per cell: its 4 Gauss points' (3, 16) rows stacked to (12, 16)
         rows = grid.curvature.reshape(-1, 12, 16)
         return np.matmul(rows.transpose(0, 2, 1), kb.reshape(-1, 12, 16))
 
-    def stiffness_band(self, section_tangent) -> np.ndarray:
-        """The plate's tangent stiffness in band storage, N/mm, from a SectionTangent."""
-        return self.grid.band(self.stiffness_blocks(section_tangent), self.all_cells)
+    def stiffness_band(self, layered_tangent) -> np.ndarray:
+        """The plate's tangent stiffness in band storage, N/mm, from a LayeredTangent."""
+        return self.grid.band(self.stiffness_blocks(layered_tangent), self.all_cells)
 
     def contact(self, q, frame_mm, lower_mm, upper_mm, allowed, guess=None):
         """Gaps, Jacobian rows, forces and spring rates of the constraints at ``q``.
@@ -182,7 +182,7 @@ class PlateModel:
         return dq - self.rigid_modes @ a
 
 
-def solve_loaded(model: PlateModel, q, frame_mm, state: SectionState, lower_mm, upper_mm, enabled,
+def solve_loaded(model: PlateModel, q, frame_mm, state: LayerState, lower_mm, upper_mm, enabled,
                  guess=None, max_iterations: int = MAX_ITERATIONS) -> Equilibrium:
     """Equilibrium between the punches (tips as the PLC read them back).
 
@@ -193,7 +193,7 @@ def solve_loaded(model: PlateModel, q, frame_mm, state: SectionState, lower_mm, 
         Start shape.
     frame_mm : (2,) float
         Start deflections of the matrices.
-    state : SectionState
+    state : LayerState
         Committed plastic state (the start of this load increment).
     lower_mm, upper_mm : (m,) float
         Tip heights of the punch pairs over the plate, mm.
@@ -237,7 +237,7 @@ class _Iterate:
     def __init__(self, model, q, frame, state, lower, upper, allowed, guess=None, hint=None):
         self.model, self.q, self.frame, self.state = model, q, frame, state
         self.lower, self.upper, self.allowed = lower, upper, allowed
-        self.f_int, self.section_tangent, self.trial = model.response(q, state, hint)
+        self.f_int, self.layered_tangent, self.trial = model.response(q, state, hint)
         self.slack, self.jac, self.force, self.rate, self.branch = model.contact(q, frame, lower, upper, allowed,
                                                                                   guess)
         push = model.punches.transpose_times(self.jac, self.force)
@@ -264,7 +264,7 @@ def _newton_direction(model: PlateModel, x: _Iterate):
     comp, grid, punches = model.compliance, model.grid, model.punches
     rate = x.rate
     springs = rate[:, None, None] * x.jac[:, :, None] * x.jac[:, None, :]
-    band = grid.band_of(model.newton_slots, model.stiffness_blocks(x.section_tangent), springs,
+    band = grid.band_of(model.newton_slots, model.stiffness_blocks(x.layered_tangent), springs,
                         punches.tilt_blocks(x.q, x.force)) + model.regularisation
     try:
         solve = band_solver(band)

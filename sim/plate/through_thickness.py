@@ -1,4 +1,4 @@
-"""Layered elastic-plastic plate section: return mapping per layer, moments and tangent.
+"""The plate through its thickness, in layers: elastic-plastic return mapping per layer, moments and tangent.
 
 Bending only (no membrane strain): a layer at height ``z`` above the mid-surface has the
 strain ``e = z kappa`` with the curvature vector ``kappa = -(w_uu, w_vv, 2 w_uv)`` (1/mm).
@@ -45,7 +45,7 @@ RETURN_TOLERANCE = 1e-9
 
 
 @dataclass(frozen=True, eq=False)
-class SectionState:
+class LayerState:
     """Plastic state of every layer point.
 
     Attributes
@@ -60,7 +60,7 @@ class SectionState:
     alpha: np.ndarray
 
     @classmethod
-    def virgin(cls, n: int, layers: int = LAYERS) -> SectionState:
+    def virgin(cls, n: int, layers: int = LAYERS) -> LayerState:
         """The state of ``n`` cells of a plate that never yielded."""
         return cls(np.zeros((n, layers, 3)), np.zeros((n, layers)))
 
@@ -169,7 +169,7 @@ class LayerLaw:
         return ratio, xn / np.sqrt(denom)[:, None], alpha_new
 
 
-def section_response(law: LayerLaw, kappa, state: SectionState, thickness_mm, yield_factor, hint=None):
+def layered_response(law: LayerLaw, kappa, state: LayerState, thickness_mm, yield_factor, hint=None):
     """Moments and tangent stiffness of cells bent to ``kappa`` from the committed ``state``.
 
     Parameters
@@ -177,22 +177,22 @@ def section_response(law: LayerLaw, kappa, state: SectionState, thickness_mm, yi
     law : LayerLaw
     kappa : (n, 3) float
         Curvature vectors -(w_uu, w_vv, 2 w_uv), 1/mm.
-    state : SectionState
+    state : LayerState
         Committed plastic state (n cells).
     thickness_mm : (n,) float
         Local thickness.
     yield_factor : (n,) float
         Local yield factor.
-    hint : SectionState, optional
+    hint : LayerState, optional
         A nearby trial state (the previous Newton iterate's): speeds up the return mapping.
 
     Returns
     -------
     moment : (n, 3) float
         (M_uu, M_vv, M_uv), N mm / mm.
-    tangent : SectionTangent
+    tangent : LayeredTangent
         d moment / d kappa (its ``matrix()``: (n, 3, 3), N mm).
-    trial : SectionState
+    trial : LayerState
         The state at ``kappa`` (commit it once the step has converged).
     """
     t = np.asarray(thickness_mm, dtype=float)
@@ -201,11 +201,11 @@ def section_response(law: LayerLaw, kappa, state: SectionState, thickness_mm, yi
     stress, scale, rank_one, ep, alpha = law.stress(strain, state.plastic_strain, state.alpha, yield_factor,
                                                     None if hint is None else hint.alpha)
     moment = 0.5 * t[:, None] ** 2 * np.einsum("l,nli->ni", law.w * law.xi, stress)
-    return moment, SectionTangent(law, t, scale, rank_one), SectionState(ep, alpha)
+    return moment, LayeredTangent(law, t, scale, rank_one), LayerState(ep, alpha)
 
 
-class SectionTangent:
-    """The consistent section tangent d moment / d kappa, assembled when asked for.
+class LayeredTangent:
+    """The consistent through-thickness tangent d moment / d kappa, assembled when asked for.
 
     Parameters
     ----------

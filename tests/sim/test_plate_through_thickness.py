@@ -1,4 +1,4 @@
-"""The simulated plate's steel: Hill 48 yield, hardening, layered section law, plate scatter."""
+"""The simulated plate's steel: Hill 48 yield, hardening, layered through-thickness law, plate scatter."""
 
 from __future__ import annotations
 
@@ -8,23 +8,23 @@ import pytest
 from mppf.core.errors import InputError
 from mppf.sim.plate.material import PlateSteel
 from mppf.sim.plate.scatter import NO_SCATTER, Scatter, sample_plate
-from mppf.sim.plate.section import LayerLaw, SectionState, section_response
+from mppf.sim.plate.through_thickness import LayerLaw, LayerState, layered_response
 
 T_MM = 20.0
 
 
 def _bend(law, kappas, state=None):
     """Moments (k, 3) along a path of curvature vectors (k, 3) from ``state``; the final state."""
-    state = SectionState.virgin(1, len(law.xi)) if state is None else state
+    state = LayerState.virgin(1, len(law.xi)) if state is None else state
     out = []
     for kappa in kappas:
-        moment, _, state = section_response(law, np.atleast_2d(kappa), state, [T_MM], [1.0])
+        moment, _, state = layered_response(law, np.atleast_2d(kappa), state, [T_MM], [1.0])
         out.append(moment[0])
     return np.array(out), state
 
 
 def _closed_form_moment(kappa, yield_mpa, modulus_mpa, plastic_modulus_mpa=0.0):
-    """Bilinear beam-section moment per width, N mm/mm: elastic core, linearly hardening skins."""
+    """Bilinear moment per width of a beam, N mm/mm: elastic core, linearly hardening skins."""
     k_e = 2.0 * yield_mpa / (modulus_mpa * T_MM)
     if kappa <= k_e:
         return modulus_mpa * T_MM**3 / 12.0 * kappa
@@ -87,13 +87,13 @@ def test_narrow_strip_moment_matches_the_beam_closed_form(hardening_mpa):
     # curvatures), so the beam law holds to a few tenths of a per cent
     steel = PlateSteel(swift_exponent=0.0, linear_hardening_mpa=hardening_mpa, transverse_yield_ratio=1.0)
     law = LayerLaw(steel)
-    state = SectionState.virgin(1, len(law.xi))
+    state = LayerState.virgin(1, len(law.xi))
     k_e = 2.0 * steel.yield_stress_mpa / (steel.youngs_modulus_mpa * T_MM)
     kappa = np.zeros(3)
     for k_uu in np.linspace(0.0, 4.0 * k_e, 41)[1:]:
         kappa[0] = k_uu
         for _ in range(20):
-            moment, tangent, trial = section_response(law, kappa[None], state, [T_MM], [1.0])
+            moment, tangent, trial = layered_response(law, kappa[None], state, [T_MM], [1.0])
             if abs(moment[0, 1]) < 1e-9 * abs(moment[0, 0]):
                 break
             kappa[1] -= moment[0, 1] / tangent.matrix()[0, 1, 1]
@@ -103,7 +103,7 @@ def test_narrow_strip_moment_matches_the_beam_closed_form(hardening_mpa):
 
 
 @pytest.mark.parametrize("hardening_mpa", [0.0, 20000.0])
-def test_plane_strain_section_moment_matches_the_closed_form(hardening_mpa):
+def test_plane_strain_layered_moment_matches_the_closed_form(hardening_mpa):
     # plane strain (kappa_vv = 0) at nu -> 1/2: the transverse stress is half the bending
     # stress from first yield on, so sy' = 2 sy / sqrt(3), E' = E / (1 - nu^2), H' = 4 H / 3
     steel = PlateSteel(poisson=0.4999, swift_exponent=0.0, linear_hardening_mpa=hardening_mpa,
@@ -120,21 +120,21 @@ def test_plane_strain_section_moment_matches_the_closed_form(hardening_mpa):
             assert m[1] == pytest.approx(0.5 * m[0], rel=1e-2)
 
 
-def test_section_tangent_is_the_derivative_of_the_moments():
+def test_layered_tangent_is_the_derivative_of_the_moments():
     steel = PlateSteel(transverse_yield_ratio=1.1, rolling_angle_deg=30.0, swift_exponent=0.15)
     law = LayerLaw(steel)
     rng = np.random.default_rng(1)
     n = 40
     thickness, factor = np.full(n, T_MM), rng.uniform(0.95, 1.05, n)
-    _, _, state = section_response(law, rng.normal(0, 2e-4, (n, 3)), SectionState.virgin(n), thickness, factor)
+    _, _, state = layered_response(law, rng.normal(0, 2e-4, (n, 3)), LayerState.virgin(n), thickness, factor)
     kappa = rng.normal(0, 2e-4, (n, 3))
-    _, tangent, _ = section_response(law, kappa, state, thickness, factor)
+    _, tangent, _ = layered_response(law, kappa, state, thickness, factor)
     step = 1e-9
     for j in range(3):
         e = np.zeros(3)
         e[j] = step
-        plus, _, _ = section_response(law, kappa + e, state, thickness, factor)
-        minus, _, _ = section_response(law, kappa - e, state, thickness, factor)
+        plus, _, _ = layered_response(law, kappa + e, state, thickness, factor)
+        minus, _, _ = layered_response(law, kappa - e, state, thickness, factor)
         error = np.abs((plus - minus) / (2 * step) - tangent.matrix()[:, :, j]).max(axis=1)
         assert np.all(error <= 1e-7 * np.abs(tangent.matrix()).max(axis=(1, 2)))
 
