@@ -96,46 +96,89 @@ def optimise_pose(placed: PlacedSurface, x_mm, y_mm, labels, press: PressConfig,
     LimitError
         No offset and tilt keep every stroke inside the press limits.
     """
-    x_mm = np.asarray(x_mm, dtype=float)
-    y_mm = np.asarray(y_mm, dtype=float)
-    flat = np.concatenate([np.full(len(x_mm), float(thickness_mm)), np.zeros(len(x_mm))])  # upper t, lower 0
-    xx, yy = np.concatenate([x_mm, x_mm]), np.concatenate([y_mm, y_mm])
-    low = np.concatenate([np.full(len(x_mm), press.upper.min_mm), np.full(len(x_mm), press.lower.min_mm)]) - flat
-    high = np.concatenate([np.full(len(x_mm), press.upper.max_mm), np.full(len(x_mm), press.lower.max_mm)]) - flat
+    travels = _Travels.of(placed, x_mm, y_mm, press, thickness_mm)
     max_slope = np.tan(np.radians(MAX_TILT_DEG))
-
-    def travel(tf):
-        moved = PlacedSurface(placed.surface, tf @ placed.tf_press_local)
-        up, lo = tip_heights(moved, x_mm, y_mm, tip_radius_mm=press.tip_radius_mm, thickness_mm=thickness_mm)
-        return np.concatenate([up.tip_mm, lo.tip_mm]) - flat, (up.exact & lo.exact,
-                                                                 np.vstack([up.contact_mm, lo.contact_mm]))
-
     # 1. the registered pose: the best level offset and the best small tilt
     tf = np.eye(4)
-    dev, contact = travel(tf)
-    level = minimax_offset(dev, xx, yy, low, high, max_slope=0.0)
-    tilted = minimax_offset(dev, xx, yy, low, high, max_slope=max_slope)
+    dev, contact = travels.at(tf)
+    level = travels.best(dev, max_slope=0.0)
+    tilted = travels.best(dev, max_slope=max_slope)
     if tilted is None:
-        raise _beyond_limits(dev, low, high, flat, labels)
+        raise _beyond_limits(dev, travels.low_mm, travels.high_mm, travels.flat_mm, labels)
     # 2. tilt only when it pays: applied as a true rotation, the contact solved again
     if level is None or level[3] - tilted[3] >= MIN_TILT_GAIN_MM:
-        for _ in range(3):
-            tf = tilt_tf(tilted[0], tilted[1], centre_mm) @ tf
-            dev, contact = travel(tf)
-            tilted = minimax_offset(dev, xx, yy, low, high, max_slope=max_slope)
-            if tilted is None or max(abs(tilted[0]), abs(tilted[1])) < 1e-7:
-                break
+        tf, dev, contact = _tilted(travels, tilted, centre_mm, max_slope)
     # 3. the final offset, exact: a vertical shift moves every tip alike
-    final = minimax_offset(dev, xx, yy, low, high, max_slope=0.0)
+    final = travels.best(dev, max_slope=0.0)
     if final is None:  # cannot happen unless the tilt iteration went astray: fall back to level
         tf = np.eye(4)
-        dev, contact = travel(tf)
+        dev, contact = travels.at(tf)
         final = level
-    offset = final[2]
+    return _pose(tf, dev, contact, final[2], travels.flat_mm)
+
+
+@dataclass(frozen=True)
+class _Travels:
+    """The travel of every active tip from its flat-plate height (upper t, lower 0) and its limits.
+
+    Arrays are (2 m,): the m upper tips, then the m lower tips; heights in mm, press coordinates.
+    """
+
+    placed: PlacedSurface
+    x_mm: np.ndarray  # (m,)
+    y_mm: np.ndarray  # (m,)
+    press: PressConfig
+    thickness_mm: float
+    flat_mm: np.ndarray  # (2 m,) the flat plate's tip heights
+    low_mm: np.ndarray  # (2 m,) the least travel the stroke limits allow
+    high_mm: np.ndarray  # (2 m,) the largest
+
+    @classmethod
+    def of(cls, placed: PlacedSurface, x_mm, y_mm, press: PressConfig, thickness_mm: float) -> _Travels:
+        """The travels of the punches at ``x_mm``, ``y_mm`` ((m,) float) for the surface ``placed``."""
+        x_mm = np.asarray(x_mm, dtype=float)
+        y_mm = np.asarray(y_mm, dtype=float)
+        m = len(x_mm)
+        flat = np.concatenate([np.full(m, float(thickness_mm)), np.zeros(m)])
+        low = np.concatenate([np.full(m, press.upper.min_mm), np.full(m, press.lower.min_mm)]) - flat
+        high = np.concatenate([np.full(m, press.upper.max_mm), np.full(m, press.lower.max_mm)]) - flat
+        return cls(placed, x_mm, y_mm, press, thickness_mm, flat, low, high)
+
+    def at(self, tf):
+        """Travels ((2 m,) mm) with the surface moved by ``tf`` ((4, 4), press -> press); and the contact:
+        ((m,) bool exact at both tips, (2 m, 3) contact points in mm)."""
+        moved = PlacedSurface(self.placed.surface, tf @ self.placed.tf_press_local)
+        up, lo = tip_heights(moved, self.x_mm, self.y_mm, tip_radius_mm=self.press.tip_radius_mm,
+                             thickness_mm=self.thickness_mm)
+        return np.concatenate([up.tip_mm, lo.tip_mm]) - self.flat_mm, (up.exact & lo.exact,
+                                                                        np.vstack([up.contact_mm, lo.contact_mm]))
+
+    def best(self, dev, max_slope: float):
+        """:func:`minimax_offset` of the travels ``dev`` ((2 m,) mm) within the limits."""
+        xx, yy = np.concatenate([self.x_mm, self.x_mm]), np.concatenate([self.y_mm, self.y_mm])
+        return minimax_offset(dev, xx, yy, self.low_mm, self.high_mm, max_slope=max_slope)
+
+
+def _tilted(travels: _Travels, tilted, centre_mm, max_slope: float):
+    """The tilt of least travel applied as true rotations about ``centre_mm`` (the contact solved again after
+    each, at most three times): the pose ``tf`` (4, 4), the travels and the contact there."""
+    tf = np.eye(4)
+    for _ in range(3):
+        tf = tilt_tf(tilted[0], tilted[1], centre_mm) @ tf
+        dev, contact = travels.at(tf)
+        tilted = travels.best(dev, max_slope=max_slope)
+        if tilted is None or max(abs(tilted[0]), abs(tilted[1])) < 1e-7:
+            break
+    return tf, dev, contact
+
+
+def _pose(tf, dev, contact, offset: float, flat) -> Pose:
+    """The :class:`Pose` of ``tf`` ((4, 4)) shifted up by ``offset`` mm; ``dev`` (2 m,) travels, ``flat`` (2 m,)
+    flat-plate tip heights (mm), ``contact`` as :meth:`_Travels.at`."""
     tf = make_tf(translation=[0.0, 0.0, offset]) @ tf
     dev = dev + offset
     rot = tf[:3, :3]
-    m = len(x_mm)
+    m = len(dev) // 2
     return Pose(
         tf_adjust=tf,
         tilt_x_deg=float(np.degrees(np.arctan2(rot[2, 1], np.hypot(rot[2, 0], rot[2, 2])))),
