@@ -1,7 +1,7 @@
 """Real hull plates for the batch benchmark: cut from the KCS hull IGES and the bundled hull data.
 
 The KCS hull (``/work/shared/data/cad/ship_kcs.igs``, model scale 1:31.6) is sampled once in blocks
-of 12 m along x and 0-18 m of girth from the keel, at 100 mm, by :func:`mppf.geometry.sections.sample_girth`
+of 12 m along x and 0-18 m of girth from the keel, at 100 mm, by :func:`mppf.geometry.stations.sample_girth`
 (the sampler of ``mppf extract --girth``): about 1 s of CPU per block. Each plate is a window of a
 block between two butts (x) and two seams (girths): 6-12 m long and 1.8-3.4 m wide, so a window is
 exactly the grid ``mppf extract hull.igs --scale 31.6 --x X0 X1 --girth G0 G1 --spacing 100`` gives.
@@ -34,7 +34,7 @@ LONG_KCS = Path(__file__).resolve().parents[1] / "mppf" / "examples" / "long" / 
 def hull_blocks(cache: Path) -> list[np.ndarray]:
     """The KCS hull's blocks, (121, 181, 3) mm each (x stations by girths), sampled once and cached."""
     from mppf.geometry.cad import CadModel
-    from mppf.geometry.sections import sample_girth
+    from mppf.geometry.stations import sample_girth
 
     path = cache / "kcs_blocks.npz"
     if path.exists():

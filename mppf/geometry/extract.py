@@ -8,7 +8,7 @@ in hull coordinates (mm, full scale) in one of two ways:
   or the bottom view, ``-z``); the plate is the part of the hull the polygon covers,
   the hull nearest the viewer where it is seen twice;
 * :class:`GirthRegion`: bounds on x (the butts) and on the girth from the keel
-  (the seams), as on the shell expansion (:mod:`mppf.geometry.sections`).
+  (the seams), as on the shell expansion (:mod:`mppf.geometry.stations`).
 
 :func:`extract_plate` samples the region on a grid at a spacing (the polygon's bounding box
 in its plane, or stations x girths), every point on the exact CAD surface, and gives the
@@ -115,7 +115,7 @@ def extract_plate(model: CadModel, region, spacing_mm: float) -> ExtractedPlate:
 
 
 def _girth_grid(model: CadModel, region: GirthRegion, spacing: float) -> tuple[np.ndarray, np.ndarray]:
-    from mppf.geometry.sections import sample_girth
+    from mppf.geometry.stations import sample_girth
 
     (x0, x1), (g0, g1) = sorted(region.x_mm), sorted(region.girth_mm)
     if g0 < 0:

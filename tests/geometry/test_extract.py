@@ -1,4 +1,4 @@
-"""A plate cut from a hull model (mppf.geometry.extract, sections): regions, girth, the KCS patches.
+"""A plate cut from a hull model (mppf.geometry.extract, stations): regions, girth, the KCS patches.
 
 The KCS patches K1 and K3 (cut from ship_kcs.igs, scaled by 31.6) are cut again from the IGES
 by their region and must come out as the same plate; the girth is checked exactly on a
@@ -18,7 +18,7 @@ from mppf.geometry.cad import CadModel
 from mppf.geometry.cad_query import closest_points
 from mppf.geometry.extract import MAX_POINTS, GirthRegion, ProjectedRegion, extract_plate
 from mppf.geometry.read import read_points
-from mppf.geometry.sections import sample_girth, trace_sections
+from mppf.geometry.stations import sample_girth, trace_stations
 from mppf.geometry.surface import fit_plate
 
 
@@ -54,12 +54,12 @@ def _at_full_scale(plate):
 def test_k1_cut_again_by_its_butts_and_seams(kcs, hull_dir):
     k1 = read_points(hull_dir / "K1_midbody_bilge.csv").points / KCS_SCALE
     x0, x1 = k1[:, 0].min(), k1[:, 0].max()
-    # the seams: the girth of K1's points projected onto the traced middle section
-    points, girth, _ = trace_sections(kcs, [0.5 * (x0 + x1)], 20000.0 / KCS_SCALE)
+    # the seams: the girth of K1's points projected onto the traced middle station
+    points, girth, _ = trace_stations(kcs, [0.5 * (x0 + x1)], 20000.0 / KCS_SCALE)
     ok = np.r_[True, np.diff(girth[0]) > 0]
-    section, along = points[0][ok][:, 1:], girth[0][ok]
-    foot, segment = closest_on_segments(k1[:, 1:], section[:-1], section[1:])
-    g = along[segment] + np.linalg.norm(foot - section[segment], axis=1)
+    station, along = points[0][ok][:, 1:], girth[0][ok]
+    foot, segment = closest_on_segments(k1[:, 1:], station[:-1], station[1:])
+    g = along[segment] + np.linalg.norm(foot - station[segment], axis=1)
     plate = extract_plate(kcs, GirthRegion((x0, x1), (g.min(), g.max())), 50.0 / KCS_SCALE)
     full, size, area = _at_full_scale(plate)
     # the same plate: K1's lengths along x and round the bilge, on K1's surface, of K1's area
@@ -109,7 +109,7 @@ def test_a_girth_plate_across_the_bilge_has_its_size(box):
     np.testing.assert_allclose(grid[:, -1, 1:], np.broadcast_to(box_hull_point([8500.0])[0], (31, 2)), atol=0.05)
 
 
-def test_a_section_that_ends_before_the_plate(box):
+def test_a_station_that_ends_before_the_plate(box):
     with pytest.raises(GeometryError, match="ends at a girth of 2071[0-9] mm"):
         sample_girth(box, [1000.0], [20000.0, 21000.0])
     with pytest.raises(GeometryError, match="no keel at x = 25000 mm"):

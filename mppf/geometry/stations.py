@@ -1,13 +1,13 @@
-"""Hull sections and girth: where a plate given by frames and seams lies on a CAD hull.
+"""Hull stations and girth: where a plate given by frames and seams lies on a CAD hull.
 
 Shell plates are laid out on the shell expansion: along the ship by x (frames, butts),
-around the section by the girth, the length measured along the hull section from the
+around the station by the girth, the length measured along the hull station from the
 keel (the centreline, y = 0) up and round the bilge (seams). Hull coordinates: x forward,
 y to port, z up; the model is a half hull on the port side (y >= 0).
 
-A section x = const is traced from its keel point by predictor-corrector steps on the
-exact surface (:func:`mppf.geometry.cad_query.intersect_near`): a step along the section's
-tangent, then back onto the surface along the section's normal in the plane x = const.
+A station x = const is traced from its keel point by predictor-corrector steps on the
+exact surface (:func:`mppf.geometry.cad_query.intersect_near`): a step along the station's
+tangent, then back onto the surface along the station's normal in the plane x = const.
 It ends where the surface ends (the deck edge, a knuckle, the centreline at the deck).
 The girth adds up the steps as circular arcs (chord c, tangents turning through theta:
 ``c (theta / 2) / sin(theta / 2)``).
@@ -22,16 +22,16 @@ from mppf.geometry.cad import CadModel
 from mppf.geometry.cad_query import intersect_lines, intersect_near
 
 STEP_FRACTION = 1.0 / 100.0
-"""Longest step along a section, as a fraction of the model's diagonal (2.4 m on a 243 m hull)."""
+"""Longest step along a station, as a fraction of the model's diagonal (2.4 m on a 243 m hull)."""
 
 TURN_RAD = 0.08
-"""Steps are sized so that the section's tangent turns about this much in one (a step turning
+"""Steps are sized so that the station's tangent turns about this much in one (a step turning
 more than twice this is taken again, shorter): each chord is counted as the circular arc that
 turns through the angle between the tangents at its ends, which makes the girth exact to about
 1e-6 of it."""
 
 END_HALVINGS = 8
-"""Where a step leaves the surface, it is halved up to this many times: a section's end is found
+"""Where a step leaves the surface, it is halved up to this many times: a station's end is found
 to within a 256th of a step (1 mm)."""
 
 MAX_STEPS = 20_000
@@ -41,21 +41,21 @@ KEEL_OFFSET_FRACTION = 1e-6
 """The keel point is taken this fraction of the model size off the centreline (on the face, not its edge)."""
 
 
-def trace_sections(model: CadModel, x_mm, girth_max_mm: float, step_mm: float | None = None):
-    """Trace the sections at stations ``x_mm`` from the keel to ``girth_max_mm`` (or their end).
+def trace_stations(model: CadModel, x_mm, girth_max_mm: float, step_mm: float | None = None):
+    """Trace the stations at ``x_mm`` from the keel to ``girth_max_mm`` (or their end).
 
     ``step_mm`` is the longest step (default :data:`STEP_FRACTION` of the model's diagonal);
-    each step is shortened where the section turns (:data:`TURN_RAD`).
+    each step is shortened where the station turns (:data:`TURN_RAD`).
 
     Returns
     -------
     points : (s, k, 3) float, mm
-        Exact points along each section, ``step_mm`` apart (shorter steps near its end;
+        Exact points along each station, ``step_mm`` apart (shorter steps near its end;
         after it, or once ``girth_max_mm`` is reached, the last point repeated).
     girth : (s, k) float, mm
         Girth of each point from the keel (non-decreasing along each row).
     normal : (s, k, 3) float
-        Unit normal of each section in its plane x = const.
+        Unit normal of each station in its plane x = const.
     """
     x = np.asarray(x_mm, dtype=float).ravel()
     diagonal = float(np.linalg.norm(np.ptp(model.bounds_mm, axis=0)))
@@ -68,10 +68,10 @@ def trace_sections(model: CadModel, x_mm, girth_max_mm: float, step_mm: float | 
         first = x[~keel.found][0]
         raise GeometryError(f"the hull has no keel at x = {first:.0f} mm: no surface below the centreline there",
                             hint="give stations between the stern and the stem, in full-scale hull coordinates")
-    # 2. march along each section: a step along its tangent, back onto the surface along its normal
+    # 2. march along each station: a step along its tangent, back onto the surface along its normal
     face, uv = keel.face.copy(), keel.uv.copy()
     start = np.tile([0.0, 1.0, 0.0], (x.size, 1))  # away from the centreline
-    tangent, in_plane = _section_frame(model, face, uv, np.ones(x.size, dtype=bool), start)
+    tangent, in_plane = _station_frame(model, face, uv, np.ones(x.size, dtype=bool), start)
     points, girth, normal = [keel.points_mm], [np.full(x.size, offset)], [in_plane]
     alive, step = np.ones(x.size, dtype=bool), np.full(x.size, longest)
     for _ in range(MAX_STEPS):
@@ -80,7 +80,7 @@ def trace_sections(model: CadModel, x_mm, girth_max_mm: float, step_mm: float | 
             break
         hit = intersect_near(model, points[-1][rows] + step[rows, None] * tangent[rows], in_plane[rows])
         good = hit.found & (hit.distance_mm < step[rows])
-        # off the surface: halve the step; the section ends where it is below longest / 2^END_HALVINGS
+        # off the surface: halve the step; the station ends where it is below longest / 2^END_HALVINGS
         failed = rows[~good]
         step[failed] /= 2.0
         alive[failed[step[failed] < longest / 2**END_HALVINGS]] = False
@@ -89,7 +89,7 @@ def trace_sections(model: CadModel, x_mm, girth_max_mm: float, step_mm: float | 
         face_try[rows[good]], uv_try[rows[good]] = hit.face[good], hit.uv[good]
         reached = np.zeros(x.size, dtype=bool)
         reached[rows[good]] = True
-        new_tangent, turned = _section_frame(model, face_try, uv_try, reached, tangent)
+        new_tangent, turned = _station_frame(model, face_try, uv_try, reached, tangent)
         angle = _turn(tangent, new_tangent)
         sharp = reached & (angle > 2.0 * TURN_RAD) & (step > longest / 2**END_HALVINGS)
         step[sharp] *= np.maximum(TURN_RAD / angle[sharp], 0.25)
@@ -108,7 +108,7 @@ def trace_sections(model: CadModel, x_mm, girth_max_mm: float, step_mm: float | 
         grow = np.clip(TURN_RAD / np.maximum(angle, 1e-9), 0.5, 2.0)
         step[stepped] = np.minimum(step[stepped] * grow[stepped], longest)
     else:
-        raise GeometryError(f"a hull section did not end in {MAX_STEPS} steps", hint="check the hull model")
+        raise GeometryError(f"a hull station did not end in {MAX_STEPS} steps", hint="check the hull model")
     return np.stack(points, axis=1), np.stack(girth, axis=1), np.stack(normal, axis=1)
 
 
@@ -123,10 +123,10 @@ def _arc_factor(angle: np.ndarray) -> np.ndarray:
     return np.where(half > 1e-8, half / np.maximum(np.sin(half), 1e-300), 1.0)
 
 
-def _section_frame(model: CadModel, face: np.ndarray, uv: np.ndarray, alive: np.ndarray, previous: np.ndarray):
-    """Unit tangent along each section (continuing ``previous``) and its normal in the plane x = const.
+def _station_frame(model: CadModel, face: np.ndarray, uv: np.ndarray, alive: np.ndarray, previous: np.ndarray):
+    """Unit tangent along each station (continuing ``previous``) and its normal in the plane x = const.
 
-    ``face`` and ``uv`` say where each section's last point lies on the model; rows that are
+    ``face`` and ``uv`` say where each station's last point lies on the model; rows that are
     not ``alive`` (or on no face) keep ``previous`` and get a zero normal.
     """
     tangent, normal = previous.copy(), np.zeros_like(previous)
@@ -145,46 +145,46 @@ def _section_frame(model: CadModel, face: np.ndarray, uv: np.ndarray, alive: np.
 def sample_girth(model: CadModel, x_mm, girth_mm) -> np.ndarray:
     """Points of the hull at stations ``x_mm`` (s,) and girths ``girth_mm`` (g,) from the keel.
 
-    Each point is stepped to from the traced section point before it, along the section, the
+    Each point is stepped to from the traced station point before it, along the station, the
     step corrected until the girth it reaches is the one asked for (secant iterations).
 
     Returns
     -------
     (s, g, 3) float, mm
-        Row k is the section at ``x_mm[k]``; each point lies on the exact surface.
+        Row k is the station at ``x_mm[k]``; each point lies on the exact surface.
 
     Raises
     ------
     GeometryError
-        A station without a keel, or a section that ends before the largest girth.
+        A station without a keel, or one that ends before the largest girth.
     """
     x = np.asarray(x_mm, dtype=float).ravel()
     g = np.asarray(girth_mm, dtype=float).ravel()
-    # 1. the sections, traced past the largest girth
-    points, girth, normal = trace_sections(model, x, float(g.max()))
+    # 1. the stations, traced past the largest girth
+    points, girth, normal = trace_stations(model, x, float(g.max()))
     # 2. for each sample, the traced point before it
     base = []
     for k in range(x.size):
         ok = np.r_[True, np.diff(girth[k]) > 0]  # each point once (repeated where a row waited)
         if girth[k][ok][-1] < g.max() - 1e-6:
             raise GeometryError(
-                f"the section at x = {x[k]:.0f} mm ends at a girth of {girth[k][ok][-1]:.0f} mm, "
+                f"the station at x = {x[k]:.0f} mm ends at a girth of {girth[k][ok][-1]:.0f} mm, "
                 f"before the plate's {g.max():.0f} mm (the deck edge or a knuckle)",
-                hint="give girths within the section (from the keel, mm at full scale)")
+                hint="give girths within the station (from the keel, mm at full scale)")
         i = np.clip(np.searchsorted(girth[k][ok], g, side="right") - 1, 0, int(ok.sum()) - 1)
         base.append((points[k][ok][i], normal[k][ok][i], girth[k][ok][i]))
     p0, n0, g0 = (np.concatenate([b[j] for b in base]) for j in range(3))
     target = np.tile(g, x.size)
-    t0 = np.cross(n0, [1.0, 0.0, 0.0])  # the section's tangent there (n0 = x-axis cross tangent)
-    # 3. step along the section from there until the girth reached is the one asked for
+    t0 = np.cross(n0, [1.0, 0.0, 0.0])  # the station's tangent there (n0 = x-axis cross tangent)
+    # 3. step along the station from there until the girth reached is the one asked for
     step = np.maximum(target - g0, 0.0)  # girths below the keel point's (a fraction of a micron) are the keel
     for _ in range(GIRTH_ITERATIONS):
         hit = intersect_near(model, p0 + step[:, None] * t0, n0)
         if not hit.found.all():
             first = int(np.argmin(hit.found))
-            raise GeometryError(f"the section at x = {x[first // g.size]:.0f} mm could not be sampled at girth "
-                                f"{target[first]:.0f} mm", hint="give girths within the section")
-        tangent, _ = _section_frame(model, hit.face, hit.uv, np.ones(target.size, dtype=bool), t0)
+            raise GeometryError(f"the station at x = {x[first // g.size]:.0f} mm could not be sampled at girth "
+                                f"{target[first]:.0f} mm", hint="give girths within the station")
+        tangent, _ = _station_frame(model, hit.face, hit.uv, np.ones(target.size, dtype=bool), t0)
         reached = g0 + np.linalg.norm(hit.points_mm - p0, axis=1) * _arc_factor(_turn(t0, tangent))
         step = np.maximum(step + target - reached, 0.0)
     return hit.points_mm.reshape(x.size, g.size, 3)
