@@ -37,17 +37,12 @@ import numbers
 import numpy as np
 
 from mppf.core.errors import ConfigError, InputError, LimitError
-from mppf.core.grid import neighbour_differences
 from mppf.model.job import Job
 from mppf.model.job_parts import StepStrokes
 from mppf.model.press import PressConfig
-from mppf.planning.steps import flat_heights
+from mppf.planning.step_checks import LIMIT_TOLERANCE_MM, SIDES, StepTrack, check_step
 
-GAP_TOLERANCE_MM = 0.01
-"""The tip gap of a punch pair may be this much below the thickness (rounding)."""
-LIMIT_TOLERANCE_MM = 1e-6
 MAX_LISTED = 10
-SIDES = ("upper", "lower")
 
 
 class _Problems:
@@ -233,7 +228,8 @@ def validate_steps(steps: list[StepStrokes], press: PressConfig, thickness_mm: f
 
     Checks: the thickness at most ``press.max_thickness_mm``; active strokes finite and
     inside the limits of their matrix (the press's, narrowed to ``plc_limits``); the tip gap
-    of each active pair at least the thickness (within :data:`GAP_TOLERANCE_MM`); no step
+    of each active pair at least the thickness (within
+    :data:`mppf.planning.step_checks.GAP_TOLERANCE_MM`); no step
     adding more than ``max_neighbour_diff_mm`` to the height difference of neighbouring
     punches; strokes monotonic from step to step. Inactive punches are not checked here (they
     are parked: :func:`check_job_document`, :func:`check_setpoints`).
@@ -254,40 +250,10 @@ def validate_steps(steps: list[StepStrokes], press: PressConfig, thickness_mm: f
                          f"[forming] max_thickness_mm {press.max_thickness_mm:g} mm",
                          hint="check the thickness, or use a press made for thicker plates")
     limits = stroke_limits(press, plc_limits)
-    label = press.punch_label
-    flat = dict(zip(SIDES, flat_heights(thickness_mm)))
     problems = _Problems()
-    min_gap, max_step_diff = math.inf, 0.0
-    prev = {side: np.full(press.shape, flat[side]) for side in SIDES}
-    direction = {side: np.zeros(press.shape) for side in SIDES}
+    track = StepTrack.start(press, thickness_mm)
     for k, step in enumerate(steps, start=1):
-        act = np.asarray(step.active, bool)
-        values = {"upper": step.upper_mm, "lower": step.lower_mm}
-        for side, (lo, hi) in limits.items():
-            v = values[side]
-            bad = act & ((v < lo - LIMIT_TOLERANCE_MM) | (v > hi + LIMIT_TOLERANCE_MM) | ~np.isfinite(v))
-            problems.add(f"step {k} {side} punch ({label(r, c)}): stroke {v[r, c]:.2f} mm beyond the stroke limits "
-                         f"{lo:g}..{hi:g} mm" for r, c in np.argwhere(bad))
-        gap = np.where(act, step.upper_mm - step.lower_mm, np.inf)
-        if act.any():
-            min_gap = min(min_gap, float(gap[act].min()))
-        problems.add(f"step {k} punch pair ({label(r, c)}): tip gap {gap[r, c]:.2f} mm < thickness {thickness_mm:g} mm"
-                     for r, c in np.argwhere(act & (gap < thickness_mm - GAP_TOLERANCE_MM)))
-        for side in SIDES:
-            for diff, first, second in neighbour_differences(values[side] - prev[side], act):
-                if diff.size:
-                    max_step_diff = max(max_step_diff, float(np.nanmax(np.abs(diff), initial=0.0)))
-                bad = np.abs(diff) > press.max_neighbour_diff_mm + LIMIT_TOLERANCE_MM
-                problems.add(f"step {k} {side} punches ({label(*a)}) and ({label(*b)}): the height difference "
-                             f"changes by {d:+.2f} mm, dimpling limit {press.max_neighbour_diff_mm:g} mm"
-                             for d, a, b in zip(diff[bad], first[bad], second[bad]))
-            move = np.where(act, values[side] - prev[side], 0.0)
-            back = act & (move * direction[side] < -LIMIT_TOLERANCE_MM)
-            problems.add(f"step {k} {side} punch ({label(r, c)}) reverses direction: moves {move[r, c]:+.2f} mm "
-                         "after moving the other way (strokes must be monotonic from step to step)"
-                         for r, c in np.argwhere(back))
-            direction[side] = np.where(np.abs(move) > LIMIT_TOLERANCE_MM, np.sign(move), direction[side])
-            prev[side] = np.where(act & np.isfinite(values[side]), values[side], prev[side])
+        check_step(k, step, press, limits, thickness_mm, problems, track)
     problems.raise_if_any("the planned strokes fail validation",
                           "give more steps (--steps), a press with longer strokes, or check the plate and thickness")
     final = steps[-1]
@@ -299,8 +265,8 @@ def validate_steps(steps: list[StepStrokes], press: PressConfig, thickness_mm: f
     return {
         "passed": True,
         "n_steps": len(steps),
-        "min_gap_mm": None if not math.isfinite(min_gap) else min_gap,
-        "max_neighbour_step_mm": max_step_diff,
+        "min_gap_mm": None if not math.isfinite(track.min_gap_mm) else track.min_gap_mm,
+        "max_neighbour_step_mm": track.max_step_diff_mm,
         "dimpling_limit_mm": press.max_neighbour_diff_mm,
         "upper_range_mm": value_range(final.upper_mm),
         "lower_range_mm": value_range(final.lower_mm),
