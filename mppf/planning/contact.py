@@ -23,6 +23,7 @@ the sampling. See ``docs/planning.md``.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -188,14 +189,26 @@ def tip_heights(placed: PlacedSurface, x_mm, y_mm, *, tip_radius_mm: float,
         raise GeometryError("no surface point within reach of a punch ball",
                             hint="the surface is too steep for the press; check the registration")
     rise = np.sqrt(np.where(reach, big_r**2 - d2, 0.0))
-    return _solve_sides(placed, axis, us, vs, pts, rise, reach, big_r, tip_radius_mm)
+    return _solve_sides(placed, axis, _Patch(us, vs, pts, rise, reach), big_r, tip_radius_mm)
 
 
-def _solve_sides(placed, axis, us, vs, pts, rise, reach, big_r, tip_radius_mm) -> tuple[Contact, Contact]:
+class _Patch(NamedTuple):
+    """The samples around each of m punch axes (k per axis), :func:`tip_heights` step 2."""
+
+    us: np.ndarray  # (m, k) local u of each sample
+    vs: np.ndarray  # (m, k) local v
+    pts: np.ndarray  # (m, k, 3) the surface points there, press coordinates, mm
+    rise: np.ndarray  # (m, k) height of the ball centre above the point where the ball reaches it, mm (0 beyond)
+    reach: np.ndarray  # (m, k) bool: the point is within the ball's reach (radius R) of the axis
+
+
+def _solve_sides(placed, axis, patch: _Patch, big_r: float, tip_radius_mm: float) -> tuple[Contact, Contact]:
     """Best sample, then Newton on (p + s R n)_xy = axis, the upper (s = +1) and lower (s = -1) side at once.
 
-    The sides' rows are stacked (upper rows first) so each iteration evaluates the surface once.
+    ``axis`` (m, 2) are the punch axes, ``big_r`` = tip radius + t / 2 (mm). The sides' rows are stacked
+    (upper rows first) so each iteration evaluates the surface once.
     """
+    us, vs, pts, rise, reach = patch
     m = len(axis)
     s = np.repeat([1.0, -1.0], m)
     z, rows = pts[:, :, 2], np.arange(m)
