@@ -82,14 +82,8 @@ class PlcPress(Handshake, Follow, Safety, PlcSession):
         self.motion_time_scale = motion_time_scale
         super().__init__(io, url, press, register_map=register_map, **options)
 
-    def run_step(
-        self,
-        upper_mm: np.ndarray,
-        lower_mm: np.ndarray,
-        *,
-        reporter: Reporter = NULL_REPORTER,
-        timeout_s: float | None = None,
-    ) -> StepResult:
+    def run_step(self, upper_mm: np.ndarray, lower_mm: np.ndarray, *, reporter: Reporter = NULL_REPORTER,
+                 timeout_s: float | None = None) -> StepResult:
         """Validate, upload, verify, start and follow one press step (see the module docstring).
 
         Parameters
@@ -123,11 +117,8 @@ class PlcPress(Handshake, Follow, Safety, PlcSession):
         Cancelled
             Ctrl-C; STOP was sent.
         """
-        if timeout_s is not None and not (math.isfinite(timeout_s) and timeout_s > 0):
-            raise InputError(f"the motion timeout must be a positive number of seconds, got {timeout_s}",
-                             hint="give --timeout in s, or leave it out for the default")
-        go_sent = False
-        seq = None
+        _check_timeout(timeout_s)
+        go_sent, seq = False, None
         try:
             # 1-4: the validator, ownership, upload, read-back, VALIDATE
             seq, crc, targets_mm = self._prepare(upper_mm, lower_mm, reporter)
@@ -139,14 +130,7 @@ class PlcPress(Handshake, Follow, Safety, PlcSession):
             # 6: follow the motion to COMPLETE, check the positions
             return self._follow(seq, crc, raw, targets_mm, start_mm, reporter, timeout_s, t0)
         except KeyboardInterrupt as exc:
-            signal_name = str(exc)  # SIGTERM / SIGHUP (mppf.cli.press_policy); Ctrl-C: empty
-            why = "cancelled by the operator" + (f" ({signal_name})" if signal_name else "")
-            abandon(reporter, "cancelled")
-            self._stop_after_trouble(why, fresh=True)
-            rest = ("; it did not report rest in time: check the press" if self._not_at_rest
-                    else "; it came to rest" if go_sent else "")
-            raise Cancelled(f"cancelled by the operator; STOP was sent to the press{rest}"
-                            + (f" ({signal_name})" if signal_name else "")) from None
+            raise self._cancelled(exc, reporter, go_sent) from None
         except PlcError as exc:
             if not go_sent:
                 raise  # refused before GO: nothing moved
@@ -156,12 +140,38 @@ class PlcPress(Handshake, Follow, Safety, PlcSession):
             abandon(reporter, "link lost")
             raise self._lost_link(exc, seq, go_sent) from None
         except Exception as exc:
-            # the driver's own failures (PressFault, PressRefused, ...) have already done what is
-            # safe; anything else after GO (a bug, a failing progress display) must not leave
-            # the press moving until the watchdog notices
-            if go_sent and not isinstance(exc, MppfError):
-                self._stop_after_trouble(f"unexpected error: {type(exc).__name__}: {exc}")
+            self._stop_on_unexpected(exc, go_sent)
             raise
+
+    def _stop_on_unexpected(self, exc: Exception, go_sent: bool) -> None:
+        """STOP after GO on an error that is not the driver's own (a bug, a failing progress display).
+
+        The driver's own failures (PressFault, PressRefused, ...) have already done what is
+        safe; anything else after GO must not leave the press moving until the watchdog notices.
+        """
+        if go_sent and not isinstance(exc, MppfError):
+            self._stop_after_trouble(f"unexpected error: {type(exc).__name__}: {exc}")
+
+    def _cancelled(self, exc: KeyboardInterrupt, reporter: Reporter, go_sent: bool) -> Cancelled:
+        """STOP after Ctrl-C (or SIGTERM / SIGHUP) and the :class:`Cancelled` to raise.
+
+        Parameters
+        ----------
+        exc : KeyboardInterrupt
+            Its text names the signal (:mod:`mppf.cli.press_policy`); empty for Ctrl-C.
+        reporter : Reporter
+            The step's progress, abandoned as "cancelled".
+        go_sent : bool
+            Whether GO had been sent (then the message says whether the press came to rest).
+        """
+        signal_name = str(exc)
+        why = "cancelled by the operator" + (f" ({signal_name})" if signal_name else "")
+        abandon(reporter, "cancelled")
+        self._stop_after_trouble(why, fresh=True)
+        rest = ("; it did not report rest in time: check the press" if self._not_at_rest
+                else "; it came to rest" if go_sent else "")
+        return Cancelled(f"cancelled by the operator; STOP was sent to the press{rest}"
+                         + (f" ({signal_name})" if signal_name else ""))
 
     def upload(self, upper_mm: np.ndarray, lower_mm: np.ndarray, *, reporter: Reporter = NULL_REPORTER) -> int:
         """Check, upload, verify and have the PLC validate one step, without starting it.
@@ -184,3 +194,10 @@ class PlcPress(Handshake, Follow, Safety, PlcSession):
         except LinkError as exc:
             reporter.finish()
             raise self._lost_link(exc, None, False) from None
+
+
+def _check_timeout(timeout_s: float | None) -> None:
+    """Raise :class:`InputError` unless the motion timeout (s) is None or a positive number."""
+    if timeout_s is not None and not (math.isfinite(timeout_s) and timeout_s > 0):
+        raise InputError(f"the motion timeout must be a positive number of seconds, got {timeout_s}",
+                         hint="give --timeout in s, or leave it out for the default")

@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import os
 import time
+from dataclasses import dataclass
+from typing import Any
 
 from mppf.core.errors import LinkError, PlcError, PressFault
 from mppf.core.presslink import PressStatus
@@ -50,6 +52,40 @@ class WallClock:
         time.sleep(seconds)
 
 
+@dataclass(frozen=True)
+class SessionOptions:
+    """The settings of a :class:`PlcSession` beyond the transport, the URL and the press.
+
+    Attributes
+    ----------
+    word_order : {"auto", "ABCD", "CDAB"}
+        Expected word order of 32-bit values; "auto" takes the PLC's.
+    unit : int
+        The PLC's unit id (messages).
+    audit : AuditLog, optional
+        Where commands and writes are recorded, written ahead (default: nowhere).
+    job_sha256 : str, optional
+        Hash of the job being pressed, recorded in the audit log.
+    register_map : RegisterMap, optional
+        Default: the packaged map.
+    clock : object with ``now()`` and ``sleep(s)``, optional
+        Default :class:`WallClock`.
+    reply_timeout_s : float
+        The transport's reply timeout in s (for the acknowledgement timeout).
+    master_id : int, optional
+        This master's id (default: a random one).
+    """
+
+    word_order: str = "auto"
+    unit: int = 1
+    audit: Any = None
+    job_sha256: str | None = None
+    register_map: rm.RegisterMap | None = None
+    clock: Any = None
+    reply_timeout_s: float = 1.0
+    master_id: int | None = None
+
+
 class PlcSession(Mailbox):
     """A connected press PLC: status, STOP, and the owner's commands (no numpy, no pymodbus).
 
@@ -63,22 +99,9 @@ class PlcSession(Mailbox):
         Where the PLC is (messages, audit log).
     press : PressConfig, optional
         The press description, checked against the PLC's matrix (needed to press).
-    word_order : {"auto", "ABCD", "CDAB"}
-        Expected word order of 32-bit values; "auto" takes the PLC's.
-    unit : int
-        The PLC's unit id (messages).
-    audit : AuditLog, optional
-        Where commands and writes are recorded, written ahead (default: nowhere).
-    job_sha256 : str, optional
-        Hash of the job being pressed, recorded in the audit log.
-    register_map : RegisterMap, optional
-        Default: the packaged map.
-    clock : object with ``now()`` and ``sleep(s)``
-        Default :class:`WallClock`.
-    reply_timeout_s : float
-        The transport's reply timeout (for the acknowledgement timeout).
-    master_id : int, optional
-        This master's id (default: a random one).
+    **options
+        The fields of :class:`SessionOptions` (``word_order``, ``unit``, ``audit``,
+        ``job_sha256``, ``register_map``, ``clock``, ``reply_timeout_s``, ``master_id``).
 
     Attributes
     ----------
@@ -95,19 +118,19 @@ class PlcSession(Mailbox):
         The press description does not match the PLC's matrix size.
     """
 
-    def __init__(self, io, url, press=None, *, word_order: str = "auto", unit: int = 1, audit=None,
-                 job_sha256: str | None = None, register_map: rm.RegisterMap | None = None, clock=None,
-                 reply_timeout_s: float = 1.0, master_id: int | None = None):
+    def __init__(self, io, url, press=None, **options):
+        opts = SessionOptions(**options)
+        word_order, unit, job_sha256 = opts.word_order, opts.unit, opts.job_sha256
         if word_order != "auto":
             codec.check_word_order(word_order)
         self.url = url
         self.press = press
-        self.map = register_map if register_map is not None else rm.load_register_map()
-        self.audit = audit if audit is not None else NULL_AUDIT
+        self.map = opts.register_map if opts.register_map is not None else rm.load_register_map()
+        self.audit = opts.audit if opts.audit is not None else NULL_AUDIT
         self.job_sha256 = job_sha256
-        self.reply_timeout_s = float(reply_timeout_s)
-        self.master_id = int(master_id) if master_id else new_master_id()
-        self._clock = clock if clock is not None else WallClock()
+        self.reply_timeout_s = float(opts.reply_timeout_s)
+        self.master_id = int(opts.master_id) if opts.master_id else new_master_id()
+        self._clock = opts.clock if opts.clock is not None else WallClock()
         self._counter = int.from_bytes(os.urandom(2), "big") % 0xFFFF + 1
         self._beat_counter = int.from_bytes(os.urandom(2), "big") % 0xFFFF
         self._nonce = 0  # the PLC's nonce for this master's lease (never written anywhere as it is)

@@ -23,6 +23,7 @@ from mppf.model.press import PressConfig, example_press_path, load_press
 from mppf.sim.faults import FaultSpec
 from mppf.sim.plc.program import PlcProgram
 from mppf.sim.plc.server import PlcServer
+from mppf.sim.plc.settings import SimTransport, split_options
 from mppf.sim.serial_pty import PtyPair
 
 
@@ -170,79 +171,70 @@ class SimHandle:
         self.stop()
 
 
-def start_simulated_plc(
-    press: PressConfig | None = None,
-    *,
-    host: str = "127.0.0.1",
-    port: int = 0,
-    rtu: bool = False,
-    rtu_port: str | None = None,
-    baud: int = 115200,
-    parity: str = "E",
-    paced: bool = False,
-    faults: list[FaultSpec] = (),
-    unit: int = 1,
-    **options,
-) -> SimHandle:
+def start_simulated_plc(press: PressConfig | None = None, *, faults: list[FaultSpec] = (), unit: int = 1,
+                        **options) -> SimHandle:
     """Start a simulated PLC in a background thread; the caller must ``stop()`` it.
 
     Parameters
     ----------
     press : PressConfig, optional
         Default: the bundled example press.
-    host, port : str, int
-        TCP address (port 0: a free port). Used unless ``rtu`` or ``rtu_port``.
-    rtu : bool
-        Serve RTU on a new pseudo-terminal pair (:class:`PtyPair`); ``url`` names the
-        client's end.
-    rtu_port : str, optional
-        Serve RTU on this serial device instead.
-    baud, parity : int, str
-        Serial settings (RTU). On a pseudo-terminal pair whose kernel refuses parity
-        settings (:attr:`PtyPair.supports_parity`), parity N is used instead; ``url``
-        always states the parity in use.
-    paced : bool
-        Pace the pseudo-terminal relay at ``baud`` (11 bits/byte).
     faults : list of FaultSpec
         Faults to inject at start.
     unit : int
         Modbus unit id (1..247).
     **options
-        Keyword arguments of :class:`~mppf.sim.plc.program.PlcProgram` (``word_order``,
-        ``time_scale``, ``watchdog_s``, ``seed``, ``noise_mm``, ``scan_s``, ``remote``); the
-        watchdog runs on the wall clock.
+        The fields of :class:`~mppf.sim.plc.settings.SimTransport`: ``host`` and ``port``
+        (TCP, port 0: a free port; used unless ``rtu`` or ``rtu_port``), ``rtu`` (serve RTU
+        on a new pseudo-terminal pair, :class:`PtyPair`; ``url`` names the client's end),
+        ``rtu_port`` (serve RTU on this serial device instead), ``baud`` and ``parity`` (on a
+        pseudo-terminal pair whose kernel refuses parity settings,
+        :attr:`PtyPair.supports_parity`, parity N is used instead; ``url`` always states the
+        parity in use), ``paced`` (pace the pseudo-terminal relay at ``baud``, 11 bits/byte).
+        The others are those of :class:`~mppf.sim.plc.settings.PlcSettings` (``word_order``,
+        ``time_scale``, ``watchdog_s``, ``seed``, ``noise_mm``, ``scan_s``, ``remote``...);
+        the watchdog runs on the wall clock.
     """
     press = press or load_press(example_press_path())
-    if parity not in ("N", "E", "O"):
-        raise InputError(f"parity must be N, E or O, got {parity!r}")
-    server = PlcServer(PlcProgram(press, clock=time.monotonic, **options), unit=unit)
+    transport, settings = split_options(options)
+    if transport.parity not in ("N", "E", "O"):
+        raise InputError(f"parity must be N, E or O, got {transport.parity!r}")
+    server = PlcServer(PlcProgram(press, clock=time.monotonic, **settings), unit=unit)
     handle = SimHandle(server)
     handle._thread.start()
     try:
-        if rtu or rtu_port:
-            serve_on = rtu_port
-            if rtu_port is None:
-                handle._pty = PtyPair(baud=baud if paced else None)
-                serve_on, handle.serial_port = handle._pty.port_a, handle._pty.port_b
-                if not handle._pty.supports_parity:
-                    parity = "N"  # this kernel refuses parity on pseudo-terminals
-            else:
-                handle.serial_port = rtu_port
-            with _start_failure(f"serial device {serve_on}", "give an existing serial device, or 'pty'"):
-                asyncio.run_coroutine_threadsafe(server.start_rtu(serve_on, baud=baud, parity=parity),
-                                                 handle._loop).result(10)
-            handle.url = f"rtu://{handle.serial_port}?baud={baud}&parity={parity}&unit={unit}"
-        else:
-            with _start_failure(f"{host}:{port}", "choose another --port (0: a free one) or a local --host; "
-                                "is another simulator already running there?"):
-                handle.port = asyncio.run_coroutine_threadsafe(server.start_tcp(host, port), handle._loop).result(10)
-            handle.url = f"tcp://{host}:{handle.port}?unit={unit}"
+        handle.url = (_serve_rtu if transport.serial else _serve_tcp)(handle, transport, unit)
         for spec in faults:
             handle.inject_spec(spec)
     except BaseException:
         handle.stop()
         raise
     return handle
+
+
+def _serve_rtu(handle: SimHandle, transport: SimTransport, unit: int) -> str:
+    """Serve the handle's PLC over RTU (a new pseudo-terminal pair or a serial device); its URL."""
+    baud, parity, serve_on = transport.baud, transport.parity, transport.rtu_port
+    if serve_on is None:
+        handle._pty = PtyPair(baud=baud if transport.paced else None)
+        serve_on, handle.serial_port = handle._pty.port_a, handle._pty.port_b
+        if not handle._pty.supports_parity:
+            parity = "N"  # this kernel refuses parity on pseudo-terminals
+    else:
+        handle.serial_port = serve_on
+    with _start_failure(f"serial device {serve_on}", "give an existing serial device, or 'pty'"):
+        asyncio.run_coroutine_threadsafe(handle.server.start_rtu(serve_on, baud=baud, parity=parity),
+                                         handle._loop).result(10)
+    return f"rtu://{handle.serial_port}?baud={baud}&parity={parity}&unit={unit}"
+
+
+def _serve_tcp(handle: SimHandle, transport: SimTransport, unit: int) -> str:
+    """Serve the handle's PLC over Modbus TCP (port 0: a free one); its URL."""
+    host, port = transport.host, transport.port
+    with _start_failure(f"{host}:{port}", "choose another --port (0: a free one) or a local --host; "
+                        "is another simulator already running there?"):
+        handle.port = asyncio.run_coroutine_threadsafe(handle.server.start_tcp(host, port), handle._loop).result(10)
+    return f"tcp://{host}:{handle.port}?unit={unit}"
 
 
 class _LogCapture(logging.Handler):

@@ -118,16 +118,6 @@ class InProcessPress(PlcPress):
     ----------
     press : PressConfig
         The press (also the program's: limits, speed, tolerance).
-    seed : int
-        Seed of the noise on the reported positions.
-    noise_mm : float
-        Standard deviation of that noise (0: exact).
-    word_order : {"ABCD", "CDAB"}
-        The program's word order (the driver detects it).
-    watchdog_s : float or None
-        The program's watchdog, in simulated seconds (None: off).
-    scan_s : float
-        The program's scan time (simulated s) as it states it to the driver.
     faults : sequence of FaultSpec
         Faults of the program to inject at once (``stuck``, ``estop``, ``overpressure``,
         ``freeze``, ``local``).
@@ -139,17 +129,20 @@ class InProcessPress(PlcPress):
         Simulated seconds between two status polls during motion.
     program : PlcProgram, optional
         Drive this program instead of a new one (its clock must be its own ``now_s``).
+    **settings
+        The new program's :class:`~mppf.sim.plc.settings.PlcSettings`, e.g. ``seed`` and
+        ``noise_mm`` (the noise on the reported positions), ``word_order`` (the driver
+        detects it), ``watchdog_s`` (simulated s, None: off), ``scan_s`` (simulated s, as the
+        program states it to the driver); unused with ``program``.
 
     Attributes
     ----------
     program : PlcProgram
     """
 
-    def __init__(self, press: PressConfig, *, seed: int = 0, noise_mm: float = 0.0, word_order: str = "ABCD",
-                 watchdog_s: float | None = 1.0, scan_s: float = 0.01, faults: tuple[FaultSpec, ...] = (),
-                 audit=None, job_sha256: str | None = None, poll_s: float = 0.05, program: PlcProgram | None = None):
-        self.program = program if program is not None else PlcProgram(
-            press, word_order=word_order, watchdog_s=watchdog_s, seed=seed, noise_mm=noise_mm, scan_s=scan_s)
+    def __init__(self, press: PressConfig, *, faults: tuple[FaultSpec, ...] = (), audit=None,
+                 job_sha256: str | None = None, poll_s: float = 0.05, program: PlcProgram | None = None, **settings):
+        self.program = program if program is not None else PlcProgram(press, **settings)
         for spec in faults:
             self.program.inject(spec.kind, **spec.params)
         clock = ProgramClock(self.program)

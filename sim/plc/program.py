@@ -41,6 +41,7 @@ from mppf.sim.plc.commands import MATRICES, Commands
 from mppf.sim.plc.motion import MAX_STEP_S, MAX_STEPS_PER_SCAN, Motion  # noqa: F401 - re-exported
 from mppf.sim.plc.program_faults import ProgramFaults
 from mppf.sim.plc.quirks import Quirks
+from mppf.sim.plc.settings import PlcSettings
 
 MAX_SCAN_S = 0.2
 """Longest scan period the simulated PLC accepts (the register map's scan_time_max_ms)."""
@@ -56,32 +57,15 @@ class PlcProgram(Commands, Motion, ProgramFaults, Quirks):
     press : PressConfig
         Matrix size, stroke limits (the PLC's own limits), speed, acceleration and
         position tolerance.
-    word_order : {"ABCD", "CDAB"}
-        Word order of 32-bit registers.
-    time_scale : float
-        Simulated seconds of motion per second of :meth:`advance` (50 = 50x faster).
-    watchdog_s : float or None
-        Watchdog and lease time (s of ``clock``): the owner's heartbeat must change within
-        it (None or 0: no watchdog, the lease never lapses).
-    seed : int
-        Seed of the measurement noise.
-    noise_mm : float
-        Standard deviation of the noise on reported actual positions (0: exact).
-    scan_s : float
-        The scan period the host keeps (0 < scan_s <= 0.2 s); written to ``scan_time_max_ms``.
-    remote : bool
-        Position of the remote-enable key switch at power-on (True: remote, GO allowed).
-    limits : dict, optional
-        The PLC's own configuration beyond the press description: ``positioning_timeout_s``
-        (simulated s, default 2), ``rest_speed_mm_s`` (0.5), ``rest_time_s`` (0.05),
-        ``tip_gap_min_mm`` (5); the dimpling limit is the press's ``max_neighbour_diff_mm``.
-    quirks : sequence of str, optional
-        Misbehaviours of a PLC written from a misread map (:mod:`mppf.sim.plc.quirks`).
     regmap : RegisterMap, optional
         Register map (default: the packaged one).
     clock : callable, optional
         Time source (s) of the lease and watchdog; default :attr:`now_s`, the sum of the
         :meth:`advance` steps. The Modbus host passes ``time.monotonic``.
+    **settings
+        The fields of :class:`~mppf.sim.plc.settings.PlcSettings` (``word_order``,
+        ``time_scale``, ``watchdog_s``, ``seed``, ``noise_mm``, ``scan_s``, ``remote``,
+        ``limits``, ``quirks``).
 
     Attributes
     ----------
@@ -95,10 +79,10 @@ class PlcProgram(Commands, Motion, ProgramFaults, Quirks):
         ``clock`` times at which a scan saw a new heartbeat of the owner.
     """
 
-    def __init__(self, press: PressConfig, *, word_order: str = "ABCD", time_scale: float = 1.0,
-                 watchdog_s: float | None = 1.0, seed: int = 0, noise_mm: float = 0.0, scan_s: float = 0.01,
-                 remote: bool = True, regmap: RegisterMap | None = None, clock: Callable[[], float] | None = None,
-                 limits: dict | None = None, quirks=()):
+    def __init__(self, press: PressConfig, *, regmap: RegisterMap | None = None,
+                 clock: Callable[[], float] | None = None, **settings):
+        opts = PlcSettings(**settings)
+        word_order, time_scale, watchdog_s, scan_s = opts.word_order, opts.time_scale, opts.watchdog_s, opts.scan_s
         self.press = press
         self.map = regmap or load_register_map()
         self.map.check_shape(press.rows, press.cols)
@@ -115,12 +99,12 @@ class PlcProgram(Commands, Motion, ProgramFaults, Quirks):
         self.time_scale = float(time_scale)
         self.watchdog_s = watchdog_s or None
         self.scan_s = float(scan_s)
-        self.noise_mm = float(noise_mm)
-        self.remote_key = bool(remote)
-        self._configure(limits or {})
+        self.noise_mm = float(opts.noise_mm)
+        self.remote_key = bool(opts.remote)
+        self._configure(opts.limits or {})
         self.now_s = 0.0
         self._clock = clock if clock is not None else (lambda: self.now_s)
-        self._rng = np.random.default_rng(seed)
+        self._rng = np.random.default_rng(opts.seed)
         self._words = self.map.words_in_use(press.rows, press.cols)
         park = np.stack([np.full(press.shape, press.upper.park_mm), np.full(press.shape, press.lower.park_mm)])
         self.hydraulics = Hydraulics(park, press.speed_mm_s, press.accel_mm_s2)
@@ -128,7 +112,7 @@ class PlcProgram(Commands, Motion, ProgramFaults, Quirks):
         self._ro_spans = self._read_only_spans()
         self.beats: deque[float] = deque(maxlen=BEATS_KEPT)
         self._init_faults()
-        self._init_quirks(quirks)
+        self._init_quirks(opts.quirks)
         self._power_on()
 
     # ------------------------------------------------------------------ state ---
