@@ -271,7 +271,7 @@ def _print_result(result, design: str, measured: str) -> None:
         table.add_row(f"in the {c.margin_mm:g} mm trim margin", f"{int(c.in_margin.sum())} (not counted)")
     table.add_row("registration RMS", f"{reg.rms_mm:.3f} mm")
     table.add_row("registration iterations", f"{reg.iterations}" + ("" if reg.converged else " (not converged)"))
-    table.add_row("registration verdict", reg.verdict or ("converged" if reg.converged else reg.stop_reason))
+    table.add_row("registration judgement", reg.judgement or ("converged" if reg.converged else reg.stop_reason))
     start = reg.init.get("settled_by")
     if reg.ambiguous_start:
         table.add_row("warning", f"[yellow]nearly symmetric plate: two turns tie; settled by the {start}[/]")

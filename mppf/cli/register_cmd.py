@@ -109,7 +109,7 @@ def _print_result(result, source: str, target: str, output: str | None) -> None:
     table.add_row("iterations", str(result.iterations))
     state = "[green]converged[/]" if result.converged else "[red]not converged[/]"
     table.add_row("stop", f"{state}: {escape(result.stop_reason)}")
-    table.add_row("verdict", escape(result.verdict or ("converged" if result.converged else "failed")))
+    table.add_row("judgement", escape(result.judgement or ("converged" if result.converged else "failed")))
     if result.method != "paired":
         table.add_row("residual / noise floor", f"{result.residual_mm:.3g} mm / {result.noise_mm:.3g} mm")
         names = result.init.get("candidates") or []

@@ -93,7 +93,7 @@ def design_asymmetry_mm(design_points) -> float:
     from mppf.registration.settings import RegisterOptions
     from mppf.registration.starts import principal_candidates
     from mppf.registration.target import build_target
-    from mppf.registration.verdict import plane_residuals, sample_index
+    from mppf.registration.trust import plane_residuals, sample_index
 
     target = build_target(design_points, "the design")
     sample = target.points[sample_index(target.n_points, ASYMMETRY_POINTS, seed=3)]

@@ -79,7 +79,7 @@ from mppf.registration.register import register_icp
 from mppf.registration.scan_start import choose_start, known_start
 from mppf.registration.settings import RegisterOptions, ScanStages
 from mppf.registration.target import build_target, prepare
-from mppf.registration.verdict import sample_index
+from mppf.registration.trust import sample_index
 
 MIN_POINTS = checks.MIN_POINTS
 """Fewest measured points a comparison accepts."""

@@ -39,7 +39,7 @@ from mppf.registration.target import (
     prepare,
 )
 from mppf.registration.uncertainty import uncertainty as dof_uncertainty
-from mppf.registration.verdict import judge, plane_residuals, robust_scale_mm
+from mppf.registration.trust import judge, plane_residuals, robust_scale_mm
 
 
 PRINCIPAL = PrincipalStart()
@@ -62,9 +62,9 @@ class Registration:
     rms_history : list of float
         RMS (mm) at the start of each iteration, then at the final transform.
     converged : bool
-        The verdict is "converged": a stop test was met (not the iteration limit) AND the
+        The judgement is "converged": a stop test was met (not the iteration limit) AND the
         residual is near the noise floor AND no other start fits clearly better (see
-        ``verdict``). A pose that merely stopped moving is not converged.
+        ``judgement``). A pose that merely stopped moving is not converged.
     stop_reason : str
         Why the iterations stopped.
     method : str
@@ -78,7 +78,7 @@ class Registration:
         ``runner_up``: the best start that reached another pose).
     ambiguous_start : bool
         The best start and the best one that reached a different pose fit equally well
-        within the noise (:func:`mppf.registration.verdict.tie`; a symmetric plate): the
+        within the noise (:func:`mppf.registration.trust.tie`; a symmetric plate): the
         turn of the result should be checked by the operator.
     uncertainty : dict
         One-sigma uncertainty per degree of freedom in the target's plate frame
@@ -93,7 +93,7 @@ class Registration:
         the surface fixes it: ``uncertainty["outline_share"]``).
     notes : tuple of str
         Decisions the operator should know (metric overridden, pinning skipped, ...).
-    verdict : str
+    judgement : str
         "converged", or "failed: ..." with the figures (iteration limit, or a residual far
         above the noise floor at the best start tried).
     residual_mm : float
@@ -101,7 +101,7 @@ class Registration:
         the result.
     noise_mm : float
         The noise floor: the residual the right pose leaves
-        (:func:`mppf.registration.verdict.noise_floor_mm`).
+        (:func:`mppf.registration.trust.noise_floor_mm`).
     """
 
     tf: np.ndarray
@@ -117,7 +117,7 @@ class Registration:
     uncertainty: dict = field(default_factory=dict)
     outline_pinned: bool = False
     notes: tuple = ()
-    verdict: str = ""
+    judgement: str = ""
     residual_mm: float = float("nan")
     noise_mm: float = float("nan")
 
@@ -137,7 +137,7 @@ class Registration:
             "uncertainty": self.uncertainty,
             "outline_pinned": bool(self.outline_pinned),
             "notes": list(self.notes),
-            "verdict": self.verdict or ("converged" if self.converged else f"failed: {self.stop_reason}"),
+            "judgement": self.judgement or ("converged" if self.converged else f"failed: {self.stop_reason}"),
             "residual_mm": _finite_or_none(self.residual_mm),
             "noise_mm": _finite_or_none(self.noise_mm),
         }
@@ -195,12 +195,12 @@ def register_paired(source, target, weights=None) -> Registration:
         tf=tf, rms_mm=rms, iterations=1, rms_history=[rms], converged=True,
         stop_reason="closed form (paired points)", method="paired",
         inlier_fraction=1.0 if w is None else float(np.count_nonzero(w) / w.size),
-        init={"kind": "closed form"}, verdict="converged", residual_mm=rms,
+        init={"kind": "closed form"}, judgement="converged", residual_mm=rms,
     )
 
 
 MIN_ICP_POINTS = 10
-"""Fewest points of either cloud an ICP registration is run on (three points fit any surface: no verdict)."""
+"""Fewest points of either cloud an ICP registration is run on (three points fit any surface: no judgement)."""
 
 
 def check_icp_points(n_points: int, what: str) -> None:
@@ -215,7 +215,7 @@ def check_icp_points(n_points: int, what: str) -> None:
 
     if n_points < MIN_ICP_POINTS:
         raise GeometryError(f"{what} has {n_points} point(s); a registration by ICP needs at least {MIN_ICP_POINTS} "
-                            "(a few points fit any surface, so no verdict could be given)",
+                            "(a few points fit any surface, so no judgement could be given)",
                             hint="give the whole scan or design; for a handful of matched points use --method paired")
 
 
@@ -260,7 +260,7 @@ def register_icp(source, target, options: RegisterOptions = DEFAULT, reporter: R
     Returns
     -------
     Registration
-        With its ``verdict``: "converged" only when the residual is near the noise floor and
+        With its ``judgement``: "converged" only when the residual is near the noise floor and
         no start tried fits clearly better.
 
     Raises
@@ -285,7 +285,7 @@ def register_icp(source, target, options: RegisterOptions = DEFAULT, reporter: R
 
 def converge_start(cloud: Cloud, target: RegistrationTarget, start_tf, settings: RegisterOptions) -> np.ndarray:
     """A start converged (4, 4): ``register_icp(cloud, target, replace(settings, init=start_tf)).tf``
-    (``pin_outline=False, check_starts=False``) without the noise floor, verdict and uncertainty a start
+    (``pin_outline=False, check_starts=False``) without the noise floor, judgement and uncertainty a start
     fit does not use (about half of a fit on 2,000 points). ``cloud`` prepared, ``target`` built.
     """
     from threadpoolctl import threadpool_limits
@@ -318,12 +318,12 @@ def _register(cloud: Cloud, target: RegistrationTarget, settings: RegisterOption
     # 6. from a given start that settled: converge the principal-axes starts too, go on from a clearly better one
     if not settings.principal_start and settings.check_starts and fit.fine.converged:
         fit, init_info = stages.check_starts(problem, fit, init_info, PRINCIPAL)
-    # 7. the verdict, final residuals and uncertainty
+    # 7. the judgement, final residuals and uncertainty
     return _result(problem, fit, init_info)
 
 
 def _result(problem: stages.Problem, fit: stages.Fit, init_info: dict) -> Registration:
-    """The Registration of the fine stage's transform: residuals, verdict, uncertainty, notes."""
+    """The Registration of the fine stage's transform: residuals, judgement, uncertainty, notes."""
     target, points, matching, floor = problem.target, problem.points, problem.matching, problem.floor_mm
     flat_vs_curved, notes = problem.flat_vs_curved, problem.notes
     final = icp.evaluate(target, points.fine, fit.fine.tf, matching, fit.nearest)
@@ -337,15 +337,15 @@ def _result(problem: stages.Problem, fit: stages.Fit, init_info: dict) -> Regist
                      "(too shallow) and the outline was not used: it stays where the start put it; "
                      "scan the whole plate so the outline pins it, or check it against marks")
     residual = robust_scale_mm(plane_residuals(target, points.judge, fit.fine.tf))
-    verdict = judge(fit.fine.converged, fit.fine.stop_reason, residual, floor, len(init_info.get("scores_mm", [0])),
+    judgement = judge(fit.fine.converged, fit.fine.stop_reason, residual, floor, len(init_info.get("scores_mm", [0])),
                     compared=not flat_vs_curved)
     if flat_vs_curved:
         notes.append("flat against curved: the residual measures their difference in shape, not the fit")
     return Registration(
         tf=fit.fine.tf, rms_mm=final.rms_mm, iterations=fit.coarse.iterations + fit.fine.iterations,
         rms_history=[*fit.coarse.rms_history, *fit.fine.rms_history, final.rms_mm],
-        converged=verdict == "converged", stop_reason=fit.fine.stop_reason, method=matching.metric,
+        converged=judgement == "converged", stop_reason=fit.fine.stop_reason, method=matching.metric,
         inlier_fraction=final.inlier_fraction, init=init_info, ambiguous_start=bool(init_info.get("ambiguous", False)),
-        uncertainty=uncertainty, outline_pinned=fit.pin is not None, notes=tuple(notes), verdict=verdict,
+        uncertainty=uncertainty, outline_pinned=fit.pin is not None, notes=tuple(notes), judgement=judgement,
         residual_mm=residual, noise_mm=floor,
     )

@@ -27,7 +27,7 @@ from mppf.registration.register import converge_start, register_icp
 from mppf.registration.settings import RegisterOptions, ScanStart
 from mppf.registration.starts import evaluate, principal_candidates, rank
 from mppf.registration.target import Cloud, RegistrationTarget
-from mppf.registration.verdict import noise_floor_mm, plane_residuals, robust_scale_mm, sample_index, tie
+from mppf.registration.trust import noise_floor_mm, plane_residuals, robust_scale_mm, sample_index, tie
 
 SYMMETRY_FACTOR = 2.0
 """The scan tells two turns apart only when the design's own misfit under the turn between them
@@ -200,7 +200,7 @@ def known_start(start_from) -> StartChoice:
 def start_tie(target: RegistrationTarget, best, other, floor_mm: float) -> tuple[bool, float | None]:
     """Whether the scan cannot tell ``best`` from ``other`` (Candidates), and the design's asymmetry (mm).
 
-    A tie: their residuals are equal within the noise (:func:`mppf.registration.verdict.tie`),
+    A tie: their residuals are equal within the noise (:func:`mppf.registration.trust.tie`),
     or the design, moved by the turn between them and fitted onto itself, misfits itself by
     less than :data:`SYMMETRY_FACTOR` times the scan's residual at ``best``.
     """

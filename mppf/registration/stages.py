@@ -2,7 +2,7 @@
 
 ``matching`` (the metric, never a plane between flat and curved), ``subsamples`` (the
 points of the fine and coarse stages and of the judging sample), ``floor`` (the noise
-floor, :mod:`mppf.registration.verdict`), ``start`` (principal-axes candidates converged,
+floor, :mod:`mppf.registration.trust`), ``start`` (principal-axes candidates converged,
 :mod:`mppf.registration.starts`), ``fit`` (coarse stage, outline pin, fine stage) and
 ``check_starts`` (from a given start: would a principal-axes start fit clearly better?).
 Lengths in mm.
@@ -32,7 +32,7 @@ from mppf.registration.starts import (
     sampled_alike,
 )
 from mppf.registration.target import Cloud, RegistrationTarget, spreads
-from mppf.registration.verdict import noise_floor_mm, robust_scale_mm, sample_index, tie
+from mppf.registration.trust import noise_floor_mm, robust_scale_mm, sample_index, tie
 
 
 @dataclass(frozen=True, eq=False)

@@ -6,7 +6,7 @@ each to convergence on a subsample (a few iterations do not tell a plate from it
 turn while it is still millimetres off) and keeps the residuals of one common sample at
 the result; :func:`rank` orders them, merges candidates that reached the same pose, and
 says whether the best two different poses tie within the noise
-(:func:`mppf.registration.verdict.tie`): a (nearly) symmetric plate. Lengths in mm.
+(:func:`mppf.registration.trust.tie`): a (nearly) symmetric plate. Lengths in mm.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from mppf.core.transform import make_tf, rotation_angle_deg
 from mppf.registration import icp
 from mppf.registration.settings import Matching, PrincipalStart
 from mppf.registration.target import RegistrationTarget
-from mppf.registration.verdict import CLIP_FLOORS, point_residuals, robust_scale_mm, tie
+from mppf.registration.trust import CLIP_FLOORS, point_residuals, robust_scale_mm, tie
 
 SIGN_FLIPS = ((1, 1, 1), (-1, -1, 1), (-1, 1, -1), (1, -1, -1))
 """Proper sign flips of the (u, v, n) principal axes tried by the principal-axes start."""

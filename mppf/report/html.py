@@ -113,7 +113,7 @@ def registration_rows(c: Comparison) -> list[tuple]:
         ("RMS of the matched pairs (mm)", r.rms_mm),
         ("iterations", r.iterations),
         ("converged", "yes" if r.converged else f"no ({r.stop_reason})"),
-        ("verdict", r.verdict or "-"),
+        ("judgement", r.judgement or "-"),
         ("residual against the noise floor (mm)", f"{r.residual_mm:.3f} / {r.noise_mm:.3f}"),
         ("start settled by", str(r.init.get("settled_by", "-"))),
         ("inlier fraction", r.inlier_fraction),

@@ -46,7 +46,7 @@ def test_register_table_and_moved_output(pair_files, capsys, tmp_path):
     code = main(["register", str(src_path), str(tgt_path), "-o", str(out)])
     assert code == 0
     text = capsys.readouterr().out
-    for words in ("RMS", "iterations", "converged", "inlier fraction", "transform", "verdict",
+    for words in ("RMS", "iterations", "converged", "inlier fraction", "transform", "judgement",
                   "residual / noise floor", "starts tried"):
         assert words in text
     moved = read_points(out).points

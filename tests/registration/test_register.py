@@ -261,5 +261,5 @@ def test_the_register_command_runs_without_importing_scipy_or_the_cad_reader(tmp
     out = json.loads(proc.stdout[:proc.stdout.index("\n}") + 2])
     assert result == [[0, 0], []], proc.stdout[-2000:]
     turn_deg, shift_mm = motion_error(np.asarray(out["transform"]), PLATE_POSE, scan.mean(axis=0))
-    assert out["verdict"] == "converged" and turn_deg < 0.05 and shift_mm < 5.0  # 2,000 points: 0.011 deg, 2.1 mm
+    assert out["judgement"] == "converged" and turn_deg < 0.05 and shift_mm < 5.0  # 2,000 points: 0.011 deg, 2.1 mm
     assert (tmp_path / "moved.csv").exists()

@@ -1,4 +1,4 @@
-"""Registration you can trust (issue 19): the verdict, the pin only where free, ties only within the noise."""
+"""Registration you can trust (issue 19): the judgement, the pin only where free, ties only within the noise."""
 
 from __future__ import annotations
 
@@ -32,9 +32,9 @@ def test_identity_start_never_reports_a_wrong_pose_as_converged(seed):
     result = register_icp(source, target, RegisterOptions(method="plane", init="identity"))
     rot_err, shift_err = motion_error(result.tf, tf_true, source.mean(axis=0))
     right = rot_err < 0.05 and shift_err < 1.0
-    assert right or not result.converged, (seed, rot_err, shift_err, result.verdict)
+    assert right or not result.converged, (seed, rot_err, shift_err, result.judgement)
     assert right, (seed, result.init)  # the principal-axes candidates tried from the identity found it
-    assert result.verdict == "converged" and result.residual_mm <= 3.0 * result.noise_mm
+    assert result.judgement == "converged" and result.residual_mm <= 3.0 * result.noise_mm
     assert len(result.init["candidates"]) == 5  # the identity's result and the four principal-axes starts
 
 
@@ -81,7 +81,7 @@ def test_other_shapes_fail_with_the_figures(hull_dir):
     design = read_points(hull_dir / "K3_stern_saddle.csv").points
     other = read_points(hull_dir / "K1_midbody_bilge.csv").points
     result = register_icp(other, design, RegisterOptions(method="plane"))
-    assert not result.converged and result.verdict.startswith("failed")
-    assert "noise floor" in result.verdict and "mm" in result.verdict
+    assert not result.converged and result.judgement.startswith("failed")
+    assert "noise floor" in result.judgement and "mm" in result.judgement
     doc = result.to_dict()
-    assert doc["verdict"] == result.verdict and doc["noise_mm"] > 0
+    assert doc["judgement"] == result.judgement and doc["noise_mm"] > 0

@@ -146,7 +146,7 @@ def tie(best: np.ndarray, other: np.ndarray, floor_mm: float, level_mm: float | 
 
 def judge(stop_converged: bool, stop_reason: str, residual_mm: float, floor_mm: float, tried: int,
           compared: bool) -> str:
-    """The verdict of a registration: "converged", or "failed: ..." with the figures.
+    """The judgement of a registration: "converged", or "failed: ..." with the figures.
 
     Parameters
     ----------
