@@ -126,13 +126,7 @@ def foot_points(surface: Surface, points, *, tf=None, tol_mm: float = 1e-9,
     InputError
         Bad shapes, a bad transform, or non-positive tolerance / iteration count.
     """
-    p = as_points(points)
-    if tf is not None:
-        p = apply_tf(tf_from_list(tf, name="tf"), p)
-    if not np.all(np.isfinite(p)):
-        raise InputError("points contain NaN or infinite values", hint="remove invalid points first")
-    check_positive("tol_mm", tol_mm, unit="mm")
-    max_iterations = check_number("max_iterations", max_iterations, low=1, integer=True)
+    p, max_iterations = _checked(points, tf, tol_mm, max_iterations)
     x, y, w = p[:, 0], p[:, 1], p[:, 2]
     u, v = x.copy(), y.copy()
     deriv = [np.asarray(a, dtype=float) for a in surface.derivatives(u, v)]
@@ -142,63 +136,114 @@ def foot_points(surface: Surface, points, *, tf=None, tol_mm: float = 1e-9,
     mean_sq_change = 0.0
     while active.size and iterations < max_iterations:
         iterations += 1
-        xa, ya, wa, ua, va = x[active], y[active], w[active], u[active], v[active]
-        z, zu, zv, zuu, zuv, zvv = (a[active] for a in deriv)
-        f1, f2 = _residual(xa, ya, wa, ua, va, z, zu, zv)
-        h11, h12, h22, _ = _hessian(wa - z, zu, zv, zuu, zuv, zvv)
-        det = h11 * h22 - h12 * h12
-        step_u = (h22 * f1 - h12 * f2) / det
-        step_v = (h11 * f2 - h12 * f1) / det
-        f_old = _objective(xa, ya, wa, ua, va, z)
-        # round-off of f: distance times the coordinate round-off (about 1e-14 relative)
-        f_limit = f_old + 1e-14 * (1.0 + np.abs(xa) + np.abs(ya) + np.abs(wa)) * (1.0 + np.sqrt(2.0 * f_old))
-
-        # backtracking line search: halve the step where f would increase
-        alpha = np.ones_like(ua)
-        new_u, new_v = ua + step_u, va + step_v
-        new = [np.asarray(a, dtype=float) for a in surface.derivatives(new_u, new_v)]
-        worse = ~(_objective(xa, ya, wa, new_u, new_v, new[0]) <= f_limit)
-        for _ in range(MAX_HALVINGS):
-            if not worse.any():
-                break
-            idx = np.flatnonzero(worse)
-            alpha[idx] *= 0.5
-            new_u[idx] = ua[idx] + alpha[idx] * step_u[idx]
-            new_v[idx] = va[idx] + alpha[idx] * step_v[idx]
-            trial = surface.derivatives(new_u[idx], new_v[idx])
-            for full, part in zip(new, trial):
-                full[idx] = part
-            still = ~(_objective(xa[idx], ya[idx], wa[idx], new_u[idx], new_v[idx], new[0][idx]) <= f_limit[idx])
-            worse[idx] = still
-        # points whose line search failed keep their old position
-        if worse.any():
-            new_u[worse], new_v[worse] = ua[worse], va[worse]
-            for full, old in zip(new, (z, zu, zv, zuu, zuv, zvv)):
-                full[worse] = old[worse]
-
-        change_sq = (new_u - ua) ** 2 + (new_v - va) ** 2 + (new[0] - z) ** 2
+        xyw, ua, va = (x[active], y[active], w[active]), u[active], v[active]
+        old = [a[active] for a in deriv]
+        # damped Newton step, halved where f would increase
+        new_u, new_v, new = _damped_step(surface, xyw, ua, va, old)
+        change_sq = (new_u - ua) ** 2 + (new_v - va) ** 2 + (new[0] - old[0]) ** 2
         mean_sq_change = float(np.mean(change_sq))  # eq. (2.17) over the active points
         u[active], v[active] = new_u, new_v
         for full, part in zip(deriv, new):
             full[active] = part
-
         # stop test at the new position
-        nz, nzu, nzv, nzuu, nzuv, nzvv = new
-        r1, r2 = _residual(xa, ya, wa, new_u, new_v, nz, nzu, nzv)
-        dist = np.sqrt(2.0 * _objective(xa, ya, wa, new_u, new_v, nz))
-        small = np.hypot(r1, r2) <= RESIDUAL_TOL_REL * (1.0 + dist)
-        *_, pd = _hessian(wa - nz, nzu, nzv, nzuu, nzuv, nzvv)
-        done = (change_sq <= tol_mm * tol_mm) & small & pd
+        done = (change_sq <= tol_mm * tol_mm) & _at_foot(xyw, new_u, new_v, new)
         stalled = (change_sq == 0.0) & ~done
         converged[active[done]] = True
         active = active[~done & ~stalled]
-
     z, zu, zv = deriv[0], deriv[1], deriv[2]
     xyz = np.column_stack([u, v, z])
     r1, r2 = _residual(x, y, w, u, v, z, zu, zv)
     distance = np.einsum("ij,ij->i", p - xyz, unit_normals(zu, zv))
     return FootPoints(uv=np.column_stack([u, v]), xyz=xyz, distance_mm=distance, converged=converged,
                       iterations=iterations, residual_mm=np.hypot(r1, r2), mean_sq_change_mm2=mean_sq_change)
+
+
+def _checked(points, tf, tol_mm: float, max_iterations: int) -> tuple[np.ndarray, int]:
+    """The points in the surface's frame, (n, 3) float mm, and the iteration limit, checked."""
+    p = as_points(points)
+    if tf is not None:
+        p = apply_tf(tf_from_list(tf, name="tf"), p)
+    if not np.all(np.isfinite(p)):
+        raise InputError("points contain NaN or infinite values", hint="remove invalid points first")
+    check_positive("tol_mm", tol_mm, unit="mm")
+    return p, check_number("max_iterations", max_iterations, low=1, integer=True)
+
+
+def _damped_step(surface: Surface, xyw, ua, va, old):
+    """One damped Newton step of the active points.
+
+    Parameters
+    ----------
+    surface : Surface
+    xyw : tuple of three (m,) float, mm
+        The active points.
+    ua, va : (m,) float, mm
+        Their foot-point parameters now.
+    old : list of six (m,) float
+        z, zu, zv, zuu, zuv, zvv at (ua, va).
+
+    Returns
+    -------
+    new_u, new_v : (m,) float, mm
+        The parameters after the step (the old ones where the line search failed).
+    new : list of six (m,) float
+        The derivatives there.
+    """
+    xa, ya, wa = xyw
+    z, zu, zv, zuu, zuv, zvv = old
+    f1, f2 = _residual(xa, ya, wa, ua, va, z, zu, zv)
+    h11, h12, h22, _ = _hessian(wa - z, zu, zv, zuu, zuv, zvv)
+    det = h11 * h22 - h12 * h12
+    step_u = (h22 * f1 - h12 * f2) / det
+    step_v = (h11 * f2 - h12 * f1) / det
+    f_old = _objective(xa, ya, wa, ua, va, z)
+    # round-off of f: distance times the coordinate round-off (about 1e-14 relative)
+    f_limit = f_old + 1e-14 * (1.0 + np.abs(xa) + np.abs(ya) + np.abs(wa)) * (1.0 + np.sqrt(2.0 * f_old))
+    new_u, new_v, new, worse = _line_search(surface, xyw, (ua, va), (step_u, step_v), f_limit)
+    # points whose line search failed keep their old position
+    if worse.any():
+        new_u[worse], new_v[worse] = ua[worse], va[worse]
+        for full, before in zip(new, old):
+            full[worse] = before[worse]
+    return new_u, new_v, new
+
+
+def _line_search(surface: Surface, xyw, uv, step, f_limit):
+    """Backtracking: halve the step (up to :data:`MAX_HALVINGS` times) where f would exceed ``f_limit``.
+
+    Returns the parameters tried last, (m,) float mm each, the six derivatives there, and
+    where f is still above ``f_limit`` ((m,) bool).
+    """
+    xa, ya, wa = xyw
+    (ua, va), (step_u, step_v) = uv, step
+    alpha = np.ones_like(ua)
+    new_u, new_v = ua + step_u, va + step_v
+    new = [np.asarray(a, dtype=float) for a in surface.derivatives(new_u, new_v)]
+    worse = ~(_objective(xa, ya, wa, new_u, new_v, new[0]) <= f_limit)
+    for _ in range(MAX_HALVINGS):
+        if not worse.any():
+            break
+        idx = np.flatnonzero(worse)
+        alpha[idx] *= 0.5
+        new_u[idx] = ua[idx] + alpha[idx] * step_u[idx]
+        new_v[idx] = va[idx] + alpha[idx] * step_v[idx]
+        trial = surface.derivatives(new_u[idx], new_v[idx])
+        for full, part in zip(new, trial):
+            full[idx] = part
+        still = ~(_objective(xa[idx], ya[idx], wa[idx], new_u[idx], new_v[idx], new[0][idx]) <= f_limit[idx])
+        worse[idx] = still
+    return new_u, new_v, new, worse
+
+
+def _at_foot(xyw, new_u, new_v, new) -> np.ndarray:
+    """(m,) bool: the residual |F| is at round-off level and H is positive definite (a true foot point)."""
+    xa, ya, wa = xyw
+    nz, nzu, nzv, nzuu, nzuv, nzvv = new
+    r1, r2 = _residual(xa, ya, wa, new_u, new_v, nz, nzu, nzv)
+    dist = np.sqrt(2.0 * _objective(xa, ya, wa, new_u, new_v, nz))
+    small = np.hypot(r1, r2) <= RESIDUAL_TOL_REL * (1.0 + dist)
+    *_, pd = _hessian(wa - nz, nzu, nzv, nzuu, nzuv, nzvv)
+    return small & pd
 
 
 def project_vertical(surface: Surface, u, v) -> np.ndarray:
