@@ -36,7 +36,7 @@ def decide(rms_history_mm: list[float], max_abs_mm: float, cycle: int, settings:
     -------
     Decision
         BADLY_FORMED when the verdict says the plate is far from its design but is this plate
-        (:mod:`mppf.measure.identity`: its outline and shape are the design's): the loop
+        (:mod:`mppf.measure.same_plate`: its outline and shape are the design's): the loop
         stops, a person looks at the press, the plan and the scan before anything is pressed
         again. IN_TOLERANCE when the form maximum and the RMS are both within their limits and no
         point set aside as a scanner artefact lies beyond the tolerance and the whole net

@@ -4,7 +4,7 @@ A scan that cannot be read, or that does not match the design (another plate, ot
 units), is recorded as rejected (never taken again) and the cycle waits in "pressed" for
 another one. A scan of this plate far from its design (its outline and shape are the
 design's, its point count the previous cycle's scan's) is not rejected: it is judged, badly
-formed, and the loop stops there (:mod:`mppf.measure.identity`, ``Decision.BADLY_FORMED``).
+formed, and the loop stops there (:mod:`mppf.measure.same_plate`, ``Decision.BADLY_FORMED``).
 Every file the loop reads back (design, scan, job) is checked against the SHA-256 recorded
 for it. A cycle rescanned where areas were not measured or set-aside points lie beyond the
 tolerance (:mod:`mppf.loop.rescanning`) is compared as the union of its scans, in the first

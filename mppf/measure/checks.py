@@ -70,15 +70,15 @@ def gross_mm(tolerance_mm: float, depth_mm: float) -> float:
 
 def check_match(dev, skin, tolerance_mm: float, reg: Registration, expected_points: int | None = None):
     """Raise GeometryError when the scan is evidently of another plate (or in other units, or did not register);
-    return the :class:`~mppf.measure.identity.Evidence` when it is this plate badly formed, None when it is near
+    return the :class:`~mppf.measure.same_plate.Evidence` when it is this plate badly formed, None when it is near
     its design.
 
     Another plate: more than half of the scan lies beyond the design's edge; or more than
     half lies farther from the design than :func:`gross_mm` and its outline, shape or point
-    count says it is not this plate (:mod:`mppf.measure.identity`). When they say it is,
+    count says it is not this plate (:mod:`mppf.measure.same_plate`). When they say it is,
     the plate is **badly formed**: judged (out of tolerance), not refused.
     """
-    from mppf.measure.identity import evidence
+    from mppf.measure.same_plate import evidence
 
     deviation, outside = dev.deviation_mm, dev.outside
     if outside.mean() > 1.0 - MATCH_FRACTION:

@@ -40,7 +40,7 @@ The steps of :func:`compare` (the math is in ``docs/compare.md``):
    (:mod:`mppf.measure.coverage`).
 7. The verdict: the one decision rule (:func:`mppf.measure.decision.verdict`): form max,
    RMS, the set-aside points, the coverage, and a badly formed plate (a scan far from its
-   design whose outline and shape say it is this plate, :mod:`mppf.measure.identity`:
+   design whose outline and shape say it is this plate, :mod:`mppf.measure.same_plate`:
    judged out of tolerance, not refused as another plate).
 
 A trim margin (``margin_mm``: the excess band the scanned plate still carries around the
@@ -139,7 +139,7 @@ def compare(design_points, measured_points, options: CompareOptions = DEFAULT) -
 
 @dataclass
 class _Placed:
-    """The registered scan: design fit, skin, registration, transform, deviations, identity, notes."""
+    """The registered scan: design fit, skin, registration, transform, deviations, plate evidence, notes."""
 
     fitted: object
     skin: DesignSkin
@@ -238,7 +238,7 @@ def _judge(design: np.ndarray, placed: _Placed, parts: _Parts, options: CompareO
         punch_normal_deviation_mm=punch[1], punch_interpolated=punch[2], punch_edge_mm=punch[3], notes=notes,
         margin_mm=options.margin_mm, in_margin=dev.in_margin, rms_tolerance_mm=options.rms_tolerance_mm,
         verdict=decided, set_aside=aside, form=field.to_dict(), punch_label_base=options.punch_label_base,
-        coverage=covered, identity=badly, is_cleared=parts.clearing.cleared & parts.set_aside,
+        coverage=covered, plate_evidence=badly, is_cleared=parts.clearing.cleared & parts.set_aside,
     )
 
 

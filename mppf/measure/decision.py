@@ -7,7 +7,7 @@
   point noise averaged out: :mod:`mppf.measure.form`) exceeds the tolerance, or the RMS of
   the measured points exceeds the RMS tolerance, or the plate is **badly formed** (most of
   it farther than the gross distance from its design, but its outline and shape say it is
-  this plate: :mod:`mppf.measure.identity`; the loop stops there);
+  this plate: :mod:`mppf.measure.same_plate`; the loop stops there);
 - else **needs review** when any point set aside as a scanner artefact
   (:mod:`mppf.measure.outliers`) lies beyond the tolerance (the inspection cannot be sure it
   was an artefact and not the plate) and no other scan of the plate re-measured its spot within

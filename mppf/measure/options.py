@@ -71,7 +71,7 @@ class CompareOptions:
         :data:`~mppf.measure.coverage.GAP_MM`, :data:`~mppf.measure.coverage.MAX_GAP_MM`.
     expected_points : int, optional
         How many points a scan of this plate has (the loop: the previous cycle's); evidence
-        that a scan far from its design is this plate, badly formed (:mod:`mppf.measure.identity`).
+        that a scan far from its design is this plate, badly formed (:mod:`mppf.measure.same_plate`).
     scan_index : (n,) int, optional
         For a union of scans in one frame: the scan each measured point came from (0 the
         first); a set-aside point another scan re-measured within the tolerance is cleared.

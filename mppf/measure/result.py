@@ -10,7 +10,7 @@ from mppf.core.transform import tf_to_list
 from mppf.geometry.frame import LocalFrame
 from mppf.measure.coverage import Coverage
 from mppf.measure.decision import Verdict
-from mppf.measure.identity import Evidence
+from mppf.measure.same_plate import Evidence
 from mppf.measure.outliers import SetAside
 from mppf.registration.register import Registration
 
@@ -98,9 +98,9 @@ class Comparison:
         Punch rows and columns are named from this (1 by default).
     coverage : Coverage or None
         What of the net plate was not measured (:mod:`mppf.measure.coverage`).
-    identity : Evidence or None
+    plate_evidence : Evidence or None
         Set when the plate is badly formed: the evidence that a scan far from its design is
-        this plate (:mod:`mppf.measure.identity`).
+        this plate (:mod:`mppf.measure.same_plate`).
     is_cleared : (n,) bool or None
         Set-aside points beyond the tolerance that another scan of the union re-measured within it
         (:func:`mppf.measure.outliers.clear_by_rescans`); default (None given): all False.
@@ -143,7 +143,7 @@ class Comparison:
     form: dict = field(default_factory=dict)
     punch_label_base: int = 1
     coverage: Coverage | None = None
-    identity: Evidence | None = None
+    plate_evidence: Evidence | None = None
     is_cleared: np.ndarray | None = None
 
     def __post_init__(self):
@@ -195,7 +195,7 @@ class Comparison:
             "form": self.form,
             "punch_label_base": self.punch_label_base,
             "coverage": None if self.coverage is None else self.coverage.to_dict(),
-            "badly_formed": None if self.identity is None else self.identity.to_dict(),
+            "badly_formed": None if self.plate_evidence is None else self.plate_evidence.to_dict(),
             "n_points": self.n_points,
             "n_inliers": self.n_inliers,
             "n_outliers": int(self.is_outlier.sum()),

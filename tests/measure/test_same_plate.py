@@ -1,4 +1,4 @@
-"""A badly formed plate is not a wrong plate (issue 20.5, mppf.measure.identity): judged, not refused."""
+"""A badly formed plate is not a wrong plate (issue 20.5, mppf.measure.same_plate): judged, not refused."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from mppf.core.errors import GeometryError
 from mppf.model.material import Material
 from mppf.measure.compare import compare
 from mppf.measure.options import CompareOptions
-from mppf.measure.identity import Evidence
+from mppf.measure.same_plate import Evidence
 from mppf.sim.forming import PlateSample, form_plate
 from mppf.sim.scanner import SimulatedScanner
 
@@ -27,7 +27,7 @@ def test_this_plate_formed_twice_too_curved_is_out_of_tolerance_not_refused():
     assert c.rms_mm > 30.0
     assert c.verdict.kind == "out_of_tolerance" and c.verdict.badly_formed
     assert c.headline.startswith("OUT of tolerance: badly formed: only")
-    assert c.identity.same_plate and c.identity.correlation > 0.9 and c.identity.outline_matches
+    assert c.plate_evidence.same_plate and c.plate_evidence.correlation > 0.9 and c.plate_evidence.outline_matches
     doc = c.to_dict()
     assert doc["badly_formed"]["same_plate"] and doc["verdict"]["badly_formed"]
     assert any(note.startswith("badly formed") for note in c.notes)
@@ -36,7 +36,7 @@ def test_this_plate_formed_twice_too_curved_is_out_of_tolerance_not_refused():
 
 def test_a_plate_near_its_design_is_not_badly_formed():
     c = _compare(sh.form(4000.0, 9000.0))
-    assert c.identity is None and not c.verdict.badly_formed and c.to_dict()["badly_formed"] is None
+    assert c.plate_evidence is None and not c.verdict.badly_formed and c.to_dict()["badly_formed"] is None
 
 
 def test_a_smaller_plate_far_from_the_design_is_another_plate():
