@@ -21,7 +21,7 @@ from scipy.optimize import brentq
 from mppf.model.material import Material
 
 #: x = R sy' / (E' t) at which the outer fibres just reach yield: below it the
-#: section is elastic-plastic, above it purely elastic (full springback).
+#: plate is elastic-plastic through its thickness, above it purely elastic (full springback).
 ELASTIC_LIMIT_X = 0.5
 
 
