@@ -30,7 +30,7 @@ from mppf.geometry.check import check_plate
 from mppf.geometry.flatten import EdgeProblem, solve, start_layout
 from mppf.geometry.frame import check_height_field, fit_frame
 from mppf.geometry.mesh import check_all_used, check_faces, edge_lengths, triangle_areas, triangulate, unique_edges, wind_ccw
-from mppf.geometry.unfold_report import STRAIN_LIMIT_PCT, Unfolding, report
+from mppf.geometry.unfold_report import STRAIN_LIMIT_PCT, CurvedMesh, Unfolding, report
 
 
 def unfold(points, faces=None, *, strain_limit_pct: float = STRAIN_LIMIT_PCT) -> Unfolding:
@@ -75,5 +75,5 @@ def unfold(points, faces=None, *, strain_limit_pct: float = STRAIN_LIMIT_PCT) ->
     problem = EdgeProblem(edges, lengths_mm, tri, triangle_areas(pts, tri), pts.shape[0])
     flat2, iterations, cost = solve(start, problem)
     # 5. strain, placement, report
-    return report(pts, tri, flat2, uv, frame, edges, boundary, lengths_mm,
-                   strain_limit_pct, iterations, cost)
+    curved = CurvedMesh(pts, tri, uv, frame, edges, boundary, lengths_mm)
+    return report(curved, flat2, strain_limit_pct=strain_limit_pct, iterations=iterations, cost=cost)

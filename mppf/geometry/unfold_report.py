@@ -199,76 +199,77 @@ def region_name(uv_mm: np.ndarray, point: int) -> str:
     return "the middle"
 
 
-def report(pts, tri, flat2, uv, frame, edges, boundary, lengths_mm, strain_limit_pct,
-           iterations, cost) -> Unfolding:
-    """The :class:`Unfolding` of a solved flat layout: strains, area and outline changes, placement.
+@dataclass(frozen=True, eq=False)
+class CurvedMesh:
+    """The curved plate as it is unfolded: its points, triangles, own frame and edges.
 
-    Parameters
+    Attributes
     ----------
-    pts : (n, 3) float, mm
+    points : (n, 3) float, mm
         The curved plate.
-    tri : (m, 3) int
+    faces : (m, 3) int
         Its triangles, counter-clockwise seen from +n.
-    flat2 : (n, 2) float, mm
-        The solved flat layout (any rigid placement).
     uv : (n, 2) float, mm
         The points in the plate's own frame.
     frame : LocalFrame
+        That frame.
     edges : (k, 2) int
+        The unique edges of ``faces``.
     boundary : (k,) bool
         Which edges are on the outline.
     lengths_mm : (k,) float
         The curved plate's edge lengths.
+    """
+
+    points: np.ndarray
+    faces: np.ndarray
+    uv: np.ndarray
+    frame: LocalFrame
+    edges: np.ndarray
+    boundary: np.ndarray
+    lengths_mm: np.ndarray
+
+
+def report(curved: CurvedMesh, flat2: np.ndarray, *, strain_limit_pct: float, iterations: int,
+           cost: float) -> Unfolding:
+    """The :class:`Unfolding` of a solved flat layout: strains, area and outline changes, placement.
+
+    Parameters
+    ----------
+    curved : CurvedMesh
+        The curved plate, its triangles and edges.
+    flat2 : (n, 2) float, mm
+        The solved flat layout (any rigid placement).
     strain_limit_pct : float
+        Strain (percent) above which the report warns.
     iterations : int
+        Gauss-Newton steps the solve took.
     cost : float, mm^2
+        Its final cost.
 
     Raises
     ------
     GeometryError
         The flat layout folds over (a mirrored triangle) or is not finite.
     """
+    pts, tri, uv = curved.points, curved.faces, curved.uv
     stretches, det = principal_strains(pts, tri, flat2)
-    flipped = np.flatnonzero(det <= 0)
-    if flipped.size:
-        centre = uv[tri[flipped[0]]].mean(axis=0) / 1000.0
-        raise GeometryError(
-            f"the flattening folds over: {flipped.size} of {tri.shape[0]} triangles come out "
-            f"mirrored, first near u={centre[0]:+.2f} m, v={centre[1]:+.2f} m in the plate frame",
-            hint="check the design for spikes, overlaps or a badly wound mesh",
-        )
-    if not np.all(np.isfinite(flat2)):
-        raise GeometryError("the flattening did not converge (non-finite coordinates)",
-                            hint="check the design for duplicate or stray points")
+    _check_layout(flat2, det, uv, tri)
     # strain per triangle and per point
     principal = stretches - 1.0
-    magnitude = np.abs(principal).max(axis=1)
     area = triangle_areas(pts, tri)
-    weight = np.bincount(tri.ravel(), weights=np.repeat(area, 3), minlength=pts.shape[0])
-    per_point = np.bincount(tri.ravel(), weights=np.repeat(area * magnitude, 3),
-                            minlength=pts.shape[0]) / weight
-    strain_pct = 100.0 * per_point
+    strain_pct = _point_strain_pct(np.abs(principal).max(axis=1), area, tri, pts.shape[0])
     # area and outline
-    flat_area = float(np.sum(signed_areas_2d(flat2, tri)))
-    curved_area = float(np.sum(area))
-    e_b = edges[boundary]
-    flat_outline = float(np.sum(edge_lengths(flat2, e_b)))
-    curved_outline = float(np.sum(lengths_mm[boundary]))
+    flat_area, curved_area = float(np.sum(signed_areas_2d(flat2, tri))), float(np.sum(area))
+    flat_outline = float(np.sum(edge_lengths(flat2, curved.edges[curved.boundary])))
+    curved_outline = float(np.sum(curved.lengths_mm[curved.boundary]))
     # placement
-    placed = place_flat(flat2, uv)
-    flat = np.column_stack([placed, np.zeros(pts.shape[0])])
+    flat = np.column_stack([place_flat(flat2, uv), np.zeros(pts.shape[0])])
     worst = int(np.argmax(strain_pct))
     worst_uv = uv[worst] - uv.mean(axis=0)
-    region = region_name(uv, worst)
-    max_strain = float(strain_pct[worst])
-    warnings = []
-    if max_strain > strain_limit_pct:
-        warnings.append(
-            f"in-plane strain {max_strain:.3g} % exceeds the limit {strain_limit_pct:g} % near {region} "
-            f"(u={worst_uv[0] / 1000:+.2f} m, v={worst_uv[1] / 1000:+.2f} m in the plate frame, "
-            f"x={flat[worst, 0] / 1000:+.2f} m, y={flat[worst, 1] / 1000:+.2f} m on the flat plate, point {worst}): "
-            "press forming cannot take this without thinning or wrinkling; split the plate or add line heating"
-        )
+    region, max_strain = region_name(uv, worst), float(strain_pct[worst])
+    warnings = [] if max_strain <= strain_limit_pct else [
+        _strain_warning(max_strain, strain_limit_pct, region, worst_uv, (worst, flat[worst]))]
     return Unfolding(
         flat=flat,
         strain_pct=strain_pct,
@@ -282,10 +283,44 @@ def report(pts, tri, flat2, uv, frame, edges, boundary, lengths_mm, strain_limit
         worst_point=worst,
         worst_uv_mm=worst_uv,
         worst_region=region,
-        frame=frame,
+        frame=curved.frame,
         tf_flat_design=fit_rigid(pts, flat),
         strain_limit_pct=float(strain_limit_pct),
         iterations=iterations,
         cost=cost,
         warnings=tuple(warnings),
+    )
+
+
+def _check_layout(flat2: np.ndarray, det: np.ndarray, uv: np.ndarray, tri: np.ndarray) -> None:
+    """Raise :class:`GeometryError` where the flat layout folds over (det F <= 0) or is not finite."""
+    flipped = np.flatnonzero(det <= 0)
+    if flipped.size:
+        centre = uv[tri[flipped[0]]].mean(axis=0) / 1000.0
+        raise GeometryError(
+            f"the flattening folds over: {flipped.size} of {tri.shape[0]} triangles come out "
+            f"mirrored, first near u={centre[0]:+.2f} m, v={centre[1]:+.2f} m in the plate frame",
+            hint="check the design for spikes, overlaps or a badly wound mesh",
+        )
+    if not np.all(np.isfinite(flat2)):
+        raise GeometryError("the flattening did not converge (non-finite coordinates)",
+                            hint="check the design for duplicate or stray points")
+
+
+def _point_strain_pct(magnitude: np.ndarray, area: np.ndarray, tri: np.ndarray, n_points: int) -> np.ndarray:
+    """(n,) float, percent: the area-weighted mean strain magnitude ((m,) per triangle) of each point."""
+    weight = np.bincount(tri.ravel(), weights=np.repeat(area, 3), minlength=n_points)
+    per_point = np.bincount(tri.ravel(), weights=np.repeat(area * magnitude, 3), minlength=n_points) / weight
+    return 100.0 * per_point
+
+
+def _strain_warning(max_strain: float, strain_limit_pct: float, region: str, worst_uv: np.ndarray,
+                    worst_flat: tuple[int, np.ndarray]) -> str:
+    """The warning of a strain (percent) above the limit: where, in the plate frame and on the flat plate (mm)."""
+    worst, flat_xyz = worst_flat
+    return (
+        f"in-plane strain {max_strain:.3g} % exceeds the limit {strain_limit_pct:g} % near {region} "
+        f"(u={worst_uv[0] / 1000:+.2f} m, v={worst_uv[1] / 1000:+.2f} m in the plate frame, "
+        f"x={flat_xyz[0] / 1000:+.2f} m, y={flat_xyz[1] / 1000:+.2f} m on the flat plate, point {worst}): "
+        "press forming cannot take this without thinning or wrinkling; split the plate or add line heating"
     )
