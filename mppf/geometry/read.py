@@ -121,18 +121,34 @@ def read_points(path, units: str = "mm", scale: float = 1.0, *,
     model_scale = check_positive("the model scale", scale, hint="give e.g. --scale 31.6 for a 1:31.6 model")
     scale = unit_scale * model_scale
     path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix not in READ_SUFFIXES:
-        raise FileFormatError(
-            path, f"unknown file type {path.suffix or '(no suffix)'!r}",
-            hint=f"give a point or mesh file with one of the suffixes {_SUPPORTED}",
-        )
+    suffix = _checked_suffix(path)
     if suffix in EXCHANGE_SUFFIXES:  # CAD and scanner files: mppf.geometry.exchange
         from mppf.geometry.exchange import read_exchange
 
         points, faces, sha256 = read_exchange(path, unit_scale=unit_scale, scale=model_scale,
                                               chord_tolerance_mm=chord_tolerance_mm)
         return PointCloud(points=points, faces=faces, path=path, sha256=sha256)
+    data = _file_bytes(path)
+    points, faces = _parse(path, suffix, data)
+    _check_points(path, points)
+    points = points * scale if scale != 1.0 else points
+    return PointCloud(points=points, faces=faces, path=path, sha256=hashlib.sha256(data).hexdigest(),
+                      warnings=size_warnings(path, points, units))
+
+
+def _checked_suffix(path: Path) -> str:
+    """The file's suffix in lower case; :class:`FileFormatError` unless mppf reads it."""
+    suffix = path.suffix.lower()
+    if suffix not in READ_SUFFIXES:
+        raise FileFormatError(
+            path, f"unknown file type {path.suffix or '(no suffix)'!r}",
+            hint=f"give a point or mesh file with one of the suffixes {_SUPPORTED}",
+        )
+    return suffix
+
+
+def _file_bytes(path: Path) -> bytes:
+    """The content of a point or mesh file; :class:`FileFormatError` if missing, too large, unreadable or empty."""
     if not path.exists():
         raise FileFormatError(path, "file not found", hint="check the path and the file name")
     if not path.is_file():
@@ -144,15 +160,21 @@ def read_points(path, units: str = "mm", scale: float = 1.0, *,
         raise FileFormatError(path, f"cannot be read: {exc.strerror}", hint="check permissions") from None
     if not data.strip():
         raise FileFormatError(path, "file is empty", hint="the file holds no points; check the export")
+    return data
 
+
+def _parse(path: Path, suffix: str, data: bytes) -> tuple[np.ndarray, np.ndarray | None]:
+    """Points (n, 3) float in the file's unit and faces ((m, 3) int or None) of a text, PLY or mesh file."""
     if suffix in TEXT_SUFFIXES:
-        points, faces = parse_text(path, data), None
-    elif suffix in PLY_SUFFIXES:
-        points, faces = _read_ply(path, data)
-    else:
-        check_mesh_bytes(path, suffix, data)
-        points, faces = _read_mesh(path, suffix)
+        return parse_text(path, data), None
+    if suffix in PLY_SUFFIXES:
+        return _read_ply(path, data)
+    check_mesh_bytes(path, suffix, data)
+    return _read_mesh(path, suffix)
 
+
+def _check_points(path: Path, points: np.ndarray) -> None:
+    """:class:`FileFormatError` unless the file gave points, all of them finite."""
     if points.shape[0] == 0:
         raise FileFormatError(path, "holds no points", hint="check the export")
     bad = ~np.all(np.isfinite(points), axis=1)
@@ -162,9 +184,6 @@ def read_points(path, units: str = "mm", scale: float = 1.0, *,
             path, f"vertex {first} has a NaN or infinite coordinate {points[first].tolist()}",
             hint="remove or repair invalid points in the source program",
         )
-    points = points * scale if scale != 1.0 else points
-    return PointCloud(points=points, faces=faces, path=path, sha256=hashlib.sha256(data).hexdigest(),
-                      warnings=size_warnings(path, points, units))
 
 
 PLATE_MIN_MM = 50.0
