@@ -62,12 +62,7 @@ def trace_stations(model: CadModel, x_mm, girth_max_mm: float, step_mm: float | 
     offset = KEEL_OFFSET_FRACTION * diagonal
     longest = STEP_FRACTION * diagonal if step_mm is None else float(step_mm)
     # 1. keel points: the surface seen from below, just off the centreline
-    below = np.column_stack([x, np.full_like(x, offset), np.full_like(x, model.bounds_mm[0, 2] - 1.0)])
-    keel = intersect_lines(model, below, [0.0, 0.0, 1.0], seen_from=[0.0, 0.0, -1.0])
-    if not keel.found.all():
-        first = x[~keel.found][0]
-        raise GeometryError(f"the hull has no keel at x = {first:.0f} mm: no surface below the centreline there",
-                            hint="give stations between the stern and the stem, in full-scale hull coordinates")
+    keel = _keel(model, x, offset)
     # 2. march along each station: a step along its tangent, back onto the surface along its normal
     face, uv = keel.face.copy(), keel.uv.copy()
     start = np.tile([0.0, 1.0, 0.0], (x.size, 1))  # away from the centreline
@@ -81,14 +76,9 @@ def trace_stations(model: CadModel, x_mm, girth_max_mm: float, step_mm: float | 
         hit = intersect_near(model, points[-1][rows] + step[rows, None] * tangent[rows], in_plane[rows])
         good = hit.found & (hit.distance_mm < step[rows])
         # off the surface: halve the step; the station ends where it is below longest / 2^END_HALVINGS
-        failed = rows[~good]
-        step[failed] /= 2.0
-        alive[failed[step[failed] < longest / 2**END_HALVINGS]] = False
+        _halve(step, alive, rows[~good], longest)
         # on it, but turning more than twice TURN_RAD: a shorter step instead (the arc would be wrong)
-        face_try, uv_try = face.copy(), uv.copy()
-        face_try[rows[good]], uv_try[rows[good]] = hit.face[good], hit.uv[good]
-        reached = np.zeros(x.size, dtype=bool)
-        reached[rows[good]] = True
+        face_try, uv_try, reached = _tried(face, uv, hit, rows, good)
         new_tangent, turned = _station_frame(model, face_try, uv_try, reached, tangent)
         angle = _turn(tangent, new_tangent)
         sharp = reached & (angle > 2.0 * TURN_RAD) & (step > longest / 2**END_HALVINGS)
@@ -110,6 +100,36 @@ def trace_stations(model: CadModel, x_mm, girth_max_mm: float, step_mm: float | 
     else:
         raise GeometryError(f"a hull station did not end in {MAX_STEPS} steps", hint="check the hull model")
     return np.stack(points, axis=1), np.stack(girth, axis=1), np.stack(normal, axis=1)
+
+
+def _keel(model: CadModel, x: np.ndarray, offset_mm: float):
+    """The keel point of each station x (s,) mm: the surface seen from below, ``offset_mm`` off the centreline.
+
+    Returns the :func:`~mppf.geometry.cad_query.intersect_lines` hits; :class:`GeometryError`
+    where a station has none.
+    """
+    below = np.column_stack([x, np.full_like(x, offset_mm), np.full_like(x, model.bounds_mm[0, 2] - 1.0)])
+    keel = intersect_lines(model, below, [0.0, 0.0, 1.0], seen_from=[0.0, 0.0, -1.0])
+    if not keel.found.all():
+        first = x[~keel.found][0]
+        raise GeometryError(f"the hull has no keel at x = {first:.0f} mm: no surface below the centreline there",
+                            hint="give stations between the stern and the stem, in full-scale hull coordinates")
+    return keel
+
+
+def _halve(step: np.ndarray, alive: np.ndarray, failed: np.ndarray, longest_mm: float) -> None:
+    """Halve the step (s,) mm of the ``failed`` rows; end the stations whose step is below the last halving."""
+    step[failed] /= 2.0
+    alive[failed[step[failed] < longest_mm / 2**END_HALVINGS]] = False
+
+
+def _tried(face: np.ndarray, uv: np.ndarray, hit, rows: np.ndarray, good: np.ndarray):
+    """Faces (s,) and (u, v) (s, 2) with the ``good`` hits of ``rows`` in place, and which rows (s,) bool reached one."""
+    face_try, uv_try = face.copy(), uv.copy()
+    face_try[rows[good]], uv_try[rows[good]] = hit.face[good], hit.uv[good]
+    reached = np.zeros(face.shape[0], dtype=bool)
+    reached[rows[good]] = True
+    return face_try, uv_try, reached
 
 
 def _turn(t0: np.ndarray, t1: np.ndarray) -> np.ndarray:
