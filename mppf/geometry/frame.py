@@ -196,19 +196,7 @@ def check_height_field(frame: LocalFrame, points, faces=None, *, source: str | N
     uv, w = local[:, :2], local[:, 2]
     size_mm = float(np.ptp(uv, axis=0).max())
     if faces is not None:
-        tri = np.asarray(faces, dtype=np.int64)
-        a, b, c = uv[tri[:, 0]], uv[tri[:, 1]], uv[tri[:, 2]]
-        area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
-        tiny = 1e-12 * size_mm * size_mm
-        positive = int(np.count_nonzero(area2 > tiny))
-        negative = int(np.count_nonzero(area2 < -tiny))
-        flipped = min(positive, negative)
-        if flipped:
-            raise GeometryError(
-                f"{where}the plate folds over in its own frame: {flipped} of {len(tri)} triangles "
-                "are flipped when projected on its best-fit plane",
-                hint="it is not a height field z = D(u, v); split the plate into parts that are",
-            )
+        _check_mesh_unfolded(uv, np.asarray(faces, dtype=np.int64), size_mm, where)
         return
     tolerance_mm = FOLD_GAP_FRACTION * size_mm
     # isolated outliers: a point off most of its neighbours (by half the allowance), all
@@ -227,6 +215,22 @@ def check_height_field(frame: LocalFrame, points, faces=None, *, source: str | N
             f"differing by more than {FOLD_SLOPE_MAX:g} x their distance + {tolerance_mm:.3g} mm "
             f"(e.g. point {int(np.argmax(layered))})",
             hint="it is not a height field z = D(u, v): split the plate into parts that are",
+        )
+
+
+def _check_mesh_unfolded(uv: np.ndarray, tri: np.ndarray, size_mm: float, where: str) -> None:
+    """Raise GeometryError when triangles (m, 3) of points projected to (n, 2) mm are flipped against the majority."""
+    a, b, c = uv[tri[:, 0]], uv[tri[:, 1]], uv[tri[:, 2]]
+    area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    tiny = 1e-12 * size_mm * size_mm
+    positive = int(np.count_nonzero(area2 > tiny))
+    negative = int(np.count_nonzero(area2 < -tiny))
+    flipped = min(positive, negative)
+    if flipped:
+        raise GeometryError(
+            f"{where}the plate folds over in its own frame: {flipped} of {len(tri)} triangles "
+            "are flipped when projected on its best-fit plane",
+            hint="it is not a height field z = D(u, v); split the plate into parts that are",
         )
 
 
