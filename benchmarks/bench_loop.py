@@ -265,6 +265,7 @@ def run_loop_mode(press, planned: Planned, seed: int, max_cycles: int, true_yiel
     """:func:`mppf.loop.cycle.run_loop` on the in-process press with the simulated scanner."""
     from mppf.loop.cycle import run_loop
     from mppf.loop.history import History
+    from mppf.loop.options import LoopOptions, PlateInputs
     from mppf.loop.plate import record_plate
     from mppf.loop.settings import LoopSettings
     from mppf.planning.job import load_job
@@ -274,8 +275,8 @@ def run_loop_mode(press, planned: Planned, seed: int, max_cycles: int, true_yiel
     design = read_points(planned.design_path)
     plate_id = f"{planned.name}-{physics.replace(':', '-')}-s{seed}"
     with History(work / "history.sqlite") as history:
-        record_plate(history, design, planned.flat, press, THICKNESS_MM, planned.job, plate_id=plate_id,
-                     work_dir=work / plate_id, settings=LoopSettings(max_cycles=max_cycles))
+        record_plate(history, PlateInputs(design, planned.flat, press, THICKNESS_MM), planned.job, plate_id=plate_id,
+                     work_dir=work / plate_id, options=LoopOptions(settings=LoopSettings(max_cycles=max_cycles)))
         job = load_job(history.cycle(plate_id, 1).job_path)
         if physics == "fe":
             options = {"plate_model": "fe", "material": replace(NOMINAL, yield_stress_mpa=true_yield_mpa)}

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from mppf.loop.history import History
+from mppf.loop.options import PlateFiles
 from mppf.loop.states import Decision
 from mppf.model.job import Job
 from mppf.model.job_parts import PlateLayout, StepStrokes
@@ -57,8 +58,8 @@ def record_loop(history_path: Path, job: Job, work_dir: Path, *, plate_id: str =
     """
     work_dir.mkdir(parents=True, exist_ok=True)
     history = History(history_path)
-    history.create_plate(plate_id, design_path="design.csv", design_sha256="0" * 64, flat_path="flat.csv",
-                         flat_sha256="1" * 64, thickness_mm=job.thickness_mm, press=job.press.to_dict(),
+    history.create_plate(plate_id, PlateFiles("design.csv", "0" * 64, "flat.csv", "1" * 64),
+                         thickness_mm=job.thickness_mm, press=job.press.to_dict(),
                          settings={"loop": {"tolerance_mm": 2.5, "rms_tolerance_mm": 1.0}, "work_dir": str(work_dir),
                                    "plc": None})
     path = save_job(job, work_dir / "cycle-01.job.json")

@@ -125,10 +125,11 @@ def _resumed_plate(history, design, flat, plate_id, press_path):
 def _record(history, draft: Draft, settings, work_dir, setup):
     """Record the drafted plate with its first cycle (one transaction)."""
     from mppf.loop.plate import record_plate
+    from mppf.loop.options import LoopOptions, PlateInputs
 
     work = work_dir or history.path.parent / "plates" / draft.plate_id
-    return record_plate(history, draft.design, draft.flat, draft.press, draft.job.thickness_mm, draft.job,
-                        plate_id=draft.plate_id, work_dir=work, settings=settings, setup=setup)
+    return record_plate(history, PlateInputs(draft.design, draft.flat, draft.press, draft.job.thickness_mm), draft.job,
+                        plate_id=draft.plate_id, work_dir=work, options=LoopOptions(settings=settings, setup=setup))
 
 
 @click.command("loop")

@@ -133,6 +133,7 @@ def run_demo(out, *, plate_name: str = DEMO_PLATE, seed: int = DEMO_SEED, thickn
     from mppf.geometry.write import write_points
     from mppf.loop.cycle import run_loop
     from mppf.loop.history import History
+    from mppf.loop.options import LoopOptions, PlateInputs
     from mppf.loop.plate import start_plate
     from mppf.model.press import example_press_path, load_press
     from mppf.planning.job import load_job
@@ -163,8 +164,11 @@ def run_demo(out, *, plate_name: str = DEMO_PLATE, seed: int = DEMO_SEED, thickn
 
     with History(out / "history.sqlite") as history:
         plate_id = f"demo-{plate_name.split('_')[0]}-s{seed}-{time.strftime('%Y%m%d-%H%M%S')}"
-        start_plate(history, design, flat, press, thickness_mm, plate_id=plate_id, work_dir=out / "plates" / plate_id,
-                    settings=settings, setup={"plc": None, "scanner": "sim", "seed": seed, "physics": physics}, reporter=reporter)
+        start_plate(history, PlateInputs(design, flat, press, thickness_mm), plate_id=plate_id,
+                    work_dir=out / "plates" / plate_id,
+                    options=LoopOptions(settings=settings,
+                                        setup={"plc": None, "scanner": "sim", "seed": seed, "physics": physics}),
+                    reporter=reporter)
         job = load_job(history.cycle(plate_id, 1).job_path)
         # the flat for the cutter as the job lays it on the press: cut and net outlines, the reference mark
         from mppf.geometry.dxf import flat_drawing, write_flat_dxf

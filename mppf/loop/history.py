@@ -33,6 +33,7 @@ from mppf.core.errors import InputError
 from mppf.core.paths import data_dir
 from mppf.core.validate import check_name
 from mppf.loop import lease as leases
+from mppf.loop.options import PlateFiles
 from mppf.loop.records import (CYCLE_COLUMNS, SCHEMA, SCHEMA_VERSION, CycleRecord, Event, PlateRecord,
                                cycle_from_row, dumps, plate_from_row, steps_to_json)
 from mppf.loop.states import CycleState, Decision, PlateStatus
@@ -77,9 +78,10 @@ class History:
 
     # -- plates -------------------------------------------------------------------------
 
-    def create_plate(self, plate_id: str, *, design_path, design_sha256: str, flat_path, flat_sha256: str,
-                     thickness_mm: float, press: dict, settings: dict, note: str = "") -> PlateRecord:
-        """Add a new plate (status "active").
+    def create_plate(self, plate_id: str, files: PlateFiles, *, thickness_mm: float, press: dict, settings: dict,
+                     note: str = "") -> PlateRecord:
+        """Add a new plate (status "active") made from ``files``, ``thickness_mm`` thick, for ``press``
+        (:meth:`PressConfig.to_dict`), with the loop ``settings`` (JSON-ready).
 
         Raises
         ------
@@ -93,10 +95,11 @@ class History:
                 self._db.execute("DELETE FROM plates WHERE plate_id = ?", (plate_id,))  # one without cycles
                 self._db.execute(
                     "INSERT INTO plates VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                    (plate_id, now, now, PlateStatus.ACTIVE, str(design_path), design_sha256, str(flat_path),
-                     flat_sha256, float(thickness_mm), dumps(press), dumps(settings), note),
+                    (plate_id, now, now, PlateStatus.ACTIVE, str(files.design_path), files.design_sha256,
+                     str(files.flat_path), files.flat_sha256, float(thickness_mm), dumps(press), dumps(settings),
+                     note),
                 )
-                self._event(plate_id, None, "created", f"design {design_path}")
+                self._event(plate_id, None, "created", f"design {files.design_path}")
         except sqlite3.IntegrityError:  # created by another process meanwhile
             self.check_new_plate(plate_id)
             raise

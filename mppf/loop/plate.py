@@ -10,6 +10,7 @@ from mppf.core.progress import NULL_REPORTER, Reporter
 from mppf.core.validate import safe_name
 from mppf.geometry.read import PointCloud
 from mppf.loop.history import History
+from mppf.loop.options import LoopOptions, PlateFiles, PlateInputs
 from mppf.loop.records import PlateRecord
 from mppf.loop.section_steps import cycle_steps
 from mppf.loop.settings import LoopSettings
@@ -69,27 +70,22 @@ def plate_reach(press: PressConfig, job: Job, design_points, tolerance_mm: float
     return reach_estimate(press, job, design_points, tolerance_mm).to_dict()
 
 
-def record_plate(history: History, design: PointCloud, flat: PointCloud, press: PressConfig, thickness_mm: float,
-                 job: Job, *, plate_id: str, work_dir, settings: LoopSettings = LoopSettings(),
-                 setup: dict | None = None) -> PlateRecord:
+def record_plate(history: History, plate: PlateInputs, job: Job, *, plate_id: str, work_dir,
+                 options: LoopOptions = LoopOptions()) -> PlateRecord:
     """Record a plate with its first cycle ("planned") pressing ``job``; its job file goes into ``work_dir``.
 
     Parameters
     ----------
     history : History
-    design, flat : PointCloud
-        As given to :func:`plan_first_cycle`.
-    press : PressConfig
-    thickness_mm : float
+    plate : PlateInputs
+        Design, flat, press and thickness, as given to :func:`plan_first_cycle`.
     job : Job
         The first cycle's job (:func:`plan_first_cycle`).
     plate_id : str
     work_dir : path-like
         Folder for the plate's job files and scans (created).
-    settings : LoopSettings
-    setup : dict, optional
-        More to record with the plate (PLC URL, scanner, seed...), JSON-ready; a
-        ``"units"`` entry (the length unit of the design file) is used to re-read it.
+    options : LoopOptions
+        Its ``settings`` and ``setup`` are recorded with the plate.
 
     Raises
     ------
@@ -104,50 +100,33 @@ def record_plate(history: History, design: PointCloud, flat: PointCloud, press: 
         raise InputError(f"cannot create the work folder {work_dir}: {exc.strerror}",
                          hint="give a writable folder with --work-dir") from None
     job_path = save_job(job, work_dir / "cycle-01.job.json")
+    files = PlateFiles(design_path=plate.design.path.resolve(), design_sha256=plate.design.sha256,
+                       flat_path=plate.flat.path.resolve(), flat_sha256=plate.flat.sha256)
+    settings = {"loop": options.settings.to_dict(), "work_dir": str(work_dir.resolve()), **(options.setup or {})}
     # the plate and its first cycle in one transaction: a crash leaves both or neither
     with history.transaction():
-        history.create_plate(
-            plate_id,
-            design_path=design.path.resolve(), design_sha256=design.sha256,
-            flat_path=flat.path.resolve(), flat_sha256=flat.sha256,
-            thickness_mm=thickness_mm, press=press.to_dict(),
-            settings={"loop": settings.to_dict(), "work_dir": str(work_dir.resolve()), **(setup or {})},
-        )
+        history.create_plate(plate_id, files, thickness_mm=plate.thickness_mm, press=plate.press.to_dict(),
+                             settings=settings)
         history.add_cycle(plate_id, 1, job_path=job_path.resolve(), job_sha256=job.sha256(), steps=cycle_steps(job))
     return history.plate(plate_id)
 
 
-def start_plate(
-    history: History,
-    design: PointCloud,
-    flat: PointCloud,
-    press: PressConfig,
-    thickness_mm: float,
-    *,
-    plate_id: str,
-    work_dir,
-    settings: LoopSettings = LoopSettings(),
-    material: Material = Material(),
-    setup: dict | None = None,
-    reporter: Reporter = NULL_REPORTER,
-) -> PlateRecord:
+def start_plate(history: History, plate: PlateInputs, *, plate_id: str, work_dir,
+                options: LoopOptions = LoopOptions(), reporter: Reporter = NULL_REPORTER) -> PlateRecord:
     """Plan a new plate and record it with its first cycle ("planned").
 
     Parameters
     ----------
-    design, flat : PointCloud
-        The design surface and its flat (unfolded) shape, read by
-        :func:`mppf.geometry.read.read_points` (their paths and SHA-256 are recorded).
-    press : PressConfig
-    thickness_mm : float
+    history : History
+    plate : PlateInputs
+        Design and flat (their paths and SHA-256 are recorded), press and thickness.
     plate_id : str
     work_dir : path-like
         Folder for the plate's job files and scans (created).
-    settings : LoopSettings
-    material : Material
-        Nominal plate material (springback pre-compensation of the first cycle).
-    setup : dict, optional
-        As :func:`record_plate`.
+    options : LoopOptions
+        The loop settings (the first cycle's springback, yield uncertainty and margin), the nominal
+        material, and what else to record (:func:`record_plate`).
+    reporter : Reporter
 
     Raises
     ------
@@ -158,7 +137,7 @@ def start_plate(
     history.check_new_plate(plate_id)
     # plan all steps of the first cycle, with springback pre-compensation
     reporter.info(f"planning plate {plate_id}")
-    job = plan_first_cycle(design, flat, press, thickness_mm, settings=settings, material=material, reporter=reporter)
+    job = plan_first_cycle(plate.design, plate.flat, plate.press, plate.thickness_mm, settings=options.settings,
+                           material=options.material, reporter=reporter)
     # record the plate, then its first cycle
-    return record_plate(history, design, flat, press, thickness_mm, job, plate_id=plate_id, work_dir=work_dir,
-                        settings=settings, setup=setup)
+    return record_plate(history, plate, job, plate_id=plate_id, work_dir=work_dir, options=options)

@@ -28,6 +28,7 @@ import pytest
 from mppf.cli import main
 from mppf.core.errors import EXIT_INPUT
 from mppf.loop.history import History
+from mppf.loop.options import PlateFiles
 from mppf.model.press import example_press_path
 
 from test_bad_inputs_corpus import CASES, FILES  # the corpus (data), beside this file
@@ -60,8 +61,8 @@ def good_inputs(tmp_path_factory) -> dict[str, str]:
     sectional = save_job(_sectional_plan(press), folder / "sectional.job.json")
     history = folder / "history.sqlite"
     with History(history) as hist:
-        hist.create_plate("KEEP-1", design_path=design, design_sha256="0" * 64, flat_path=flat,
-                          flat_sha256="0" * 64, thickness_mm=20.0, press=press.to_dict(), settings={"loop": {}})
+        hist.create_plate("KEEP-1", PlateFiles(design, "0" * 64, flat, "0" * 64), thickness_mm=20.0,
+                          press=press.to_dict(), settings={"loop": {}})
         hist.add_cycle("KEEP-1", 1, job_path=job, job_sha256="0" * 64, steps=[])
     return {"design": str(design), "flat": str(flat), "press": str(example_press_path()), "job": str(job),
             "sectional_job": str(sectional), "history_template": str(history)}

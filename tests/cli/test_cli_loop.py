@@ -22,6 +22,7 @@ from mppf.geometry.read import read_points
 from mppf.geometry.unfold import unfold
 from mppf.geometry.write import write_points
 from mppf.loop.history import History
+from mppf.loop.options import LoopOptions, PlateInputs
 from mppf.loop.plate import record_plate
 from mppf.loop.settings import LoopSettings
 from mppf.model.press import example_press_path, load_press
@@ -202,8 +203,10 @@ def _recorded(tmp_path, planned_plate, plate_id, **setup):
     """A plate recorded from the session's planned job into ``tmp_path/history.sqlite`` (no planning)."""
     design, flat, press, job = planned_plate
     with History(tmp_path / "history.sqlite") as history:
-        record_plate(history, design, flat, press, 20.0, job, plate_id=plate_id, work_dir=tmp_path / plate_id,
-                     settings=LoopSettings(max_cycles=1), setup={"scanner": "sim", "seed": 1, **setup})
+        record_plate(history, PlateInputs(design, flat, press, 20.0), job, plate_id=plate_id,
+                     work_dir=tmp_path / plate_id,
+                     options=LoopOptions(settings=LoopSettings(max_cycles=1),
+                                         setup={"scanner": "sim", "seed": 1, **setup}))
     return tmp_path / "history.sqlite"
 
 

@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 
 from mppf.loop.history import History
+from mppf.loop.options import LoopOptions, PlateInputs
 from mppf.loop.plate import record_plate
 from mppf.loop.settings import LoopSettings
 
@@ -56,9 +57,11 @@ def test_kill_while_pressing_then_resume_loses_nothing_and_presses_nothing_twice
     design, flat, press, job = planned_plate
     # the plate as 'mppf loop DESIGN FLAT --plate-id K2-crash --seed 3 --max-cycles 2' records it
     with History(db) as history:
-        record_plate(history, design, flat, press, 20.0, job, plate_id="K2-crash",
-                     work_dir=tmp_path / "home" / "plates" / "K2-crash", settings=LoopSettings(max_cycles=2),
-                     setup={"plc": None, "scanner": "sim", "seed": 3, "units": "mm", "material": "steel"})
+        record_plate(history, PlateInputs(design, flat, press, 20.0), job, plate_id="K2-crash",
+                     work_dir=tmp_path / "home" / "plates" / "K2-crash",
+                     options=LoopOptions(settings=LoopSettings(max_cycles=2),
+                                         setup={"plc": None, "scanner": "sim", "seed": 3, "units": "mm",
+                                                "material": "steel"}))
     # slow motion (4x real speed): the first press step takes seconds
     args = _mppf("loop", "--resume", "--plate-id", "K2-crash", "--time-scale", "4")
     err = tmp_path / "loop.err"

@@ -7,6 +7,7 @@ import subprocess
 import sys
 
 from mppf.loop.history import History
+from mppf.loop.options import PlateFiles
 from mppf.model.press import example_press_path, load_press
 
 
@@ -16,9 +17,8 @@ def test_plate_table_title_and_legend_are_not_wrapped_in_a_log(tmp_path):
     path = folder / "history.sqlite"
     press = load_press(example_press_path())
     with History(path) as history:
-        history.create_plate("PLATE-A", design_path="/d.csv", design_sha256="a" * 64, flat_path="/f.csv",
-                             flat_sha256="b" * 64, thickness_mm=20.0, press=press.to_dict(),
-                             settings={"loop": {"tolerance_mm": 2.5}})
+        history.create_plate("PLATE-A", PlateFiles("/d.csv", "a" * 64, "/f.csv", "b" * 64), thickness_mm=20.0,
+                             press=press.to_dict(), settings={"loop": {"tolerance_mm": 2.5}})
     env = {**os.environ, "COLUMNS": "80"}
     out = subprocess.run([sys.executable, "-m", "mppf", "history", "--history", str(path)], capture_output=True,
                          text=True, env=env, timeout=60, check=True).stdout

@@ -16,6 +16,7 @@ from mppf.geometry.frame import fit_frame
 from mppf.geometry.write import write_points
 from mppf.loop.cycle import run_loop
 from mppf.loop.history import History
+from mppf.loop.options import LoopOptions, PlateInputs
 from mppf.loop.plate import record_plate
 from mppf.loop.settings import LoopSettings
 from mppf.measure.mark import design_mark
@@ -53,8 +54,8 @@ class _StationScanner:
 def _run(tmp_path, planned_plate, plate_id, scanner_of):
     design, flat, press, job = planned_plate
     with History(tmp_path / "h.sqlite") as history, AuditLog(tmp_path / "audit.sqlite") as audit:
-        record_plate(history, design, flat, press, 20.0, job, plate_id=plate_id, work_dir=tmp_path / plate_id,
-                     settings=LoopSettings(max_cycles=3))
+        record_plate(history, PlateInputs(design, flat, press, 20.0), job, plate_id=plate_id,
+                     work_dir=tmp_path / plate_id, options=LoopOptions(settings=LoopSettings(max_cycles=3)))
         scanner = scanner_of(design.points, load_job(history.cycle(plate_id, 1).job_path))
         with InProcessPress(press, audit=audit) as link:
             return run_loop(history, plate_id, link, scanner), history.cycle(plate_id, 1)

@@ -11,6 +11,7 @@ from mppf.correct.verdict import Verdict
 from mppf.loop.correcting import pressed_cycle
 from mppf.loop.cycle import run_loop
 from mppf.loop.history import History
+from mppf.loop.options import LoopOptions, PlateInputs
 from mppf.loop.plate import record_plate
 from mppf.loop.records import CycleRecord
 from mppf.loop.settings import LoopSettings
@@ -60,8 +61,8 @@ CLEAR_VIEW = {"occlusion_fraction": 0.0, "outlier_fraction": 0.0, "spacing_mm": 
 
 def _plate(tmp_path, planned_plate, history, plate_id, max_cycles):
     design, flat, press, job = planned_plate
-    record_plate(history, design, flat, press, 20.0, job, plate_id=plate_id, work_dir=tmp_path / plate_id,
-                 settings=LoopSettings(max_cycles=max_cycles))
+    record_plate(history, PlateInputs(design, flat, press, 20.0), job, plate_id=plate_id, work_dir=tmp_path / plate_id,
+                 options=LoopOptions(settings=LoopSettings(max_cycles=max_cycles)))
     job = load_job(history.cycle(plate_id, 1).job_path)
     return press, SimulatedPlateScanner.for_job(press, 20.0, job, flat.points, seed=3, **CLEAR_VIEW)
 
@@ -101,8 +102,8 @@ def test_a_correction_that_finds_no_way_on_stops_the_plate_with_its_verdict(plan
 def test_without_learning_the_calibrated_correction_is_used(planned_plate, tmp_path, learn):
     design, flat, press, job = planned_plate
     with History(tmp_path / "h.sqlite") as history:
-        record_plate(history, design, flat, press, 20.0, job, plate_id="C1", work_dir=tmp_path / "C1",
-                     settings=LoopSettings(max_cycles=2, learn=learn))
+        record_plate(history, PlateInputs(design, flat, press, 20.0), job, plate_id="C1", work_dir=tmp_path / "C1",
+                     options=LoopOptions(settings=LoopSettings(max_cycles=2, learn=learn)))
         scanner = SimulatedPlateScanner.for_job(press, 20.0, load_job(history.cycle("C1", 1).job_path), flat.points,
                                                 seed=3, **CLEAR_VIEW)
         with InProcessPress(press) as link:

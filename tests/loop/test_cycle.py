@@ -17,6 +17,7 @@ from mppf.core.errors import Cancelled, LimitError, PressFault, PressRefused
 from mppf.drivers.audit import AuditLog
 from mppf.loop.cycle import run_loop
 from mppf.loop.history import History
+from mppf.loop.options import LoopOptions, PlateInputs
 from mppf.loop.plate import record_plate
 from mppf.loop.settings import LoopSettings
 from mppf.planning.job import load_job
@@ -27,8 +28,8 @@ from mppf.sim.shop import SimulatedPlateScanner
 def _record(tmp_path, planned_plate, history, plate_id, max_cycles=1):
     """Record the planned plate as ``plate_id``; return its press."""
     design, flat, press, job = planned_plate
-    record_plate(history, design, flat, press, 20.0, job, plate_id=plate_id, work_dir=tmp_path / plate_id,
-                 settings=LoopSettings(max_cycles=max_cycles))
+    record_plate(history, PlateInputs(design, flat, press, 20.0), job, plate_id=plate_id, work_dir=tmp_path / plate_id,
+                 options=LoopOptions(settings=LoopSettings(max_cycles=max_cycles)))
     return press
 
 

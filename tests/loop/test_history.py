@@ -11,6 +11,7 @@ import pytest
 from mppf.cli import main
 from mppf.core.errors import InputError
 from mppf.loop.history import History, default_history_path
+from mppf.loop.options import PlateFiles
 from mppf.model.job_parts import StepStrokes
 from mppf.model.press import example_press_path, load_press
 
@@ -28,9 +29,8 @@ def _steps(press, depth_mm=10.0):
 
 
 def _new(history, press, plate_id="P-1"):
-    history.create_plate(plate_id, design_path="/d.csv", design_sha256="a" * 64, flat_path="/f.csv",
-                         flat_sha256="b" * 64, thickness_mm=20.0, press=press.to_dict(),
-                         settings={"loop": {"tolerance_mm": 2.5}})
+    history.create_plate(plate_id, PlateFiles("/d.csv", "a" * 64, "/f.csv", "b" * 64), thickness_mm=20.0,
+                         press=press.to_dict(), settings={"loop": {"tolerance_mm": 2.5}})
     history.add_cycle(plate_id, 1, job_path="/c1.json", job_sha256="c" * 64, steps=_steps(press))
 
 

@@ -23,6 +23,7 @@ from mppf.core.db import open_sqlite
 from mppf.core.errors import InputError
 from mppf.loop import lease as leases
 from mppf.loop.history import History
+from mppf.loop.options import LoopOptions, PlateFiles, PlateInputs
 from mppf.loop.plate import record_plate
 from mppf.loop.settings import LoopSettings
 
@@ -38,8 +39,9 @@ with History(sys.argv[1]) as history, history.lease(sys.argv[2]):
 def _record(tmp_path: Path, planned_plate, plate_id: str) -> Path:
     design, flat, press, job = planned_plate
     with History(tmp_path / "history.sqlite") as history:
-        record_plate(history, design, flat, press, 20.0, job, plate_id=plate_id, work_dir=tmp_path / plate_id,
-                     settings=LoopSettings(max_cycles=1), setup={"scanner": "sim", "seed": 1})
+        record_plate(history, PlateInputs(design, flat, press, 20.0), job, plate_id=plate_id,
+                     work_dir=tmp_path / plate_id,
+                     options=LoopOptions(settings=LoopSettings(max_cycles=1), setup={"scanner": "sim", "seed": 1}))
     return tmp_path / "history.sqlite"
 
 
@@ -109,19 +111,20 @@ def test_a_plate_and_its_first_cycle_are_recorded_together_or_not_at_all(planned
     with History(tmp_path / "history.sqlite") as history:
         monkeypatch.setattr(History, "add_cycle", crash)
         with pytest.raises(OSError):
-            record_plate(history, design, flat, press, 20.0, job, plate_id="A1", work_dir=tmp_path / "A1")
+            record_plate(history, PlateInputs(design, flat, press, 20.0), job, plate_id="A1", work_dir=tmp_path / "A1")
         assert history.plates() == []  # neither the plate nor its cycle
         monkeypatch.undo()
-        record_plate(history, design, flat, press, 20.0, job, plate_id="A1", work_dir=tmp_path / "A1")
+        record_plate(history, PlateInputs(design, flat, press, 20.0), job, plate_id="A1", work_dir=tmp_path / "A1")
         assert [c.state for c in history.cycles("A1")] == ["planned"]
 
 
 def test_a_plate_left_without_cycles_by_an_older_mppf_can_be_started_again(planned_plate, tmp_path):
     design, flat, press, job = planned_plate
     with History(tmp_path / "history.sqlite") as history:
-        history.create_plate("OLD-1", design_path=design.path, design_sha256=design.sha256, flat_path=flat.path,
-                             flat_sha256=flat.sha256, thickness_mm=20.0, press=press.to_dict(), settings={})
-        record_plate(history, design, flat, press, 20.0, job, plate_id="OLD-1", work_dir=tmp_path / "OLD-1")
+        history.create_plate("OLD-1", PlateFiles(design.path, design.sha256, flat.path, flat.sha256), thickness_mm=20.0,
+                             press=press.to_dict(), settings={})
+        record_plate(history, PlateInputs(design, flat, press, 20.0), job, plate_id="OLD-1",
+                     work_dir=tmp_path / "OLD-1")
         assert len(history.cycles("OLD-1")) == 1
         with pytest.raises(InputError, match="already in the history"):
             history.check_new_plate("OLD-1")
@@ -137,7 +140,8 @@ def test_interrupted_only_when_a_step_was_really_cut_short(planned_plate, tmp_pa
     design, flat, press, job = planned_plate
     with History(tmp_path / "history.sqlite") as history:
         for plate_id, finished in (("DONE-1", True), ("CUT-1", False)):
-            record_plate(history, design, flat, press, 20.0, job, plate_id=plate_id, work_dir=tmp_path / plate_id)
+            record_plate(history, PlateInputs(design, flat, press, 20.0), job, plate_id=plate_id,
+                         work_dir=tmp_path / plate_id)
             steps = len(job.steps) if finished else 1
             for step in range(1, steps + 1):
                 history.mark_step_started(plate_id, 1, step)
@@ -241,8 +245,8 @@ def test_a_plate_without_cycles_says_how_to_restart_it_and_then_restarts(planned
     design, flat, press, _ = planned_plate
     db = tmp_path / "history.sqlite"
     with History(db) as history:  # what an older mppf left when killed between the plate and its cycle
-        history.create_plate("HALF-1", design_path=design.path, design_sha256=design.sha256, flat_path=flat.path,
-                             flat_sha256=flat.sha256, thickness_mm=20.0, press=press.to_dict(), settings={})
+        history.create_plate("HALF-1", PlateFiles(design.path, design.sha256, flat.path, flat.sha256),
+                             thickness_mm=20.0, press=press.to_dict(), settings={})
     assert main(["loop", "--resume", "--plate-id", "HALF-1", "--history", str(db)]) == 2
     err = " ".join(capsys.readouterr().err.split())
     assert "recorded without its first cycle" in err and "--plate-id HALF-1" in err

@@ -9,6 +9,7 @@ import pytest
 
 from mppf.core.errors import ConfigError
 from mppf.loop.history import History
+from mppf.loop.options import LoopOptions, PlateInputs
 from mppf.loop.plate import record_plate
 from mppf.loop.pressing import check_step_is_sealed
 from mppf.loop.settings import LoopSettings
@@ -17,8 +18,8 @@ from mppf.loop.settings import LoopSettings
 def _recorded(tmp_path, planned_plate):
     design, flat, press, job = planned_plate
     history = History(tmp_path / "h.sqlite")
-    record_plate(history, design, flat, press, 20.0, job, plate_id="S1", work_dir=tmp_path / "S1",
-                 settings=LoopSettings(max_cycles=1))
+    record_plate(history, PlateInputs(design, flat, press, 20.0), job, plate_id="S1", work_dir=tmp_path / "S1",
+                 options=LoopOptions(settings=LoopSettings(max_cycles=1)))
     return history
 
 

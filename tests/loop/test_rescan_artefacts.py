@@ -19,6 +19,7 @@ from station_helpers import asymmetric_points, plate_files, request_keeper
 from mppf.core.transform import apply_tf
 from mppf.loop.cycle import run_loop
 from mppf.loop.history import History
+from mppf.loop.options import LoopOptions, PlateInputs
 from mppf.loop.plate import plan_first_cycle, record_plate
 from mppf.loop.settings import LoopSettings
 from mppf.model.press import example_press_path, load_press
@@ -85,8 +86,8 @@ def _loop(tmp_path, plate, rescans):
     design, flat, press, job = plate
     reporter, requests = request_keeper()
     with History(tmp_path / "h.sqlite") as history:
-        record_plate(history, design, flat, press, THICKNESS_MM, job, plate_id="ART", work_dir=tmp_path / "ART",
-                     settings=LoopSettings(**SETTINGS, rescans=rescans))
+        record_plate(history, PlateInputs(design, flat, press, THICKNESS_MM), job, plate_id="ART",
+                     work_dir=tmp_path / "ART", options=LoopOptions(settings=LoopSettings(**SETTINGS, rescans=rescans)))
         station = SpikyStation(history.cycle("ART", 1).job_path)
         with InProcessPress(press) as link:
             result = run_loop(history, "ART", link, station, reporter=reporter)

@@ -19,6 +19,7 @@ import mppf.loop.rescanning as rescanning
 from mppf.drivers.audit import AuditLog
 from mppf.loop.cycle import run_loop
 from mppf.loop.history import History
+from mppf.loop.options import LoopOptions, PlateInputs
 from mppf.loop.plate import record_plate
 from mppf.loop.scanners import DirectoryScanner
 from mppf.loop.settings import LoopSettings
@@ -41,8 +42,8 @@ def _run(tmp_path, plate, *station_args, rescans=2, requests=2, station=True, **
     folder.mkdir(exist_ok=True)
     history = History(tmp_path / "h.sqlite")
     if not history.plates():
-        record_plate(history, design, flat, press, 20.0, job, plate_id="RS", work_dir=tmp_path / "RS",
-                     settings=LoopSettings(**SETTINGS, rescans=rescans, **settings))
+        record_plate(history, PlateInputs(design, flat, press, 20.0), job, plate_id="RS", work_dir=tmp_path / "RS",
+                     options=LoopOptions(settings=LoopSettings(**SETTINGS, rescans=rescans, **settings)))
     station = subprocess.Popen([sys.executable, str(STATION), str(folder), str(design.path), "--requests",
                                 str(requests), "--idle", "20", *station_args],
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True) if station else None

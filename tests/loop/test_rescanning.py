@@ -12,6 +12,7 @@ from station_helpers import plate_files
 
 from mppf.loop.cycle import run_loop
 from mppf.loop.history import History
+from mppf.loop.options import LoopOptions, PlateInputs
 from mppf.loop.plate import plan_first_cycle, record_plate
 from mppf.loop.rescanning import AGREE_FLOOR_MM, AGREE_NOISE, MIN_OVERLAP, overlap_agreement
 from mppf.loop.settings import LoopSettings
@@ -42,8 +43,8 @@ def camber(tmp_path_factory):
 def _loop(tmp_path, plate, history, rescans=2):
     design, flat, press, job = plate
     if "SIM" not in [p.plate_id for p in history.plates()]:
-        record_plate(history, design, flat, press, 20.0, job, plate_id="SIM", work_dir=tmp_path / "SIM",
-                     settings=LoopSettings(**SETTINGS, rescans=rescans))
+        record_plate(history, PlateInputs(design, flat, press, 20.0), job, plate_id="SIM", work_dir=tmp_path / "SIM",
+                     options=LoopOptions(settings=LoopSettings(**SETTINGS, rescans=rescans)))
     scanner = SimulatedPlateScanner.for_job(press, 20.0, load_job(history.cycle("SIM", 1).job_path), flat.points,
                                             seed=SEED)
     reporter = HookReporter()

@@ -19,6 +19,7 @@ from station_helpers import asymmetric_points, planned_plate, start_station, sta
 from mppf.drivers.audit import AuditLog
 from mppf.loop.cycle import run_loop
 from mppf.loop.history import History
+from mppf.loop.options import LoopOptions, PlateInputs
 from mppf.loop.marks import MarkMissing, needs_mark
 from mppf.loop.plate import record_plate
 from mppf.loop.scan_request import REQUEST_FORMAT, REQUEST_VERSION, build_request, post_request, run_on_pressed
@@ -54,8 +55,8 @@ def _run(tmp_path, plate, mode, *, delay_s=2.0, settings=None, plate_id="S1", st
     folder = tmp_path / "scans"
     folder.mkdir(exist_ok=True)
     history = History(tmp_path / "h.sqlite")
-    record_plate(history, design, flat, press, 20.0, job, plate_id=plate_id, work_dir=tmp_path / plate_id,
-                 settings=settings or LoopSettings(**SETTINGS))
+    record_plate(history, PlateInputs(design, flat, press, 20.0), job, plate_id=plate_id, work_dir=tmp_path / plate_id,
+                 options=LoopOptions(settings=settings or LoopSettings(**SETTINGS)))
     process = start_station(folder, design.path, mode, delay_s=delay_s) if station else None
     reporter = HookReporter()
     with AuditLog(tmp_path / "audit.sqlite") as audit, InProcessPress(press, audit=audit) as link:
@@ -95,7 +96,8 @@ def test_request_schema_and_the_mark_written_before_the_scan(bowl, tmp_path):
 def test_the_request_document(bowl, tmp_path):
     design, flat, press, job = bowl
     with History(tmp_path / "h.sqlite") as history:
-        plate = record_plate(history, design, flat, press, 20.0, job, plate_id="Q1", work_dir=tmp_path / "Q1")
+        plate = record_plate(history, PlateInputs(design, flat, press, 20.0), job, plate_id="Q1",
+                             work_dir=tmp_path / "Q1")
         doc = build_request(plate, history.cycle("Q1", 1), job, LoopSettings(), tmp_path, mark_required=True)
         # a folder that refuses the request: said, and the loop waits for the scan all the same
         reporter = HookReporter()

@@ -18,6 +18,7 @@ from mppf.examples.analytic import cylinder_plate
 from mppf.geometry.read import read_points
 from mppf.loop.cycle import run_loop
 from mppf.loop.history import History
+from mppf.loop.options import LoopOptions, PlateInputs
 from mppf.loop.plate import plan_first_cycle, record_plate
 from mppf.loop.section_steps import section_spans
 from mppf.loop.settings import LoopSettings
@@ -47,8 +48,8 @@ def long_plate(tmp_path_factory):
 
 def _start(tmp_path, long_plate, history, plate_id, max_cycles):
     design, flat, press, job = long_plate
-    record_plate(history, design, flat, press, THICKNESS_MM, job, plate_id=plate_id, work_dir=tmp_path / plate_id,
-                 settings=LoopSettings(max_cycles=max_cycles))
+    record_plate(history, PlateInputs(design, flat, press, THICKNESS_MM), job, plate_id=plate_id,
+                 work_dir=tmp_path / plate_id, options=LoopOptions(settings=LoopSettings(max_cycles=max_cycles)))
     scanner = SimulatedPlateScanner.for_job(press, THICKNESS_MM, job, flat.points, seed=3,
                                             plate_options={"grid_spacing_mm": 150.0}, occlusion_fraction=0.0,
                                             outlier_fraction=0.0, spacing_mm=35.0)  # the sections are under test

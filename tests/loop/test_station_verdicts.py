@@ -14,6 +14,7 @@ from mppf.core.errors import MppfError
 from mppf.drivers.audit import AuditLog
 from mppf.loop.cycle import run_loop
 from mppf.loop.history import History
+from mppf.loop.options import LoopOptions, PlateInputs
 from mppf.loop.plate import record_plate
 from mppf.loop.scanners import DirectoryScanner
 from mppf.loop.settings import LoopSettings
@@ -33,8 +34,8 @@ def _run(tmp_path, plate, **station):
     folder = tmp_path / "scans"
     folder.mkdir()
     history = History(tmp_path / "h.sqlite")
-    record_plate(history, design, flat, press, 20.0, job, plate_id="V1", work_dir=tmp_path / "V1",
-                 settings=LoopSettings(**SETTINGS))
+    record_plate(history, PlateInputs(design, flat, press, 20.0), job, plate_id="V1", work_dir=tmp_path / "V1",
+                 options=LoopOptions(settings=LoopSettings(**SETTINGS)))
     process = start_station(folder, design.path, "early", **station)
     reporter = HookReporter()
     with AuditLog(tmp_path / "audit.sqlite") as audit, InProcessPress(press, audit=audit) as link:

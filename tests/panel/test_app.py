@@ -5,6 +5,7 @@ from __future__ import annotations
 from panel_helpers import layout_job
 
 from mppf.loop.history import History
+from mppf.loop.options import PlateFiles
 from mppf.panel.app import locator
 from mppf.panel.config import PanelConfig
 from mppf.panel.sources import PlcTarget
@@ -17,8 +18,8 @@ def _history(tmp_path, plc: str | None):
     job = layout_job()
     path = tmp_path / "history.sqlite"
     with History(path) as history:
-        history.create_plate("B12-P3", design_path="design.csv", design_sha256="0" * 64, flat_path="flat.csv",
-                             flat_sha256="1" * 64, thickness_mm=job.thickness_mm, press=job.press.to_dict(),
+        history.create_plate("B12-P3", PlateFiles("design.csv", "0" * 64, "flat.csv", "1" * 64),
+                             thickness_mm=job.thickness_mm, press=job.press.to_dict(),
                              settings={"loop": {}, "work_dir": str(tmp_path), "plc": plc})
         history.add_cycle("B12-P3", 1, job_path=save_job(job, tmp_path / "cycle-01.job.json"),
                           job_sha256=job.sha256(), steps=job.steps)

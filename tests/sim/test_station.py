@@ -20,6 +20,7 @@ from mppf.drivers.audit import AuditLog
 from mppf.geometry.read import read_points
 from mppf.loop.cycle import run_loop
 from mppf.loop.history import History
+from mppf.loop.options import LoopOptions, PlateInputs
 from mppf.loop.plate import record_plate
 from mppf.loop.scanners import DirectoryScanner
 from mppf.loop.settings import LoopSettings
@@ -46,8 +47,8 @@ def _loop_with_station(tmp_path, plate):
     station = ScanStation(folder, press, log, say=lines.append)
     stop = threading.Event()
     with History(tmp_path / "h.sqlite") as history:
-        record_plate(history, design, flat, press, 20.0, job, plate_id="ST", work_dir=tmp_path / "ST",
-                     settings=LoopSettings(**SETTINGS))
+        record_plate(history, PlateInputs(design, flat, press, 20.0), job, plate_id="ST", work_dir=tmp_path / "ST",
+                     options=LoopOptions(settings=LoopSettings(**SETTINGS)))
         with AuditLog(tmp_path / "audit.sqlite") as audit, InProcessPress(press, audit=audit) as link:
             log.follow(link.program)
             thread = threading.Thread(target=station.run, args=(stop,), daemon=True)
