@@ -96,7 +96,7 @@ def intersect_lines(model: CadModel, origins, direction, *, seen_from=None) -> S
         dist, seed = tree.query(planar, distance_upper_bound=2.0 * spacing)
         rows = np.flatnonzero(np.isfinite(dist))
         if rows.size:
-            _line_face(model, index, face, pts[rows], np.broadcast_to(d, (rows.size, 3)), face.seed_uv[seed[rows]],
+            _line_face(model, index, pts[rows], np.broadcast_to(d, (rows.size, 3)), face.seed_uv[seed[rows]],
                        rows, hits, seen_from)
     return hits.hits()
 
@@ -115,8 +115,8 @@ def intersect_near(model: CadModel, origins, directions) -> SurfaceHits:
     d = np.asarray(directions, dtype=float).reshape(-1, 3)
     d = d / np.linalg.norm(d, axis=1)[:, None]
     hits = _Best(pts.shape[0])
-    for index, face, rows, start in _near_faces(model, pts):
-        _line_face(model, index, face, pts[rows], d[rows], start, rows, hits, None)
+    for index, _, rows, start in _near_faces(model, pts):
+        _line_face(model, index, pts[rows], d[rows], start, rows, hits, None)
     return hits.hits()
 
 
@@ -144,8 +144,9 @@ def _newton_closest(model: CadModel, face, pts: np.ndarray, uv: np.ndarray) -> t
     return uv, ~active
 
 
-def _line_face(model, index, face, origins, d, start, rows, hits: _Best, seen_from) -> None:
-    """Newton for lines on one face; keep the hits on the trimmed face in ``hits``."""
+def _line_face(model, index: int, origins, d, start, rows, hits: _Best, seen_from) -> None:
+    """Newton for lines on face ``index`` of the model; keep the hits on the trimmed face in ``hits``."""
+    face = model.faces[index]
     uv = start.astype(float).copy()
     e1 = _normal_basis_rows(d)
     active = np.ones(origins.shape[0], dtype=bool)
