@@ -1,8 +1,9 @@
-"""A plate cut from a hull model (mppf.geometry.extract, stations): regions, girth, the KCS patches.
+"""A plate cut from a hull model (mppf.geometry.extract): regions, girth, the KCS patches.
 
 The KCS patches K1 and K3 (cut from ship_kcs.igs, scaled by 31.6) are cut again from the IGES
-by their region and must come out as the same plate; the girth is checked exactly on a
-box-bilge hull written by gmsh; the second public hull (KVLCC2) is read and a patch extracted.
+by their region and must come out as the same plate; a girth plate is checked on a box-bilge
+hull written by gmsh (its stations: ``tests/geometry/test_stations.py``); the second public hull
+(KVLCC2) is read and a patch extracted.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from mppf.geometry.cad import CadModel
 from mppf.geometry.cad_query import closest_points
 from mppf.geometry.extract import MAX_POINTS, GirthRegion, ProjectedRegion, extract_plate
 from mppf.geometry.read import read_points
-from mppf.geometry.stations import sample_girth, trace_stations
+from mppf.geometry.stations import trace_stations
 from mppf.geometry.surface import fit_plate
 
 
@@ -88,15 +89,6 @@ def test_k3_cut_again_by_its_outline_seen_from_the_side(kcs, hull_dir):
     assert hits.found.all() and hits.distance_mm.max() * KCS_SCALE < 1e-3  # every point on the exact surface
 
 
-def test_girth_is_exact_on_a_box_bilge_hull(box):
-    girth = np.array([0.0, 150.0, 6999.0, 7000.0, 8200.0, 11700.0, 11713.0, 15000.0, 20000.0])
-    stations = np.array([500.0, 10000.0, 19500.0])
-    points = sample_girth(box, stations, girth)
-    np.testing.assert_allclose(points[:, :, 0], np.repeat(stations[:, None], girth.size, axis=1), atol=1e-6)
-    np.testing.assert_allclose(points[:, :, 1:], np.broadcast_to(box_hull_point(girth), (3, girth.size, 2)),
-                               atol=0.05)
-
-
 def test_a_girth_plate_across_the_bilge_has_its_size(box):
     plate = extract_plate(box, GirthRegion((1000.0, 4000.0), (6000.0, 8500.0)), 100.0)
     assert plate.grid_shape == (31, 26)
@@ -107,13 +99,6 @@ def test_a_girth_plate_across_the_bilge_has_its_size(box):
     grid = plate.points.reshape(31, 26, 3)
     np.testing.assert_allclose(grid[:, 0, 1:], np.broadcast_to(box_hull_point([6000.0])[0], (31, 2)), atol=0.05)
     np.testing.assert_allclose(grid[:, -1, 1:], np.broadcast_to(box_hull_point([8500.0])[0], (31, 2)), atol=0.05)
-
-
-def test_a_station_that_ends_before_the_plate(box):
-    with pytest.raises(GeometryError, match="ends at a girth of 2071[0-9] mm"):
-        sample_girth(box, [1000.0], [20000.0, 21000.0])
-    with pytest.raises(GeometryError, match="no keel at x = 25000 mm"):
-        sample_girth(box, [25000.0], [100.0])
 
 
 def test_kvlcc2_is_read_and_a_bilge_patch_extracted(tmp_path):
