@@ -9,35 +9,55 @@ from __future__ import annotations
 import math
 import numbers
 import re
+from dataclasses import dataclass
 
 from mppf.core.errors import InputError
 
 
-def _range_text(low, high, low_open: bool, high_open: bool, unit: str) -> str:
-    u = f" {unit}" if unit else ""
-    if low is not None and high is not None:
-        return f"from {low:g} to {high:g}{u}" if not (low_open or high_open) else \
-            f"{'above' if low_open else 'at least'} {low:g} and {'below' if high_open else 'at most'} {high:g}{u}"
-    if low is not None:
-        return f"{'above' if low_open else 'at least'} {low:g}{u}"
-    if high is not None:
-        return f"{'below' if high_open else 'at most'} {high:g}{u}"
-    return "finite"
+@dataclass(frozen=True)
+class NumberRange:
+    """The numbers :func:`check_number` accepts.
+
+    Attributes
+    ----------
+    low, high : float, optional
+        Bounds; inclusive unless ``low_open`` / ``high_open``.
+    low_open, high_open : bool
+        The bound itself is refused.
+    integer : bool
+        A whole number is required (returned as int).
+    unit : str
+        Unit named in the message ("mm", "s").
+    """
+
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False
+    high_open: bool = False
+    integer: bool = False
+    unit: str = ""
+
+    def text(self) -> str:
+        """The range in words (``"from 0 to 5 mm"``, ``"above 0"``, ``"finite"``)."""
+        low, high, low_open, high_open = self.low, self.high, self.low_open, self.high_open
+        u = f" {self.unit}" if self.unit else ""
+        if low is not None and high is not None:
+            return f"from {low:g} to {high:g}{u}" if not (low_open or high_open) else \
+                f"{'above' if low_open else 'at least'} {low:g} and {'below' if high_open else 'at most'} {high:g}{u}"
+        if low is not None:
+            return f"{'above' if low_open else 'at least'} {low:g}{u}"
+        if high is not None:
+            return f"{'below' if high_open else 'at most'} {high:g}{u}"
+        return "finite"
+
+    def holds(self, number: float) -> bool:
+        """Whether the finite ``number`` lies within the bounds."""
+        below = self.low is not None and (number <= self.low if self.low_open else number < self.low)
+        above = self.high is not None and (number >= self.high if self.high_open else number > self.high)
+        return not (below or above)
 
 
-def check_number(
-    name: str,
-    value,
-    *,
-    low: float | None = None,
-    high: float | None = None,
-    low_open: bool = False,
-    high_open: bool = False,
-    integer: bool = False,
-    unit: str = "",
-    hint: str | None = None,
-    error=InputError,
-) -> float | int:
+def check_number(name: str, value, *, hint: str | None = None, error=InputError, **limits) -> float | int:
     """``value`` as a finite float (or int) within the range, or a clear error.
 
     Booleans and strings are refused even where Python would read them as numbers
@@ -48,16 +68,14 @@ def check_number(
     name : str
         What the value is, as the user knows it (``"--tolerance"``, ``"[press] rows"``).
     value : object
-    low, high : float, optional
-        Bounds; inclusive unless ``low_open`` / ``high_open``.
-    integer : bool
-        A whole number is required (returned as int).
-    unit : str
-        Unit named in the message ("mm", "s").
     hint : str, optional
         What to do; default: the allowed range.
     error : type
         The :class:`~mppf.core.errors.InputError` subclass to raise (``ConfigError`` for files).
+    **limits
+        The fields of :class:`NumberRange`: ``low``, ``high`` (bounds, inclusive unless
+        ``low_open`` / ``high_open``), ``integer`` (a whole number, returned as int),
+        ``unit`` (named in the message, "mm", "s").
 
     Returns
     -------
@@ -67,10 +85,24 @@ def check_number(
     ------
     InputError (or ``error``)
     """
-    allowed = _range_text(low, high, low_open, high_open, unit)
-    what = "a whole number" if integer else "a number"
+    limits = NumberRange(**limits)
+    allowed = limits.text()
+    what = "a whole number" if limits.integer else "a number"
     if hint is None:
         hint = f"give {what} {allowed}" if allowed != "finite" else f"give a finite {what[2:]}"
+    number = _finite(name, value, what, hint, error)
+    if limits.integer:
+        if number != int(number):
+            raise error(f"{name} must be a whole number, got {value!r}", hint=hint)
+        number = int(number)
+    if not limits.holds(number):
+        unit_text = f" {limits.unit}" if limits.unit else ""
+        raise error(f"{name} must be {allowed}, got {value!r}{unit_text}", hint=hint)
+    return number
+
+
+def _finite(name: str, value, what: str, hint: str, error) -> float:
+    """``value`` as a finite float; ``error`` for a bool, a non-number or an infinite or NaN value."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise error(f"{name} must be {what}, got {value!r}", hint=hint)
     try:
@@ -81,15 +113,6 @@ def check_number(
         big = isinstance(value, int) and abs(value) >= 10**30
         shown = f"an integer of {len(str(abs(value)))} digits" if big else repr(value)
         raise error(f"{name} must be a finite number, got {shown}", hint=hint)
-    if integer:
-        if number != int(number):
-            raise error(f"{name} must be a whole number, got {value!r}", hint=hint)
-        number = int(number)
-    below = low is not None and (number <= low if low_open else number < low)
-    above = high is not None and (number >= high if high_open else number > high)
-    if below or above:
-        unit_text = f" {unit}" if unit else ""
-        raise error(f"{name} must be {allowed}, got {value!r}{unit_text}", hint=hint)
     return number
 
 

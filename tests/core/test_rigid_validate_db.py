@@ -9,7 +9,7 @@ from scipy.spatial.transform import Rotation
 from mppf.core.db import open_sqlite
 from mppf.core.errors import ConfigError, InputError
 from mppf.core.rigid import fit_rigid
-from mppf.core.validate import check_number, check_positive
+from mppf.core.validate import NumberRange, check_number, check_positive
 
 
 def test_fit_rigid_recovers_a_motion_in_3d_and_in_the_plane():
@@ -48,6 +48,16 @@ def test_check_number_accepts_and_converts():
     assert check_positive("t", np.float64(20.0), unit="mm") == 20.0
     with pytest.raises(ConfigError):
         check_positive("[press] rows", -1, error=ConfigError)
+
+
+def test_number_range_says_its_range_and_holds_its_numbers():
+    assert NumberRange(low=0.0, high=5.0, unit="mm").text() == "from 0 to 5 mm"
+    assert NumberRange(low=0.0, low_open=True).text() == "above 0"
+    assert NumberRange().text() == "finite"
+    assert NumberRange(low=0.0, high=5.0, high_open=True).holds(0.0)
+    assert not NumberRange(low=0.0, high=5.0, high_open=True).holds(5.0)
+    with pytest.raises(TypeError, match="lo"):
+        check_number("n", 1.0, lo=0.0)  # a misspelt limit is a bug in the caller, not a value to ignore
 
 
 def test_open_sqlite_creates_applies_the_schema_and_refuses_another_version(tmp_path):
