@@ -40,6 +40,9 @@ FOLDERS = {"mppf": ROOT / "mppf", "mppf.drivers": ROOT / "drivers", "mppf.sim": 
 KNOWN_PRIVATE: dict[tuple[str, str], str] = {}
 """Private names still imported across modules, (importer, imported module) -> why."""
 
+LINT_IMPORTS = "import sys; from importlinter.cli import lint_imports_command; sys.exit(lint_imports_command())"
+"""The ``lint-imports`` script's own code (import-linter's entry point), run by this interpreter."""
+
 LINT_TIMEOUT_S = 120.0
 """Longest a ``lint-imports`` run may take (about 0.5 s on an idle 2-core machine)."""
 
@@ -141,12 +144,15 @@ def open_up(link: Path) -> Path:
     return link
 
 
-def lint_imports(tree: Path) -> subprocess.CompletedProcess[str]:
-    """Run ``lint-imports`` with the contracts of ``pyproject.toml`` on the link tree ``tree``, no cache."""
-    script = Path(sys.executable).with_name("lint-imports")
-    if not script.exists():
-        pytest.fail(f"lint-imports is not installed beside {sys.executable}: run python3 -m pip install -e '.[test]'")
-    return subprocess.run([str(script), "--no-cache", "--no-logo", str(ROOT / "pyproject.toml")], cwd=tree,
+def lint_imports(tree: Path, command: list[str] | None = None) -> subprocess.CompletedProcess[str]:
+    """Run ``lint-imports`` with the contracts of ``pyproject.toml`` on the link tree ``tree``, no cache.
+
+    The script beside this interpreter, else (where pip put scripts elsewhere) its entry point.
+    """
+    if command is None:
+        script = Path(sys.executable).with_name("lint-imports")
+        command = [str(script)] if script.exists() else [sys.executable, "-c", LINT_IMPORTS]
+    return subprocess.run([*command, "--no-cache", "--no-logo", str(ROOT / "pyproject.toml")], cwd=tree,
                           env=os.environ | {"PYTHONPATH": str(tree)}, capture_output=True, text=True,
                           timeout=LINT_TIMEOUT_S, check=False)
 
@@ -174,6 +180,14 @@ def test_import_linter_fails_on_a_broken_contract(tmp_path, package, modules, br
     run = lint_imports(tmp_path)
     assert run.returncode == 1, run.stdout + run.stderr
     assert broken in run.stdout, run.stdout
+
+
+def test_the_entry_point_of_lint_imports_checks_the_same(tmp_path):
+    """The fallback where the script is not beside the interpreter: the same contracts, the same failure."""
+    (open_up(link_tree(tmp_path) / "mppf" / "model") / "probe.py").write_text("import mppf.planning.job\n")
+    run = lint_imports(tmp_path, [sys.executable, "-c", LINT_IMPORTS])
+    assert run.returncode == 1, run.stdout + run.stderr
+    assert "- mppf.model.probe -> mppf.planning.job (l.1)" in run.stdout, run.stdout
 
 
 def test_import_linter_fails_on_a_package_without_a_layer(tmp_path):
