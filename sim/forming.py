@@ -221,16 +221,8 @@ class FormedPlate:
         return self.offset_points(xy, 1.0) - self.offset_points(xy, 0.0)
 
 
-def form_plate(
-    press: PressConfig,
-    upper_mm,
-    lower_mm,
-    active,
-    plate: PlateSample,
-    outline_xy_mm=None,
-    *,
-    grid_spacing_mm: float = GRID_SPACING_MM,
-) -> FormedPlate:
+def form_plate(press: PressConfig, upper_mm, lower_mm, active, plate: PlateSample, outline_xy_mm=None, *,
+               grid_spacing_mm: float = GRID_SPACING_MM) -> FormedPlate:
     """Form a plate between the punch tips of one press step, then let it spring back.
 
     Parameters
@@ -262,15 +254,7 @@ def form_plate(
         Too few active punches, or an outline that is not a polygon of at least 3 points.
     """
     upper, lower, act = check_step_grids(press, upper_mm, lower_mm, active)
-    t = plate.thickness_mm
-    gap = upper[act] - lower[act]
-    if np.any(gap < t * 0.5):
-        i = int(np.argmin(gap))
-        raise InputError(
-            f"the gap between upper and lower tips is {gap[i]:.3f} mm at an active punch, less than half "
-            f"the plate thickness {t:.3f} mm",
-            hint="the step would crush the plate; check the strokes",
-        )
+    _check_gap(upper[act] - lower[act], plate.thickness_mm)
     px, py = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
     xy_contact = np.column_stack([px[act], py[act]])
     outline = _outline(press, act, outline_xy_mm)
@@ -297,6 +281,17 @@ def form_plate(
         contact_xyz_mm=np.column_stack([xy_contact, z_contact]),
         mean_ratio=mean_ratio,
     )
+
+
+def _check_gap(gap_mm: np.ndarray, thickness_mm: float) -> None:
+    """InputError where the gap between upper and lower tips ((k,) mm, active punches) is under half the plate."""
+    if np.any(gap_mm < thickness_mm * 0.5):
+        i = int(np.argmin(gap_mm))
+        raise InputError(
+            f"the gap between upper and lower tips is {gap_mm[i]:.3f} mm at an active punch, less than half "
+            f"the plate thickness {thickness_mm:.3f} mm",
+            hint="the step would crush the plate; check the strokes",
+        )
 
 
 def check_step_grids(press: PressConfig, upper_mm, lower_mm, active):

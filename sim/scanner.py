@@ -160,12 +160,7 @@ class SimulatedScanner:
         # the jitter must not carry a point past the plate's edge (there is no plate there)
         xy = xy[contains(formed.outline_xy_mm, xy)]
         if len(aim_xy_mm):  # an aimed take: the listed areas and a rim around them
-            grow = AIM_MARGIN_SPACINGS * self.spacing_mm
-            aimed = np.zeros(len(xy), dtype=bool)
-            for corners in aim_xy_mm:
-                aimed |= contains(offset_convex(convex_outline(np.asarray(corners, dtype=float), "an aimed area"),
-                                                grow), xy)
-            xy = xy[aimed]
+            xy = xy[self._aimed(xy, aim_xy_mm)]
         # 2. occlusion: drop the points nearest to one or two random blob centres
         keep, n_blobs = self._occlusion_mask(xy, rng)
         occluded = 1.0 - keep.mean()
@@ -176,20 +171,9 @@ class SimulatedScanner:
         # 3. noise
         points = points + rng.normal(0.0, self.noise_mm, points.shape) if self.noise_mm > 0 else points
         # 4. outliers along the normal, either side
-        n_out = int(round(self.outlier_fraction * len(points)))
-        is_outlier = np.zeros(len(points), dtype=bool)
-        if n_out:
-            idx = rng.choice(len(points), n_out, replace=False)
-            offset = rng.uniform(*OUTLIER_OFFSET_MM, n_out) * rng.choice([-1.0, 1.0], n_out)
-            points[idx] += offset[:, None] * normals[idx]
-            is_outlier[idx] = True
+        is_outlier = self._add_outliers(points, normals, rng)
         # 5. arbitrary pose; shuffle the order as a scanner would not keep the grid order
-        if self.max_turn_deg is None:
-            rotation = Rotation.random(random_state=rng).as_matrix()
-        else:
-            turn = rng.uniform(-self.max_turn_deg, self.max_turn_deg)
-            rotation = Rotation.from_euler("z", turn, degrees=True).as_matrix()
-        random_pose = make_tf(rotation, rng.uniform(-MAX_TRANSLATION_MM, MAX_TRANSLATION_MM, 3))
+        random_pose = self._random_pose(rng)
         tf_scan_press = random_pose if tf_scan_press is None else np.asarray(tf_scan_press, dtype=float)
         order = rng.permutation(len(points))
         mark = None
@@ -206,6 +190,35 @@ class SimulatedScanner:
             hidden_xy_mm=hidden,
             mark_mm=mark,
         )
+
+    def _aimed(self, xy: np.ndarray, aim_xy_mm) -> np.ndarray:
+        """(n,) bool: the points (n, 2) mm within the aimed areas' convex outlines grown by the margin."""
+        grow = AIM_MARGIN_SPACINGS * self.spacing_mm
+        aimed = np.zeros(len(xy), dtype=bool)
+        for corners in aim_xy_mm:
+            aimed |= contains(offset_convex(convex_outline(np.asarray(corners, dtype=float), "an aimed area"),
+                                            grow), xy)
+        return aimed
+
+    def _add_outliers(self, points: np.ndarray, normals: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Move a fraction of the points (n, 3) mm along their normals, either side, in place; (n,) bool which."""
+        n_out = int(round(self.outlier_fraction * len(points)))
+        is_outlier = np.zeros(len(points), dtype=bool)
+        if n_out:
+            idx = rng.choice(len(points), n_out, replace=False)
+            offset = rng.uniform(*OUTLIER_OFFSET_MM, n_out) * rng.choice([-1.0, 1.0], n_out)
+            points[idx] += offset[:, None] * normals[idx]
+            is_outlier[idx] = True
+        return is_outlier
+
+    def _random_pose(self, rng: np.random.Generator) -> np.ndarray:
+        """A (4, 4) pose: any rotation (or a turn about z within ``max_turn_deg``) and a shift (mm)."""
+        if self.max_turn_deg is None:
+            rotation = Rotation.random(random_state=rng).as_matrix()
+        else:
+            turn = rng.uniform(-self.max_turn_deg, self.max_turn_deg)
+            rotation = Rotation.from_euler("z", turn, degrees=True).as_matrix()
+        return make_tf(rotation, rng.uniform(-MAX_TRANSLATION_MM, MAX_TRANSLATION_MM, 3))
 
     def _occlusion_mask(self, xy: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, int]:
         n = len(xy)
