@@ -65,6 +65,7 @@ from mppf.core.transform import apply_tf
 from mppf.correct.learned import steps_towards
 from mppf.correct.memory import PressedCycle
 from mppf.correct.policy import outer_ring, step_plan
+from mppf.correct.inputs import CorrectedPlate, CorrectionHistory
 from mppf.correct.step import Tolerances, correct_step, outcome
 from mppf.forming.precompensate import deviation
 from mppf.geometry.read import read_points
@@ -236,8 +237,9 @@ def continue_direct(press, planned: Planned, run: DirectRun, max_cycles: int, po
 def _correct(press, job, run: DirectRun, edge_mm, tolerances: Tolerances, policy: bool) -> bool:
     """The correction after a measured cycle, into ``run``'s next steps; True when its verdict ends the run."""
     row, active = run.row, job.steps[-1].active
-    step = correct_step(press, job.layout.design_mid_mm, THICKNESS_MM, NOMINAL, run.cycles, run.outcomes,
-                        run.strokes, active, edge_mm, tolerances, policy=policy)
+    plate = CorrectedPlate(press, job.layout.design_mid_mm, THICKNESS_MM, NOMINAL, active)
+    step = correct_step(plate, CorrectionHistory(run.cycles, run.outcomes, run.strokes, edge_mm), tolerances,
+                        policy=policy)
     row["share"].append(round(step.plan.share, 3))
     if step.verdict is not None:
         row["decisions"].append("cannot_converge")

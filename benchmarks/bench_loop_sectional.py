@@ -253,6 +253,7 @@ class LearnedSections:
         """The next cycle's job from the deviation ``dev`` at the design points (mm) and (form max, RMS); None
         when a section cannot go on (as the loop, :func:`mppf.loop.sectional.plan_next_sections`)."""
         from mppf.correct.memory import PressedCycle
+        from mppf.correct.inputs import CorrectedPlate, CorrectionHistory
         from mppf.correct.step import Tolerances, correct_step, outcome
         from mppf.planning.sectional import apply_section_corrections
 
@@ -266,8 +267,9 @@ class LearnedSections:
             mem["outcomes"].append(outcome(form[0], form[1], error, mem["promised"]))
             mem["strokes"].append((final.upper_mm, final.lower_mm))
             # no edge deviation: the loop's comparison gives one for section 1's pose only (as the loop does)
-            step = correct_step(press, s.layout.design_mid_mm, THICKNESS_MM, NOMINAL, mem["cycles"],
-                                mem["outcomes"], mem["strokes"], act, None, Tolerances(TOL_MM, RMS_TOL_MM))
+            plate = CorrectedPlate(press, s.layout.design_mid_mm, THICKNESS_MM, NOMINAL, act)
+            step = correct_step(plate, CorrectionHistory(mem["cycles"], mem["outcomes"], mem["strokes"]),
+                                Tolerances(TOL_MM, RMS_TOL_MM))
             if step.verdict is not None or step.learned is None:
                 self.verdicts.append(f"section {s.index}: {step.verdict.text[:100] if step.verdict else 'none'}")
                 deltas.append((np.zeros(press.shape), np.zeros(press.shape)))

@@ -31,19 +31,20 @@ only the change, so what it gets wrong about the plate's shape does not enter th
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
 from mppf.core.grid import largest_neighbour_difference
 from mppf.correct.calibrate import Calibration, calibrate
 from mppf.correct.edge import balanced_error
+from mppf.correct.inputs import CorrectedPlate
 from mppf.correct.memory import PressedCycle, interrupted_share, loaded_curvatures, replay
 from mppf.correct.punch_grid import PunchGrid
 from mppf.correct.secant import ModeGain
 from mppf.correct.solve import STALLED, solve_change
 from mppf.correct.through_thickness import BendingLaw
 from mppf.model.job_parts import StepStrokes
-from mppf.model.material import Material
 from mppf.model.press import PressConfig
 
 AIM = (0.92, 0.95)
@@ -105,23 +106,18 @@ class LearnedCorrection:
         return float(np.sqrt(np.mean(values**2))) if values.size else float("nan")
 
 
-def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, nominal: Material, cycles,
-                       base_upper_mm, base_lower_mm, active, trust: float = 1.0, edge_mm=None,
-                       scale=None) -> LearnedCorrection:
+def learned_correction(plate: CorrectedPlate, cycles, base_upper_mm, base_lower_mm, *, trust: float = 1.0,
+                       edge_mm=None, scale=None) -> LearnedCorrection:
     """The next strokes from every pressed and measured cycle of the plate.
 
     Parameters
     ----------
-    press : PressConfig
-    design_mid_mm : (rows, cols) float
-        The design's mid-surface height at the punches (``Job.layout.design_mid_mm``).
-    thickness_mm : float
-    nominal : Material
+    plate : CorrectedPlate
+        The press, the design's mid-surface heights at the punches, thickness, nominal material, active punches.
     cycles : list of PressedCycle
         Every cycle so far, the last one measured.
     base_upper_mm, base_lower_mm : (rows, cols) float
         The strokes to correct (the last cycle's final step as planned), NaN where inactive.
-    active : (rows, cols) bool
     trust : float
         Size of the trust region, in (0, 1]: scales the reach in curvature and the share of the
         way aimed at (the loop leaves it at 1 and sizes the step by ``scale``).
@@ -132,23 +128,11 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
     scale : (rows, cols) float, optional
         Share of the wanted change asked for at each punch (:attr:`mppf.correct.policy.StepPlan.share`);
         default 1.
-
-    Returns
-    -------
-    LearnedCorrection
     """
-    grid = PunchGrid(press, active)
-    design = np.where(grid.active, design_mid_mm, np.nan)
-    # 1. what the scanner measured, as curvatures of the plate at the punches
-    measured = [grid.curvature(design + c.error_mm) if c.measured else None for c in cycles]
-    law = BendingLaw(thickness_mm, nominal.youngs_modulus_mpa, nominal.poisson, nominal.yield_stress_mpa)
-    loaded = loaded_curvatures(grid, cycles)
-    cycles = interrupted_share(law, grid, loaded, cycles, measured)
-    # 2. the model plate's yield stress and hardening from the measured cycles
-    calibration = calibrate(grid, law, cycles, measured)
-    law = calibration.law
-    cycles = interrupted_share(law, grid, loaded, [_unknown_share(c) for c in cycles], measured)
-    model = replay(law, loaded, cycles)
+    press = plate.press
+    grid = PunchGrid(press, plate.active)
+    # 1-2. the plate model through every step the press did, fitted to what the scanner measured
+    law, calibration, cycles, model = _fitted_model(grid, plate, cycles)
     # 3. the plate's response against the model's, learned on every secant
     gain = _learn_response(grid, model, cycles)
     # 4. the change wanted of the plate, and what to ask of the model for it
@@ -167,8 +151,42 @@ def learned_correction(press: PressConfig, design_mid_mm, thickness_mm: float, n
     # 6. what the model cannot make (a local error it does not describe): the displacement adjustment
     direct = trust * _direct_part(grid, law, model, base_mid, change, request, misfit)
     # 7. the strokes, held to the limits, and the steps they need
-    return _strokes(press, grid, base_upper_mm, base_lower_mm, change + direct, error, gain, law, model,
-                    calibration, unreached, aim, direct)
+    found = _Found(change + direct, error, gain, law, model, calibration, unreached, aim, direct)
+    return _strokes(press, grid, base_upper_mm, base_lower_mm, found)
+
+
+def _fitted_model(grid: PunchGrid, plate: CorrectedPlate, cycles):
+    """The model plate pressed through every cycle, its yield stress and hardening fitted to the measured ones.
+
+    Returns the fitted law, the :class:`Calibration`, the cycles with the share of an interrupted
+    step fitted to its scan, and the model replayed through them (:func:`mppf.correct.memory.replay`).
+    """
+    design = np.where(grid.active, plate.design_mid_mm, np.nan)
+    # 1. what the scanner measured, as curvatures of the plate at the punches
+    measured = [grid.curvature(design + c.error_mm) if c.measured else None for c in cycles]
+    nominal = plate.nominal
+    law = BendingLaw(plate.thickness_mm, nominal.youngs_modulus_mpa, nominal.poisson, nominal.yield_stress_mpa)
+    loaded = loaded_curvatures(grid, cycles)
+    cycles = interrupted_share(law, grid, loaded, cycles, measured)
+    # 2. the model plate's yield stress and hardening from the measured cycles
+    calibration = calibrate(grid, law, cycles, measured)
+    law = calibration.law
+    cycles = interrupted_share(law, grid, loaded, [_unknown_share(c) for c in cycles], measured)
+    return law, calibration, cycles, replay(law, loaded, cycles)
+
+
+class _Found(NamedTuple):
+    """What the correction found (:func:`learned_correction` steps 1-6), for :func:`_strokes`; grids (rows, cols) mm."""
+
+    change: np.ndarray  # the stroke change of both matrices, the direct part included
+    error: np.ndarray  # the deviation aimed at (0 where unknown)
+    gain: ModeGain
+    law: BendingLaw
+    model: object  # the replayed model plate (:func:`mppf.correct.memory.replay`)
+    calibration: Calibration
+    unreached: np.ndarray  # bool: the wanted change lies beyond the trust region
+    aim: float
+    direct: np.ndarray  # the displacement adjustment's part of ``change``
 
 
 def _direct_part(grid: PunchGrid, law: BendingLaw, model, base_mid, change, request, misfit: float) -> np.ndarray:
@@ -213,9 +231,9 @@ def _learn_response(grid: PunchGrid, model, cycles) -> ModeGain:
     return gain
 
 
-def _strokes(press, grid, base_upper, base_lower, change, error, gain, law, model, calibration, unreached, aim,
-             direct):
+def _strokes(press: PressConfig, grid: PunchGrid, base_upper, base_lower, found: _Found) -> LearnedCorrection:
     """The corrected strokes within the stroke limits, their steps and the expected deviation."""
+    change, error, gain, law, model, calibration, unreached, aim, direct = found
     act = grid.active
     upper = np.where(act, np.asarray(base_upper, dtype=float) + change, np.nan)
     lower = np.where(act, np.asarray(base_lower, dtype=float) + change, np.nan)

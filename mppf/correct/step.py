@@ -13,6 +13,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from mppf.correct.inputs import CorrectedPlate, CorrectionHistory
 from mppf.correct.learned import LearnedCorrection, learned_correction
 from mppf.correct.policy import (
     DEFAULT_NOISE_MM,
@@ -22,8 +23,6 @@ from mppf.correct.policy import (
     step_plan,
 )
 from mppf.correct.verdict import Verdict, convergence_verdict
-from mppf.model.material import Material
-from mppf.model.press import PressConfig
 
 
 @dataclass(frozen=True, eq=False)
@@ -51,27 +50,19 @@ class Tolerances:
     noise_mm: float = DEFAULT_NOISE_MM
 
 
-def correct_step(press: PressConfig, design_mid_mm, thickness_mm: float, nominal: Material, cycles, outcomes,
-                 strokes, active, edge_mm, tolerances: Tolerances, policy: bool = True) -> CorrectionStep:
+def correct_step(plate: CorrectedPlate, history: CorrectionHistory, tolerances: Tolerances,
+                 policy: bool = True) -> CorrectionStep:
     """The next strokes from every pressed and measured cycle, sized by what the plate showed.
 
     Parameters
     ----------
-    press : PressConfig
-    design_mid_mm : (rows, cols) float
-        The design's mid-surface height at the punches (mm).
-    thickness_mm : float
-    nominal : Material
-        The material the planner assumed.
-    cycles : list of PressedCycle
-        Every cycle as the press did it and as it was measured.
-    outcomes : list of Outcome
-        The same cycles as the policy sees them (form max, RMS, punch deviation, promise).
-    strokes : list of tuple of (rows, cols) float
-        Each cycle's final (upper, lower) strokes as planned.
-    active : (rows, cols) bool
-    edge_mm : (rows, cols) float or None
-        The net plate's edge beyond the outer punches after the last cycle.
+    plate : CorrectedPlate
+        The press, the design's mid-surface heights at the punches, thickness, the material the planner
+        assumed, the active punches.
+    history : CorrectionHistory
+        Every cycle as the press did it and as it was measured, the same cycles as the policy sees them
+        (form max, RMS, punch deviation, promise), each measured cycle's final strokes as planned, and the
+        net plate's edge beyond the outer punches after the last cycle (or None).
     tolerances : Tolerances
     policy : bool
         False: every step at full size from the last strokes (to measure what the policy does).
@@ -80,14 +71,15 @@ def correct_step(press: PressConfig, design_mid_mm, thickness_mm: float, nominal
     -------
     CorrectionStep
     """
-    ring = outer_ring(active)
+    outcomes = history.outcomes
+    ring = outer_ring(plate.active)
     plan = (step_plan(outcomes, ring, tolerances.tolerance_mm, tolerances.rms_tolerance_mm, tolerances.noise_mm)
             if policy else StepPlan())
-    upper, lower = strokes[plan.base]
+    upper, lower = history.strokes[plan.base]
 
     def correct(share):
-        return learned_correction(press, design_mid_mm, thickness_mm, nominal, cycles, upper, lower, active,
-                                  edge_mm=edge_mm, scale=np.full(ring.shape, share))
+        return learned_correction(plate, history.cycles, upper, lower, edge_mm=history.edge_mm,
+                                  scale=np.full(ring.shape, share))
 
     learned = correct(plan.share)
     if len(outcomes) > 1:

@@ -24,6 +24,7 @@ from mppf.correct.calibrated import calibrated_step
 from mppf.correct.compensate import compensate
 from mppf.correct.learned import LearnedCorrection, steps_towards
 from mppf.correct.policy import DEFAULT_NOISE_MM
+from mppf.correct.inputs import CorrectedPlate, CorrectionHistory
 from mppf.correct.step import Tolerances, correct_step, outcome
 from mppf.correct.memory import PressedCycle
 from mppf.correct.result import Correction, PreviousCycle
@@ -157,8 +158,8 @@ def _plan_learned(history: History, plate: PlateRecord, record: CycleRecord, pre
     edge = grid_from_json((record.comparison or {}).get("punch_edge_mm"))  # the net edge beyond the outer rows
     noise = ((record.comparison or {}).get("form") or {}).get("noise_mm") or DEFAULT_NOISE_MM
     tolerances = Tolerances(settings.tolerance_mm, settings.rms_tolerance_mm, float(noise))
-    step = correct_step(press, job.layout.design_mid_mm, plate.thickness_mm, job.layout.material, cycles, outcomes,
-                        strokes, final.active, edge, tolerances)
+    corrected = CorrectedPlate(press, job.layout.design_mid_mm, plate.thickness_mm, job.layout.material, final.active)
+    step = correct_step(corrected, CorrectionHistory(cycles, outcomes, strokes, edge), tolerances)
     # 3. stop with a verdict when it finds no way on
     if step.verdict is not None:
         return step.verdict

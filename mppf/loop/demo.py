@@ -128,9 +128,6 @@ def run_demo(out, *, plate_name: str = DEMO_PLATE, seed: int = DEMO_SEED, thickn
     InputError
         Unknown plate, or an output folder that cannot be created.
     """
-    from mppf.geometry.read import read_points
-    from mppf.geometry.unfold import unfold
-    from mppf.geometry.write import write_points
     from mppf.loop.cycle import run_loop
     from mppf.loop.history import History
     from mppf.loop.options import LoopOptions, PlateInputs
@@ -142,18 +139,48 @@ def run_demo(out, *, plate_name: str = DEMO_PLATE, seed: int = DEMO_SEED, thickn
     if physics not in PHYSICS:
         raise InputError(f"unknown plate physics {physics!r}", hint=f"use {' or '.join(PHYSICS)}")
     out = Path(out)
+    # 1. the design and its flat shape
+    design, unfolding, flat = _design_and_flat(out, plate_name, reporter)
+    # 2. plan the first cycle (springback pre-compensated) and record the plate
+    press = load_press(example_press_path())
+    options = LoopOptions(setup={"plc": None, "scanner": "sim", "seed": seed, "physics": physics})
+    comparisons, collect = _collector(on_cycle)
+    with History(out / "history.sqlite") as history:
+        plate_id = f"demo-{plate_name.split('_')[0]}-s{seed}-{time.strftime('%Y%m%d-%H%M%S')}"
+        start_plate(history, PlateInputs(design, flat, press, thickness_mm), plate_id=plate_id,
+                    work_dir=out / "plates" / plate_id, options=options, reporter=reporter)
+        job = load_job(history.cycle(plate_id, 1).job_path)
+        dxf = _flat_dxf(out / f"{plate_name}.flat.dxf", plate_name, unfolding, job, press)
+        # 3. the loop on the press, the simulated plate and scanner
+        scanner = SimulatedPlateScanner.for_job(press, thickness_mm, job, flat.points, seed=seed,
+                                                plate_model=PHYSICS[physics])
+        with connect(press) as link:
+            result = run_loop(history, plate_id, link, scanner, reporter=reporter, on_cycle=collect)
+        plate = history.plate(plate_id)
+    return DemoRun(out=out, plate_name=plate_name, thickness_mm=thickness_mm, seed=seed, settings=options.settings,
+                   unfolding=unfolding, flat_path=flat.path, job=job, plate=plate, result=result,
+                   comparisons=comparisons, flat_dxf_path=dxf)
+
+
+def _design_and_flat(out: Path, plate_name: str, reporter: Reporter):
+    """The bundled design, its unfolding and the flat written into ``out`` (created) and read back."""
+    from mppf.geometry.read import read_points
+    from mppf.geometry.unfold import unfold
+    from mppf.geometry.write import write_points
+
     design = bundled_plate(plate_name)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"cannot create the output folder {out}: {exc.strerror}") from None
-    # 1. the design and its flat shape
     reporter.info(f"unfolding {plate_name} ({design.n_points} points)")
     unfolding = unfold(design.points)
     flat = read_points(write_points(out / f"{plate_name}.flat.csv", unfolding.flat))
-    # 2. plan the first cycle (springback pre-compensated) and record the plate
-    press = load_press(example_press_path())
-    settings = LoopSettings()
+    return design, unfolding, flat
+
+
+def _collector(on_cycle: CycleCallback | None):
+    """A dict of each cycle's comparison (by cycle) and the loop's callback that fills it, then calls ``on_cycle``."""
     comparisons = {}
 
     def collect(record, comparison):
@@ -162,27 +189,14 @@ def run_demo(out, *, plate_name: str = DEMO_PLATE, seed: int = DEMO_SEED, thickn
         if on_cycle is not None:
             on_cycle(record, comparison)
 
-    with History(out / "history.sqlite") as history:
-        plate_id = f"demo-{plate_name.split('_')[0]}-s{seed}-{time.strftime('%Y%m%d-%H%M%S')}"
-        start_plate(history, PlateInputs(design, flat, press, thickness_mm), plate_id=plate_id,
-                    work_dir=out / "plates" / plate_id,
-                    options=LoopOptions(settings=settings,
-                                        setup={"plc": None, "scanner": "sim", "seed": seed, "physics": physics}),
-                    reporter=reporter)
-        job = load_job(history.cycle(plate_id, 1).job_path)
-        # the flat for the cutter as the job lays it on the press: cut and net outlines, the reference mark
-        from mppf.geometry.dxf import flat_drawing, write_flat_dxf
+    return comparisons, collect
 
-        margin = job.layout.margin_mm if job.layout is not None else press.margin_mm
-        dxf = write_flat_dxf(out / f"{plate_name}.flat.dxf",
-                             flat_drawing(unfolding.flat[:, :2], unfolding.faces, margin, tf_press_flat=job.tf_press_flat,
-                                          label=f"{plate_name}, margin {margin:g} mm"))
-        # 3. the loop on the press, the simulated plate and scanner
-        scanner = SimulatedPlateScanner.for_job(press, thickness_mm, job, flat.points, seed=seed,
-                                                plate_model=PHYSICS[physics])
-        with connect(press) as link:
-            result = run_loop(history, plate_id, link, scanner, reporter=reporter, on_cycle=collect)
-        plate = history.plate(plate_id)
-    return DemoRun(out=out, plate_name=plate_name, thickness_mm=thickness_mm, seed=seed, settings=settings,
-                   unfolding=unfolding, flat_path=flat.path, job=job, plate=plate, result=result,
-                   comparisons=comparisons, flat_dxf_path=dxf)
+
+def _flat_dxf(path: Path, plate_name: str, unfolding: Unfolding, job: Job, press: PressConfig) -> Path:
+    """The flat for the cutter as the job lays it on the press (cut and net outlines, the reference mark)."""
+    from mppf.geometry.dxf import flat_drawing, write_flat_dxf
+
+    margin = job.layout.margin_mm if job.layout is not None else press.margin_mm
+    return write_flat_dxf(path, flat_drawing(unfolding.flat[:, :2], unfolding.faces, margin,
+                                             tf_press_flat=job.tf_press_flat,
+                                             label=f"{plate_name}, margin {margin:g} mm"))

@@ -257,6 +257,7 @@ def _model_free_sections(history, plate, record, press, settings, job) -> tuple[
 def _learned_sections(history, plate, record, press, settings, job) -> tuple[list, list, list]:
     """Per section the learned correction's change of its final strokes, its record, and the verdicts."""
     from mppf.correct.policy import DEFAULT_NOISE_MM
+    from mppf.correct.inputs import CorrectedPlate, CorrectionHistory
     from mppf.correct.step import Tolerances, correct_step, outcome
     from mppf.loop.correcting import pressed_cycle, step_to_dict
 
@@ -278,8 +279,9 @@ def _learned_sections(history, plate, record, press, settings, job) -> tuple[lis
                                     None if promised is None else grid_from_json(promised)))
             strokes.append((r.steps[-1].upper_mm, r.steps[-1].lower_mm))
         final = s.steps[-1]
-        step = correct_step(press, s.layout.design_mid_mm, plate.thickness_mm, s.layout.material, cycles, outcomes,
-                            strokes, final.active, None, tolerances)
+        corrected = CorrectedPlate(press, s.layout.design_mid_mm, plate.thickness_mm, s.layout.material,
+                                   final.active)
+        step = correct_step(corrected, CorrectionHistory(cycles, outcomes, strokes), tolerances)
         if step.verdict is not None:
             verdicts.append(step.verdict)
             deltas.append((np.zeros(press.shape), np.zeros(press.shape)))

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from mppf.core.grid import largest_neighbour_difference
+from mppf.correct.inputs import CorrectedPlate
 from mppf.correct.learned import learned_correction, steps_towards
 from mppf.correct.memory import PressedCycle, loaded_curvatures, replay
 from mppf.correct.punch_grid import PunchGrid
@@ -62,7 +63,7 @@ def _run(press, active, design, grid, first_steps, cycles_n=4, interrupt=None):
         if n == cycles_n:
             break
         upper, lower = steps[-1] if not stopped else steps[-1]
-        learned = learned_correction(press, design, T, NOMINAL, cycles, upper, lower, active)
+        learned = learned_correction(CorrectedPlate(press, design, T, NOMINAL, active), cycles, upper, lower)
         predicted.append(learned.predicted_rms_mm)
         steps = [(s.upper_mm, s.lower_mm) for s in steps_towards(press, (upper, lower), learned, active)]
     return rms, predicted
@@ -98,8 +99,8 @@ def test_the_next_steps_keep_the_dimpling_limit_and_end_on_the_strokes(setup):
     press, active, design, grid = setup
     (upper, lower), = _first_cycle(design, active)
     error = _measure(grid, design, [PressedCycle([0.5 * (upper + lower)], None)])
-    learned = learned_correction(press, design, T, NOMINAL, [PressedCycle([0.5 * (upper + lower)], error)], upper,
-                                 lower, active)
+    learned = learned_correction(CorrectedPlate(press, design, T, NOMINAL, active),
+                                 [PressedCycle([0.5 * (upper + lower)], error)], upper, lower)
     flat = (np.where(active, T, np.nan), np.where(active, 0.0, np.nan))
     steps = steps_towards(press, flat, learned, active)
     assert len(steps) >= 2  # from the flat plate the travel needs several steps
