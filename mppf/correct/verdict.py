@@ -84,26 +84,37 @@ def convergence_verdict(rms_mm, predicted_rms_mm: float, rms_tolerance_mm: float
         excess = [max(e, float(m) / tolerance_mm) for e, m in zip(excess, max_mm)]
     stalled = all(b > (1.0 - MIN_MEASURED_GAIN) * a for a, b in zip(excess[-3:], excess[-2:]))
     if len(excess) >= 3 and share < 1.0 and stalled:
-        shown = f"RMS {' -> '.join(f'{v:.2f}' for v in rms[-3:])} mm"
-        if max_mm is not None:
-            shown += f", largest {' -> '.join(f'{float(v):.2f}' for v in list(max_mm)[-3:])} mm"
-        return Verdict(
-            f"the measured deviation no longer falls ({shown} over the last two corrections)",
-            "check that the plate lies on its marks and has not slipped, that the scans are of this plate and "
-            "register well, and the punches; then finish the plate by hand or restart it with a new plan",
-        )
+        return _stalled(rms, max_mm)
     if predicted_rms_mm > (1.0 - MIN_PREDICTED_GAIN * min(share, 1.0)) * now and predicted_rms_mm > rms_tolerance_mm:
-        if clipped:
-            why = f"the strokes it needs lie beyond the press's stroke limits at {clipped} punches"
-            what = "lay the plate on the press again with more room (re-plan it), or finish it by hand"
-        elif unreached:
-            why = (f"the bend it needs at {unreached} punches lies beyond what one correction may ask "
-                   "(an over-bent region needs a reverse bend larger than the trust region)")
-            what = "press the region back by hand (reverse bend), or restart the plate from a flattened state"
-        else:
-            why = "no stroke change within its trust region brings the plate closer"
-            what = ("check the scan (registration, reference mark, occlusions) and the press's read-back; "
-                    "then finish the plate by hand")
-        return Verdict(f"{why} (predicted RMS {predicted_rms_mm:.2f} mm after the next cycle, now {now:.2f} mm)",
-                       what)
+        return _no_way_on(predicted_rms_mm, now, clipped, unreached)
     return None
+
+
+def _stalled(rms: list[float], max_mm) -> Verdict:
+    """The verdict of a measured deviation that no longer falls: ``rms`` (mm) of every measured cycle and their
+    largest deviations ``max_mm`` (mm, or None), the last three shown."""
+    shown = f"RMS {' -> '.join(f'{v:.2f}' for v in rms[-3:])} mm"
+    if max_mm is not None:
+        shown += f", largest {' -> '.join(f'{float(v):.2f}' for v in list(max_mm)[-3:])} mm"
+    return Verdict(
+        f"the measured deviation no longer falls ({shown} over the last two corrections)",
+        "check that the plate lies on its marks and has not slipped, that the scans are of this plate and "
+        "register well, and the punches; then finish the plate by hand or restart it with a new plan",
+    )
+
+
+def _no_way_on(predicted_rms_mm: float, now: float, clipped: int, unreached: int) -> Verdict:
+    """The verdict of a correction that predicts no worthwhile improvement (RMS in mm), and why: the stroke
+    limits (``clipped`` punches), the trust region (``unreached`` punches) or neither."""
+    if clipped:
+        why = f"the strokes it needs lie beyond the press's stroke limits at {clipped} punches"
+        what = "lay the plate on the press again with more room (re-plan it), or finish it by hand"
+    elif unreached:
+        why = (f"the bend it needs at {unreached} punches lies beyond what one correction may ask "
+               "(an over-bent region needs a reverse bend larger than the trust region)")
+        what = "press the region back by hand (reverse bend), or restart the plate from a flattened state"
+    else:
+        why = "no stroke change within its trust region brings the plate closer"
+        what = ("check the scan (registration, reference mark, occlusions) and the press's read-back; "
+                "then finish the plate by hand")
+    return Verdict(f"{why} (predicted RMS {predicted_rms_mm:.2f} mm after the next cycle, now {now:.2f} mm)", what)
