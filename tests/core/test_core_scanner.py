@@ -1,15 +1,13 @@
-"""The press and scanner protocols declare what the loop uses, and every implementation has it (mppf.core)."""
+"""The scanner protocol (mppf.core.scanner) declares what the loop uses, and every scanner has it."""
 
 from __future__ import annotations
 
 import numpy as np
 from driver_helpers import small_press
 
-from mppf.core.presslink import PressLink
 from mppf.core.scanner import Scanner
 from mppf.loop.marks import MarkedScanner
 from mppf.loop.scanners import DirectoryScanner
-from mppf.sim.plc.link import InProcessPress
 from mppf.sim.shop import SimulatedPlateScanner
 
 OUTLINE = np.array([[-1000.0, -500.0], [1000.0, -500.0], [1000.0, 500.0], [-1000.0, 500.0]])
@@ -23,12 +21,3 @@ def test_the_scanners_have_a_folder_and_rescan(tmp_path):
         assert isinstance(scanner, Scanner), type(scanner).__name__
     assert station.folder == tmp_path and marked.folder == tmp_path and simulated.folder is None
     assert not isinstance(object(), Scanner)  # the check can fail
-
-
-def test_the_press_links_name_the_job_they_press():
-    with InProcessPress(small_press()) as link:
-        assert isinstance(link, PressLink)
-        assert link.job_sha256 is None
-        link.job_sha256 = "a" * 64  # as the loop does before it presses a cycle
-        assert link.job_sha256 == "a" * 64
-    assert not isinstance(object(), PressLink)
