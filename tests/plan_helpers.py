@@ -153,13 +153,14 @@ class SofterPlate:
 def softer_plate_pressed() -> SofterPlate:
     """Strokes refined for the nominal steel; the plate that took them is 15 % softer (computed once, read-only)."""
     from mppf.correct.virtual_cycles import refine_strokes
+    from mppf.model.job_parts import StepStrokes
     from mppf.forming.precompensate import deviation, predict_mid_heights
 
     press = model_press()
     t = MODEL_THICKNESS_MM
     px, py, active, outline = model_grid(press)
     target = np.where(active, py**2 / (2 * 6000.0) + px * py / 2.0e7, np.nan)
-    planned = refine_strokes(press, target + t / 2, target - t / 2, active, target, outline, t, NOMINAL)
+    planned = refine_strokes(press, StepStrokes(target + t / 2, target - t / 2, active), target, outline, t, NOMINAL)
     true = Material(yield_stress_mpa=0.85 * NOMINAL.yield_stress_mpa)
     formed = predict_mid_heights(press, planned.upper_mm, planned.lower_mm, active, outline, t, true)
     measured = deviation(press, formed, target, active)

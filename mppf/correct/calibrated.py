@@ -177,8 +177,8 @@ def calibrated_correction(press: PressConfig, cycles, active, target_mid_mm, out
     spread[act] = tps_fill(np.column_stack([px[known], py[known]]), (error - predicted)[known],
                            np.column_stack([px[act], py[act]]), smoothing=RESIDUAL_SMOOTHING)
     # 4. the strokes refined on the calibrated model towards the design moved by the residual
-    refinement = refine_strokes(press, upper, lower, act, target - spread, outline_xy_mm, thickness_mm, fit.material,
-                                iterations=iterations)
+    refinement = refine_strokes(press, StepStrokes(upper, lower, act), target - spread, outline_xy_mm, thickness_mm,
+                                fit.material, iterations=iterations)
     notes = [f"plate model calibrated on {fit.n_cycles} cycle(s): effective yield stress "
              f"{fit.material.yield_stress_mpa:.0f} MPa (nominal {nominal.yield_stress_mpa:.0f}); squared misfit "
              f"{fit.cost_nominal_mm2:.0f} -> {fit.cost_fit_mm2:.0f} mm^2, {100 * fit.explained:.0f} % of the "

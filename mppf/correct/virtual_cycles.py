@@ -22,6 +22,7 @@ import numpy as np
 from mppf.core.validate import check_number
 from mppf.correct.compensate import compensate
 from mppf.forming.precompensate import deviation, predict_mid_heights
+from mppf.model.job_parts import StepStrokes
 from mppf.model.material import Material
 from mppf.model.press import PressConfig
 
@@ -54,17 +55,17 @@ class Refinement:
     notes: list[str] = field(default_factory=list)
 
 
-def refine_strokes(press: PressConfig, upper_mm, lower_mm, active, target_mid_mm, outline_xy_mm,
-                   thickness_mm: float, material: Material, *, iterations: int = ITERATIONS,
+def refine_strokes(press: PressConfig, start: StepStrokes, target_mid_mm, outline_xy_mm, thickness_mm: float,
+                   material: Material, *, iterations: int = ITERATIONS,
                    tolerance_mm: float = TOLERANCE_MM) -> Refinement:
     """Correct strokes on the plate model until the predicted plate matches the design.
 
     Parameters
     ----------
     press : PressConfig
-    upper_mm, lower_mm : (rows, cols) float
-        Starting tip heights (e.g. the over-bent plan), NaN where inactive.
-    active : (rows, cols) bool
+    start : StepStrokes
+        Starting tip heights of both matrices (e.g. the over-bent plan; mm, NaN where inactive) and the
+        active punches.
     target_mid_mm : (rows, cols) float
         The design's mid-surface height at each active punch axis (press z), in the
         same pose as the strokes.
@@ -90,9 +91,9 @@ def refine_strokes(press: PressConfig, upper_mm, lower_mm, active, target_mid_mm
     """
     iterations = check_number("the refinement's iterations", iterations, low=0, integer=True)
     tolerance_mm = check_number("the refinement's tolerance", tolerance_mm, low=0.0, low_open=True, unit="mm")
-    act = np.asarray(active, dtype=bool)
-    upper = np.where(act, np.asarray(upper_mm, dtype=float), np.nan)
-    lower = np.where(act, np.asarray(lower_mm, dtype=float), np.nan)
+    act = np.asarray(start.active, dtype=bool)
+    upper = np.where(act, np.asarray(start.upper_mm, dtype=float), np.nan)
+    lower = np.where(act, np.asarray(start.lower_mm, dtype=float), np.nan)
     target = np.asarray(target_mid_mm, dtype=float)
     best = (np.inf, upper, lower)
     history: list[float] = []

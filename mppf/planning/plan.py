@@ -25,7 +25,7 @@ from mppf.correct.virtual_cycles import refine_strokes
 from mppf.forming.material import check_yield_uncertainty, weakest_material
 from mppf.geometry.surface import FittedPlate, fit_plate
 from mppf.model.job import Job
-from mppf.model.job_parts import PlateLayout
+from mppf.model.job_parts import PlateLayout, StepStrokes
 from mppf.model.material import Material
 from mppf.model.plan_options import PlanOptions
 from mppf.model.press import PressConfig
@@ -243,7 +243,7 @@ def _design_heights(press: PressConfig, fitted, tf_press_design, active, t: floa
 
 def _refine(press: PressConfig, upper, lower, active, target, outline, t: float, material):
     """Strokes refined on the plate model, and the refinement's report."""
-    refined = refine_strokes(press, upper, lower, active, target, outline, t, material)
+    refined = refine_strokes(press, StepStrokes(upper, lower, active), target, outline, t, material)
     report = {"virtual_cycles": len(refined.history_mm) - 1, "predicted_max_mm": refined.predicted_max_mm,
               "history_mm": refined.history_mm}
     return refined.upper_mm, refined.lower_mm, report

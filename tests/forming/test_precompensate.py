@@ -9,6 +9,7 @@ from mppf.core.errors import InputError
 from mppf.correct.virtual_cycles import refine_strokes
 from mppf.forming.precompensate import predict_mid_heights
 from mppf.forming.springback import unloaded_curvature
+from mppf.model.job_parts import StepStrokes
 from plan_helpers import MODEL_THICKNESS_MM as T
 from plan_helpers import NOMINAL as STEEL
 from plan_helpers import model_grid, model_press, softer_plate_pressed
@@ -45,7 +46,8 @@ def test_refinement_brings_the_predicted_plate_onto_the_target():
 def test_zero_iterations_only_predict():
     px, py, active, outline = model_grid(PRESS)
     target = np.where(active, py**2 / (2 * 6000.0), np.nan)
-    result = refine_strokes(PRESS, target + T / 2, target - T / 2, active, target, outline, T, STEEL, iterations=0)
+    result = refine_strokes(PRESS, StepStrokes(target + T / 2, target - T / 2, active), target, outline, T, STEEL,
+                            iterations=0)
     assert len(result.history_mm) == 1
     np.testing.assert_allclose(result.lower_mm[active], (target - T / 2)[active])
 
@@ -55,5 +57,5 @@ def test_bad_refinement_settings(iterations, tolerance):
     px, py, active, outline = model_grid(PRESS)
     target = np.where(active, 0.0, np.nan)
     with pytest.raises(InputError, match="refinement"):
-        refine_strokes(PRESS, target + T / 2, target - T / 2, active, target, outline, T, STEEL,
+        refine_strokes(PRESS, StepStrokes(target + T / 2, target - T / 2, active), target, outline, T, STEEL,
                        iterations=iterations, tolerance_mm=tolerance)
