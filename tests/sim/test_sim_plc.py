@@ -22,9 +22,7 @@ from mppf.drivers import codec, regmap as rm
 from mppf.drivers.url import parse_plc_url
 from mppf.core.errors import InputError
 from mppf.model.press import example_press_path, load_press
-from mppf.sim.faults import parse_fault_spec
 from mppf.sim.plc.host import run_simulated_plc
-from mppf.sim.serial_pty import PtyPair
 
 MAP = rm.load_register_map()
 PRESS = dataclasses.replace(load_press(example_press_path()), rows=4, cols=6)
@@ -452,47 +450,7 @@ def test_rtu_on_a_serial_device_made_by_socat(tmp_path):
         proc.wait(timeout=5)
 
 
-@pytest.mark.rtu
-def test_paced_pty_relay_takes_the_wire_time():
-    with PtyPair(baud=9600) as link:
-        a = os.open(link.port_a, os.O_RDWR | os.O_NOCTTY)
-        b = os.open(link.port_b, os.O_RDWR | os.O_NOCTTY)
-        try:
-            payload = bytes(range(96))
-            started = time.monotonic()
-            os.write(a, payload)
-            received = b""
-            while len(received) < len(payload):
-                received += os.read(b, 256)
-            elapsed = time.monotonic() - started
-        finally:
-            os.close(a)
-            os.close(b)
-    assert received == payload
-    wire_s = 96 * 11 / 9600  # 0.11 s
-    assert wire_s <= elapsed < wire_s + 0.1
-
-
 # ----------------------------------------------------------------------- CLI ------
-@pytest.mark.parametrize(
-    "spec, kind, params",
-    [
-        ("stuck:upper:3:5@40", "stuck", {"matrix": "upper", "row": 3, "col": 5, "percent": 40.0}),
-        ("estop", "estop", {}),
-        ("estop@2.0", "estop", {"after_s": 2.0}),
-        ("overpressure@1.5", "overpressure", {"after_s": 1.5}),
-        ("freeze@2", "freeze", {"after_s": 2.0}),
-        ("slow:50", "slow", {"delay_ms": 50.0}),
-        ("drop@3", "drop", {"after_s": 3.0}),
-        ("drop:0.5@3", "drop", {"duration_s": 0.5, "after_s": 3.0}),
-        ("restart@1", "restart", {"after_s": 1.0}),
-        ("local@0.5", "local", {"after_s": 0.5}),
-        ("slow:80@2", "slow", {"delay_ms": 80.0, "after_s": 2.0}),
-    ],
-)
-def test_fault_spec_grammar(spec, kind, params):
-    parsed = parse_fault_spec(spec)
-    assert (parsed.kind, parsed.params) == (kind, params)
 
 
 @pytest.mark.parametrize(
