@@ -224,7 +224,7 @@ def correct_sections(press, job, devs, previous, how: str, gain: float = 1.0):
     """The next cycle's job, every section corrected on the true deviation; the per-section mean gains; the
     deviations the secant of the next cycle takes (``previous``: per section the (lower strokes, deviation) of
     the cycle before, or None)."""
-    from mppf.correct.compensate import compensate
+    from mppf.correct.compensate import CompensateOptions, compensate
     from mppf.correct.result import PreviousCycle
     from mppf.planning.sectional import apply_section_corrections
 
@@ -234,7 +234,7 @@ def correct_sections(press, job, devs, previous, how: str, gain: float = 1.0):
         final = s.steps[-1]
         c = compensate(final.upper_mm, final.lower_mm, error, press=press, thickness_mm=THICKNESS_MM,
                        previous=None if prev is None else PreviousCycle(*prev),
-                       material=NOMINAL if how == "field" else None, gain=gain)
+                       options=CompensateOptions(gain=gain, material=NOMINAL if how == "field" else None))
         deltas.append((np.where(final.active, c.upper_mm - final.upper_mm, 0.0),
                        np.where(final.active, c.lower_mm - final.lower_mm, 0.0)))
         used = np.asarray(c.gain, dtype=float)

@@ -11,6 +11,7 @@ plate thickness. The loop's calibrated correction is :mod:`mppf.correct.calibrat
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -23,7 +24,7 @@ from mppf.correct.result import Correction, PreviousCycle, punch_grid
 from mppf.model.material import Material
 from mppf.model.press import PressConfig
 
-__all__ = ["SMOOTHING", "Correction", "PreviousCycle", "compensate", "limit_correction"]
+__all__ = ["SMOOTHING", "CompensateOptions", "Correction", "PreviousCycle", "compensate", "limit_correction"]
 
 SMOOTHING = 0.25
 """Weight of the neighbour average in the smoothed correction (0 = none, 1 = only neighbours)."""
@@ -32,19 +33,37 @@ GAP_NOTE_MM = 0.5
 """A note is added where the tip gap ``upper - lower`` differs from the thickness by more than this."""
 
 
-def compensate(
-    upper_mm,
-    lower_mm,
-    punch_error_mm,
-    *,
-    press: PressConfig,
-    thickness_mm: float,
-    gain: float = 1.0,
-    previous: PreviousCycle | Mapping | None = None,
-    smoothing: float = SMOOTHING,
-    material: Material | None = None,
-    max_step_ratio: float | None = MAX_STEP_RATIO,
-) -> Correction:
+@dataclass(frozen=True)
+class CompensateOptions:
+    """How :func:`compensate` corrects (the defaults are the displacement adjustment's).
+
+    Attributes
+    ----------
+    gain : float
+        Default lambda (the first cycle, and where the secant is unreliable); > 0 (default 1).
+    smoothing : float
+        Weight of the neighbour average in the correction, in [0, 1] (default :data:`SMOOTHING`).
+    material : Material or None
+        Nominal plate material: correct through the springback model
+        (:func:`mppf.correct.model_step.model_correction`, times ``gain``) instead of
+        ``-lambda e``; the previous cycle is then not used (the model gives the slope, no secant
+        from noisy data). Default None: the displacement adjustment.
+    max_step_ratio : float or None
+        Trust region of the model step: scaled down as a whole when a punch would move by more
+        than this times the largest measured error (default :data:`mppf.correct.model_step.MAX_STEP_RATIO`);
+        None = no limit (the virtual cycles of :mod:`mppf.correct.virtual_cycles`, where the model is its
+        own truth).
+    """
+
+    gain: float = 1.0
+    smoothing: float = SMOOTHING
+    material: Material | None = None
+    max_step_ratio: float | None = MAX_STEP_RATIO
+
+
+def compensate(upper_mm, lower_mm, punch_error_mm, *, press: PressConfig, thickness_mm: float,
+               previous: PreviousCycle | Mapping | None = None,
+               options: CompensateOptions = CompensateOptions()) -> Correction:
     """Correct the strokes of one press step from the measured deviation at the punches.
 
     Parameters
@@ -58,21 +77,10 @@ def compensate(
     press : PressConfig
     thickness_mm : float
         Plate thickness; a note is added where the gap ``upper - lower`` differs from it.
-    gain : float
-        Default lambda (the first cycle, and where the secant is unreliable).
     previous : PreviousCycle or mapping with ``lower_mm`` and ``punch_error_mm``, optional
-        The cycle before, for the secant gain.
-    smoothing : float
-        Weight of the neighbour average in the correction, in [0, 1].
-    material : Material, optional
-        Nominal plate material: correct through the springback model
-        (:func:`mppf.correct.model_step.model_correction`, times ``gain``) instead of
-        ``-lambda e``; ``previous`` is then not used (the model gives the slope, no secant
-        from noisy data).
-    max_step_ratio : float or None
-        Trust region of the model step: scaled down as a whole when a punch would move
-        by more than this times the largest measured error; None = no limit (the virtual
-        cycles of :mod:`mppf.forming.precompensate`, where the model is its own truth).
+        The cycle before, for the secant gain (the displacement adjustment only).
+    options : CompensateOptions
+        Gain, smoothing, the material of the model step and its trust region.
 
     Returns
     -------
@@ -83,12 +91,13 @@ def compensate(
     InputError
         Wrong shapes, a non-positive gain or a smoothing weight outside [0, 1].
     """
-    upper, lower, error, gain, smoothing = _check_inputs(press, upper_mm, lower_mm, punch_error_mm, gain, smoothing)
+    upper, lower, error, gain, smoothing = _check_inputs(press, upper_mm, lower_mm, punch_error_mm, options.gain,
+                                                         options.smoothing)
     active = np.isfinite(upper) & np.isfinite(lower)
     # 1. the wanted change: through the springback model, or -lambda e with a secant gain
-    if material is not None:
-        step = model_step(upper, lower, error, press=press, thickness_mm=thickness_mm, material=material, gain=gain,
-                          max_step_ratio=max_step_ratio)
+    if options.material is not None:
+        step = model_step(upper, lower, error, press=press, thickness_mm=thickness_mm, material=options.material,
+                          gain=gain, max_step_ratio=options.max_step_ratio)
     else:
         step = displacement_step(press, lower, error, active, gain=gain, previous=previous)
     # 2. smoothed on the punch grid

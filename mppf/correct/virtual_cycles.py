@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mppf.core.validate import check_number
-from mppf.correct.compensate import compensate
+from mppf.correct.compensate import CompensateOptions, compensate
 from mppf.forming.precompensate import deviation, predict_mid_heights
 from mppf.model.job_parts import StepStrokes
 from mppf.model.material import Material
@@ -108,8 +108,8 @@ def refine_strokes(press: PressConfig, start: StepStrokes, target_mid_mm, outlin
             best = (worst, upper, lower)
         if worst < tolerance_mm or len(history) > iterations:
             break
-        step = compensate(upper, lower, error, press=press, thickness_mm=thickness_mm, material=material,
-                          max_step_ratio=None)
+        step = compensate(upper, lower, error, press=press, thickness_mm=thickness_mm,
+                          options=CompensateOptions(material=material, max_step_ratio=None))
         upper, lower = np.where(act, step.upper_mm, np.nan), np.where(act, step.lower_mm, np.nan)
     notes.append(f"{len(history) - 1} virtual cycle(s) on the plate model (nominal material): predicted "
                  f"largest deviation at the punches {history[0]:.2f} -> {best[0]:.2f} mm")

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from mppf.correct.calibrated import calibrated_step
-from mppf.correct.compensate import compensate
+from mppf.correct.compensate import CompensateOptions, compensate
 from mppf.correct.learned import LearnedCorrection, steps_towards
 from mppf.correct.policy import DEFAULT_NOISE_MM
 from mppf.correct.inputs import CorrectedPlate, CorrectionHistory
@@ -88,7 +88,7 @@ def next_correction(history: History, plate: PlateRecord, record: CycleRecord, p
     if correction is None:
         correction = compensate(
             step.upper_mm, step.lower_mm, record.punch_deviation_mm, press=press, thickness_mm=plate.thickness_mm,
-            gain=settings.gain, previous=_previous(history, record), material=nominal,
+            previous=_previous(history, record), options=CompensateOptions(gain=settings.gain, material=nominal),
         )
     return correction
 

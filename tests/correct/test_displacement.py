@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mppf.correct.compensate import compensate
+from mppf.correct.compensate import CompensateOptions, compensate
 from mppf.correct.displacement import GAIN_RANGE
 from mppf.correct.result import PreviousCycle
 from plan_helpers import grid, press  # noqa: F401 (fixtures)
@@ -26,8 +26,7 @@ def test_secant_gain_converges_on_a_linear_plant(press, grid):
     for _ in range(5):
         error = plant(lower)
         history.append(np.nanmax(np.abs(error)))
-        corr = compensate(lower + THICKNESS_MM, lower, error, press=press, thickness_mm=THICKNESS_MM,
-                          previous=previous)
+        corr = compensate(lower + THICKNESS_MM, lower, error, press=press, thickness_mm=THICKNESS_MM, previous=previous)
         previous = PreviousCycle(lower_mm=lower, punch_error_mm=error)
         gains.append(corr.gain)
         lower = corr.lower_mm
@@ -52,7 +51,8 @@ def test_uniform_plant_gain_is_recovered_exactly(press, grid):
     offset = np.where(active, 5.0 + 0.002 * px, np.nan)
     h0, h1 = target + offset, target + 0.4 * offset  # two cycles of a plant with g = 0.7
     corr = compensate(h1 + THICKNESS_MM, h1, 0.7 * (h1 - target), press=press, thickness_mm=THICKNESS_MM,
-                      previous=PreviousCycle(lower_mm=h0, punch_error_mm=0.7 * (h0 - target)), smoothing=0.0)
+                      previous=PreviousCycle(lower_mm=h0, punch_error_mm=0.7 * (h0 - target)),
+                      options=CompensateOptions(smoothing=0.0))
     assert np.allclose(corr.gain[active], 1 / 0.7)
     assert np.allclose(corr.lower_mm[active], target[active])
 
@@ -61,8 +61,8 @@ def test_secant_falls_back_and_clips(press, grid):
     px, py, active, lower = grid
     error = np.where(active, 1.0, np.nan)
     # no stroke change since the last cycle: the secant is undefined, the default gain is used
-    corr = compensate(lower + THICKNESS_MM, lower, error, press=press, thickness_mm=THICKNESS_MM, gain=1.2,
-                      previous={"lower_mm": lower, "punch_error_mm": error + 0.5})
+    corr = compensate(lower + THICKNESS_MM, lower, error, press=press, thickness_mm=THICKNESS_MM,
+                      previous={"lower_mm": lower, "punch_error_mm": error + 0.5}, options=CompensateOptions(gain=1.2))
     assert np.allclose(corr.gain[active], 1.2)
     # a huge apparent gain is clipped to the range
     corr = compensate(lower + THICKNESS_MM, lower, error, press=press, thickness_mm=THICKNESS_MM,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mppf.correct.compensate import compensate
+from mppf.correct.compensate import CompensateOptions, compensate
 from mppf.correct.limits import limit_correction
 from plan_helpers import grid, neighbour_diffs, press  # noqa: F401 (fixtures)
 
@@ -16,7 +16,8 @@ def test_corrections_respect_the_dimpling_limit(press, grid):
     error = np.where(active, 0.0, np.nan)
     spike = np.argwhere(active)[len(np.argwhere(active)) // 2]
     error[tuple(spike)] = 100.0  # one punch wildly off
-    corr = compensate(lower + THICKNESS_MM, lower, error, press=press, thickness_mm=THICKNESS_MM, gain=1.0)
+    corr = compensate(lower + THICKNESS_MM, lower, error, press=press, thickness_mm=THICKNESS_MM,
+                      options=CompensateOptions(gain=1.0))
     diffs = neighbour_diffs(corr.applied_mm, active)
     assert diffs.max() <= press.max_neighbour_diff_mm + 1e-6
     assert corr.applied_mm[tuple(spike)] < -press.max_neighbour_diff_mm * 0.5  # still corrected, less

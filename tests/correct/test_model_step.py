@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mppf.correct.compensate import compensate
+from mppf.correct.compensate import CompensateOptions, compensate
 from mppf.correct.model_step import MAX_STEP_RATIO, MIN_SLOPE, model_correction, springback_slopes
 from mppf.model.material import Material
 from plan_helpers import grid, press  # noqa: F401 (fixtures)
@@ -41,7 +41,7 @@ def test_model_correction_divides_each_curvature_component_by_its_springback_slo
     assert np.abs(corr[active]).max() < 1e-6 and np.all(corr[~active] == 0)
     # through compensate: the model replaces -lambda e, the limits still apply
     c = compensate(upper, lower, np.where(active, a * px**2 / 2, np.nan), press=press, thickness_mm=THICKNESS_MM,
-                   material=steel, smoothing=0.0)
+                   options=CompensateOptions(smoothing=0.0, material=steel))
     assert any("springback-model" in n for n in c.notes)
     assert np.allclose((c.upper_mm - c.lower_mm)[active], THICKNESS_MM)
     assert np.abs(np.diff(c.applied_mm[active.any(axis=1)][:, active.any(axis=0)], axis=1)).max() \
@@ -53,7 +53,8 @@ def test_model_step_is_scaled_into_its_trust_region(press, grid):
     px, py, active, lower = grid
     upper = lower + THICKNESS_MM
     error = np.where(active, 2e-5 * px * py, np.nan)  # a gross twist: tens of mm at the corners
-    corr = compensate(upper, lower, error, press=press, thickness_mm=THICKNESS_MM, material=Material())
+    corr = compensate(upper, lower, error, press=press, thickness_mm=THICKNESS_MM,
+                      options=CompensateOptions(material=Material()))
     applied = corr.applied_mm[active]
     largest_error = np.nanmax(np.abs(error))
     assert np.abs(applied).max() <= MAX_STEP_RATIO * largest_error + 1e-9
