@@ -7,7 +7,7 @@ import pytest
 from driver_helpers import small_press
 
 from mppf.core.errors import InputError
-from mppf.correct.result import Correction, Step, punch_grid
+from mppf.correct.result import punch_grid
 
 
 def test_a_punch_grid_of_the_press_s_shape_is_taken_as_floats():
@@ -21,10 +21,3 @@ def test_another_shape_is_refused_naming_the_grid_and_both_shapes(shape):
     with pytest.raises(InputError, match=rf"the deviations has shape \({shape[0]},.*\), the press has \(4, 6\)"):
         punch_grid(small_press(4, 6), np.zeros(shape), "the deviations")
 
-
-def test_results_carry_their_own_notes():
-    """Each result gets a fresh notes list (no list shared between results)."""
-    zeros = np.zeros((2, 2))
-    first, second = Step(zeros, zeros > 0, zeros), Step(zeros, zeros > 0, zeros)
-    first.notes.append("one")
-    assert second.notes == [] and Correction(zeros, zeros, zeros, zeros, zeros > 0).notes == []
