@@ -53,6 +53,15 @@ OPTIONS = {"cells_per_pitch": CELLS_PER_PITCH, "layers": LAYERS}
 """The plate's options and their defaults."""
 
 
+def _mesh_options(options: dict) -> dict:
+    """The mesh options with their defaults (:data:`OPTIONS`); :class:`InputError` naming an unknown one."""
+    unknown = set(options) - set(OPTIONS)
+    if unknown:
+        raise InputError(f"unknown FE plate option(s) {', '.join(sorted(unknown))}",
+                         hint=f"use {', '.join(OPTIONS)}")
+    return {**OPTIONS, **options}
+
+
 class FEPlate:
     """One simulated physical steel plate on a press, computed by CalculiX.
 
@@ -70,31 +79,26 @@ class FEPlate:
     scatter : Scatter
     compliance : Compliance
         Only the punch part acts (the stiffness of the gap elements); see docs/simulator-fe.md.
-    cells_per_pitch : int
-        Element edges between neighbouring punch axes.
-    layers : int
-        C3D8I elements through the thickness.
     progress : callable, optional
         Called with a line (str) while ccx runs.
+    **options
+        The mesh (:data:`OPTIONS`): ``cells_per_pitch`` (element edges between neighbouring
+        punch axes, default :data:`CELLS_PER_PITCH`) and ``layers`` (C3D8I elements through
+        the thickness, default :data:`LAYERS`).
     """
 
     def __init__(self, press: PressConfig, outline_xy_mm, thickness_mm: float, steel: PlateSteel = NOMINAL_STEEL, *,
                  seed: int | None = 0, scatter: Scatter = DEFAULT_SCATTER, compliance: Compliance = DEFAULT_COMPLIANCE,
-                 cells_per_pitch: int = CELLS_PER_PITCH, layers: int = LAYERS, progress=None):
+                 progress=None, **options):
         plate = sample_plate(steel, thickness_mm, scatter, seed)
-        self._build(press, outline_xy_mm, plate, compliance,
-                    {"cells_per_pitch": cells_per_pitch, "layers": layers}, progress)
+        self._build(press, outline_xy_mm, plate, compliance, _mesh_options(options), progress)
 
     @classmethod
     def from_physical(cls, press: PressConfig, outline_xy_mm, plate: PhysicalPlate, *,
                       compliance: Compliance = DEFAULT_COMPLIANCE, progress=None, **options) -> FEPlate:
         """A flat FE plate of a given physical plate; ``options``: ``cells_per_pitch``, ``layers``."""
-        unknown = set(options) - set(OPTIONS)
-        if unknown:
-            raise InputError(f"unknown FE plate option(s) {', '.join(sorted(unknown))}",
-                             hint=f"use {', '.join(OPTIONS)}")
         self = cls.__new__(cls)
-        self._build(press, outline_xy_mm, plate, compliance, {**OPTIONS, **options}, progress)
+        self._build(press, outline_xy_mm, plate, compliance, _mesh_options(options), progress)
         return self
 
     def _build(self, press, outline_xy_mm, plate, compliance, options, progress):

@@ -23,23 +23,18 @@ from dataclasses import asdict
 import numpy as np
 
 from mppf.core.errors import GeometryError, InputError
-from mppf.core.validate import check_number, check_positive
+from mppf.core.validate import check_number
 from mppf.model.press import PressConfig, press_from_dict
 from mppf.sim.plate.contact import Compliance, Punches, refuse_crushing
 from mppf.sim.plate.formed import FormedSteelPlate
 from mppf.sim.plate.grid import PlateGrid
 from mppf.sim.plate.material import PlateSteel
 from mppf.sim.plate.mismatch import edge_field
+from mppf.sim.plate.options import GRID_SPACING_MM, LOAD_INCREMENTS, PlateOptions  # noqa: F401 - re-exported
 from mppf.sim.plate.predict import ContactPredictor
 from mppf.sim.plate.scatter import PhysicalPlate, Scatter, sample_plate
-from mppf.sim.plate.through_thickness import LAYERS, LayerLaw, LayerState
-from mppf.sim.plate.solve import PlateModel, PlateSolveError, solve_loaded, solve_unloaded
-
-GRID_SPACING_MM = 50.0
-"""Default cell size of the plate grid."""
-
-LOAD_INCREMENTS = 2
-"""Default sub-increments of the tip path of one press step."""
+from mppf.sim.plate.through_thickness import LayerLaw, LayerState
+from mppf.sim.plate.solve import PlateModel, PlateSolveError, Tips, solve_loaded, solve_unloaded
 
 INCREMENT_ITERATIONS = 15
 """Newton iterations an increment may take before it is halved."""
@@ -69,38 +64,21 @@ class SteelPlate:
         Seed of the plate's scatter (one seed, one physical plate); None: exactly nominal.
     scatter : Scatter
     compliance : Compliance
-    grid_spacing_mm : float
-        Cell size of the plate grid.
-    layers : int
-        Gauss points through the half thickness.
-    load_increments, unload_increments : int
-        Sub-increments of loading (tip path) and unloading.
-    springback : bool
-        False: the formed shape is the loaded one (the plate stays as held).
-    cylindrical : bool
-        Plane-strain kinematics w(u) (closed-form checks of wide plates).
-    edge_yield_factor, edge_band_mm : float
-        Factor on the yield stress at the plate's edges, fading to 1 over the band (model
-        mismatch, :mod:`mppf.sim.plate.mismatch`).
-    response_factor : float
-        Every permanent shape change after the first ``response_after_steps`` steps is, as the
-        scanner sees it, this times the one the plate equations give (model mismatch: a plate
-        answering more or less than modelled; 0 steps: the whole shape about the flat plate).
-    response_after_steps : int
-        Steps pressed as modelled before the response factor applies (e.g. the first cycle's).
+    **options
+        The fields of :class:`~mppf.sim.plate.options.PlateOptions` (``grid_spacing_mm``,
+        ``layers``, ``load_increments``, ``unload_increments``, ``springback``,
+        ``cylindrical``, ``edge_yield_factor``, ``edge_band_mm``, ``response_factor``,
+        ``response_after_steps``).
+
+    Attributes
+    ----------
+    options : PlateOptions
     """
 
     def __init__(self, press: PressConfig, outline_xy_mm, thickness_mm: float, steel: PlateSteel = PlateSteel(), *,
-                 seed: int | None = 0, scatter: Scatter = Scatter(), compliance: Compliance = Compliance(),
-                 grid_spacing_mm: float = GRID_SPACING_MM, layers: int = LAYERS,
-                 load_increments: int = LOAD_INCREMENTS, unload_increments: int = 1,
-                 springback: bool = True, cylindrical: bool = False, edge_yield_factor: float = 1.0,
-                 edge_band_mm: float = 150.0, response_factor: float = 1.0, response_after_steps: int = 0):
-        options = {"grid_spacing_mm": grid_spacing_mm, "layers": layers, "load_increments": load_increments,
-                   "unload_increments": unload_increments, "springback": springback, "cylindrical": cylindrical,
-                   "edge_yield_factor": edge_yield_factor, "edge_band_mm": edge_band_mm,
-                   "response_factor": response_factor, "response_after_steps": response_after_steps}
-        self._build(press, outline_xy_mm, sample_plate(steel, thickness_mm, scatter, seed), compliance, options)
+                 seed: int | None = 0, scatter: Scatter = Scatter(), compliance: Compliance = Compliance(), **options):
+        self._build(press, outline_xy_mm, sample_plate(steel, thickness_mm, scatter, seed), compliance,
+                    PlateOptions.of(options))
 
     @classmethod
     def from_physical(cls, press: PressConfig, outline_xy_mm, plate: PhysicalPlate, *,
@@ -113,48 +91,24 @@ class SteelPlate:
             As for the constructor.
         plate : PhysicalPlate
         **options
-            ``grid_spacing_mm``, ``layers``, ``load_increments``, ``unload_increments``,
-            ``springback``, ``cylindrical``, ``edge_yield_factor``, ``edge_band_mm``,
-            ``response_factor``, ``response_after_steps`` (defaults as for the constructor).
+            The fields of :class:`~mppf.sim.plate.options.PlateOptions` (defaults as for the constructor).
         """
         self = cls.__new__(cls)
-        defaults = {"grid_spacing_mm": GRID_SPACING_MM, "layers": LAYERS, "load_increments": LOAD_INCREMENTS,
-                    "unload_increments": 1, "springback": True, "cylindrical": False, "edge_yield_factor": 1.0,
-                    "edge_band_mm": 150.0, "response_factor": 1.0, "response_after_steps": 0}
-        unknown = set(options) - set(defaults)
-        if unknown:
-            raise InputError(f"unknown plate option(s) {', '.join(sorted(unknown))}",
-                             hint=f"use {', '.join(defaults)}")
-        self._build(press, outline_xy_mm, plate, compliance, {**defaults, **options})
+        self._build(press, outline_xy_mm, plate, compliance, PlateOptions.of(options))
         return self
 
-    def _build(self, press, outline_xy_mm, plate, compliance, options):
+    def _build(self, press, outline_xy_mm, plate, compliance, options: PlateOptions):
         """Grid, punches, model and predictor of the flat, stress-free plate."""
         self.press, self.plate, self.compliance = press, plate, compliance
-        self.options = {
-            "grid_spacing_mm": check_positive("grid spacing", options["grid_spacing_mm"], unit="mm"),
-            "layers": check_number("layers", options["layers"], low=2, high=64, integer=True),
-            "load_increments": check_number("load increments", options["load_increments"], low=1, high=1000,
-                                            integer=True),
-            "unload_increments": check_number("unload increments", options["unload_increments"], low=1, high=1000,
-                                              integer=True),
-            "springback": bool(options["springback"]), "cylindrical": bool(options["cylindrical"]),
-            "edge_yield_factor": check_number("edge yield factor", options.get("edge_yield_factor", 1.0), low=0.05,
-                                              high=20.0),
-            "edge_band_mm": check_number("edge band", options.get("edge_band_mm", 150.0), low=0.0, unit="mm"),
-            "response_factor": check_number("response factor", options.get("response_factor", 1.0), low=0.05,
-                                            high=20.0),
-            "response_after_steps": check_number("steps before the response factor",
-                                                 options.get("response_after_steps", 0), low=0, integer=True),
-        }
-        self.grid = PlateGrid(outline_xy_mm, self.options["grid_spacing_mm"], cylindrical=self.options["cylindrical"])
-        self.law, self._placed = LayerLaw(plate.steel, self.options["layers"]), {}
+        self.options = options
+        self.grid = PlateGrid(outline_xy_mm, self.options.grid_spacing_mm, cylindrical=self.options.cylindrical)
+        self.law, self._placed = LayerLaw(plate.steel, self.options.layers), {}
         self._set_placement(np.zeros(2))
         # the flat, stress-free plate (bottom skin on z = 0) between the flat stroke set
         m = self.punches.count
         self.q = np.full(self.grid.n_dof, 0.5 * plate.thickness_mm)
         self.loaded_q = self.q.copy()
-        self.state = LayerState.virgin(len(self.grid.gauss_uv), self.options["layers"])
+        self.state = LayerState.virgin(len(self.grid.gauss_uv), self.options.layers)
         self.force_n = np.zeros(2 * m)
         self.frame_mm = np.zeros(2)
         self.tips_lower_mm = np.zeros(m)
@@ -162,7 +116,7 @@ class SteelPlate:
         self.tips_enabled = np.ones(m, dtype=bool)
         self.steps = 0
         self.last_iterations: list[int] = []
-        self.response_ref_q = self.q.copy() if self.options["response_after_steps"] == 0 else None
+        self.response_ref_q = self.q.copy() if self.options.response_after_steps == 0 else None
 
     def _set_placement(self, placement_mm) -> None:
         """Punches, model and predictor of the plate shifted by ``placement_mm`` (built once per placement)."""
@@ -174,8 +128,8 @@ class SteelPlate:
                                     "at least 3 are needed", hint="give the plate's outline in press x, y (mm)")
             model = PlateModel(self.grid, self.law, self.plate, punches, self.compliance)
             model.yield_factor = model.yield_factor * edge_field(self.grid.gauss_uv, self.grid.size_mm,
-                                                                 self.options["edge_yield_factor"],
-                                                                 self.options["edge_band_mm"])
+                                                                 self.options.edge_yield_factor,
+                                                                 self.options.edge_band_mm)
             self._placed[key] = (punches, model, ContactPredictor(model))
         self.placement_mm = np.array(key)
         self.punches, self.model, self.predictor = self._placed[key]
@@ -243,8 +197,8 @@ class SteelPlate:
         loaded, iterations = self._load(start_lower, start_upper, lower, upper, enabled)
         # 2. unload: the punches retract, the plate springs back
         q, state = loaded.q, loaded.state
-        if self.options["springback"]:
-            unloaded = solve_unloaded(self.model, loaded, self.options["unload_increments"])
+        if self.options.springback:
+            unloaded = solve_unloaded(self.model, loaded, self.options.unload_increments)
             q, state = unloaded.q, unloaded.state
             iterations.append(unloaded.iterations)
         # 3. the plate keeps its shape and plastic state
@@ -252,7 +206,7 @@ class SteelPlate:
         self.frame_mm = loaded.frame_mm
         self.tips_lower_mm, self.tips_upper_mm, self.tips_enabled = lower, upper, enabled
         self.steps += 1
-        if self.steps == self.options["response_after_steps"]:  # the response factor applies from here
+        if self.steps == self.options.response_after_steps:  # the response factor applies from here
             self.response_ref_q = q.copy()
         self.last_iterations = iterations
         return self.formed
@@ -272,14 +226,14 @@ class SteelPlate:
             Newton iterations of each increment.
         """
         ref_q, ref_force, ref_frame, state = self.loaded_q, self.force_n, self.frame_mm, self.state
-        done, size, iterations = 0.0, 1.0 / self.options["load_increments"], []
+        done, size, iterations = 0.0, 1.0 / self.options.load_increments, []
         while done < 1.0 - 1e-12:
             s = min(1.0, done + size)
             tips_lower = start_lower + s * (lower - start_lower)
             tips_upper = start_upper + s * (upper - start_upper)
             q0, frame0, guess = self.predictor.predict(ref_q, ref_force, ref_frame, tips_lower, tips_upper, enabled)
             try:
-                loaded = solve_loaded(self.model, q0, frame0, state, tips_lower, tips_upper, enabled, guess,
+                loaded = solve_loaded(self.model, q0, frame0, state, Tips(tips_lower, tips_upper, enabled), guess,
                                       INCREMENT_ITERATIONS)
             except PlateSolveError:
                 if size <= SMALLEST_INCREMENT:
@@ -296,7 +250,7 @@ class SteelPlate:
         key = (self.steps, id(self.q))
         if getattr(self, "_formed_key", None) != key:
             ref = self.response_ref_q
-            shown = self.q if ref is None else ref + self.options["response_factor"] * (self.q - ref)
+            shown = self.q if ref is None else ref + self.options.response_factor * (self.q - ref)
             self._formed = FormedSteelPlate.build(self.grid, self.plate, self.loaded_q, shown, self.punches,
                                                   self.force_n)
             self._formed_key = key
@@ -333,7 +287,8 @@ class SteelPlate:
             ``alpha``. Save it with ``np.savez(path, **state)``.
         """
         config = {"press": self.press.to_dict(), "outline_xy_mm": self.grid.outline_xy_mm.tolist(),
-                  "plate": self.plate.to_dict(), "options": self.options, "compliance": asdict(self.compliance)}
+                  "plate": self.plate.to_dict(), "options": self.options.to_dict(),
+                  "compliance": asdict(self.compliance)}
         state = {name: np.array(getattr(self, name)) for name in STATE_ARRAYS}
         state.update(config=json.dumps(config), steps=np.array(self.steps), placement_mm=self.placement_mm.copy(),
                      plastic_strain=self.state.plastic_strain.copy(), alpha=self.state.alpha.copy())

@@ -182,8 +182,25 @@ class PlateModel:
         return dq - self.rigid_modes @ a
 
 
-def solve_loaded(model: PlateModel, q, frame_mm, state: LayerState, lower_mm, upper_mm, enabled,
-                 guess=None, max_iterations: int = MAX_ITERATIONS) -> Equilibrium:
+@dataclass(frozen=True, eq=False)
+class Tips:
+    """The punch tips of one load increment, as the PLC read them back.
+
+    Attributes
+    ----------
+    lower_mm, upper_mm : (m,) float
+        Tip heights of the punch pairs over the plate, mm.
+    enabled : (m,) bool
+        Pairs that take part (inactive or parked punches do not touch).
+    """
+
+    lower_mm: np.ndarray
+    upper_mm: np.ndarray
+    enabled: np.ndarray
+
+
+def solve_loaded(model: PlateModel, q, frame_mm, state: LayerState, tips: Tips, guess=None,
+                 max_iterations: int = MAX_ITERATIONS) -> Equilibrium:
     """Equilibrium between the punches (tips as the PLC read them back).
 
     Parameters
@@ -195,10 +212,8 @@ def solve_loaded(model: PlateModel, q, frame_mm, state: LayerState, lower_mm, up
         Start deflections of the matrices.
     state : LayerState
         Committed plastic state (the start of this load increment).
-    lower_mm, upper_mm : (m,) float
-        Tip heights of the punch pairs over the plate, mm.
-    enabled : (m,) bool
-        Pairs that take part (inactive or parked punches do not touch).
+    tips : Tips
+        The tips of the punch pairs over the plate.
     guess : (2 m,) bool, optional
         Constraints expected to push: they take part in the first Newton matrix even
         where the start shape does not touch them.
@@ -214,11 +229,10 @@ def solve_loaded(model: PlateModel, q, frame_mm, state: LayerState, lower_mm, up
     PlateSolveError
         No convergence within ``max_iterations``.
     """
-    allowed = np.concatenate([enabled, enabled])
-    lower = np.where(enabled, lower_mm, 0.0)
-    upper = np.where(enabled, upper_mm, 0.0)
-    x = _Iterate(model, np.asarray(q, dtype=float), np.asarray(frame_mm, dtype=float), state, lower, upper, allowed,
-                 guess)
+    enabled = tips.enabled
+    bounds = (np.where(enabled, tips.lower_mm, 0.0), np.where(enabled, tips.upper_mm, 0.0),
+              np.concatenate([enabled, enabled]))
+    x = _Iterate(model, np.asarray(q, dtype=float), np.asarray(frame_mm, dtype=float), state, bounds, guess)
     for iteration in range(max_iterations):
         # 1. converged: in balance
         if x.relative <= FORCE_TOLERANCE:
@@ -234,9 +248,10 @@ def solve_loaded(model: PlateModel, q, frame_mm, state: LayerState, lower_mm, up
 class _Iterate:
     """The loaded plate at one iterate: response, contact, residual."""
 
-    def __init__(self, model, q, frame, state, lower, upper, allowed, guess=None, hint=None):
-        self.model, self.q, self.frame, self.state = model, q, frame, state
-        self.lower, self.upper, self.allowed = lower, upper, allowed
+    def __init__(self, model, q, frame, state, bounds, guess=None, hint=None):
+        """``bounds``: the lower and upper tips (m,) mm, 0 where disabled, and the constraints allowed (2 m,) bool."""
+        self.model, self.q, self.frame, self.state, self.bounds = model, q, frame, state, bounds
+        lower, upper, allowed = bounds
         self.f_int, self.layered_tangent, self.trial = model.response(q, state, hint)
         self.slack, self.jac, self.force, self.rate, self.branch = model.contact(q, frame, lower, upper, allowed,
                                                                                   guess)
@@ -251,8 +266,8 @@ class _Iterate:
 
     def moved(self, dq, dframe, step: float) -> _Iterate:
         """The iterate ``step`` along the direction."""
-        return _Iterate(self.model, self.q + step * dq, self.frame + step * dframe, self.state,
-                        self.lower, self.upper, self.allowed, hint=self.trial)
+        return _Iterate(self.model, self.q + step * dq, self.frame + step * dframe, self.state, self.bounds,
+                        hint=self.trial)
 
     def slope(self, dq, dframe) -> float:
         """d . R: the slope of the incremental energy along the direction."""
