@@ -100,7 +100,7 @@ def press_sections(plc, job, run: SectionRun, *, show_result, echo, make_reporte
     from mppf.planning.sections import placement_text, section_job
 
     # the plan's own warnings (a section that steps at its border with the plate formed before it) first
-    for warning in (job.extra or {}).get("sectional", {}).get("warnings", []):
+    for warning in (job.sectional.warnings or ()) if job.sectional is not None else ():
         echo(f"warning: {warning}")
     plan = [(s, _steps_of(s, run.step)) for s in select_sections(job, run.section)]
     _check_plan(plc, job, plan)  # every setpoint is checked before anything moves

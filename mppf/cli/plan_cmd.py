@@ -220,7 +220,7 @@ def plan_command(design, flat, press_path, thickness_mm, steps, springback, marg
     summary = plan_summary(job)
     if job.sections:
         summary["sections"] = sections_summary(job)
-        summary["warnings"] = list(job.extra["sectional"].get("warnings", []))
+        summary["warnings"] = list(job.sectional.warnings or ()) if job.sectional is not None else []
     if output:
         summary["job"] = {"path": output, "sha256": job.sha256()}
     if as_json:

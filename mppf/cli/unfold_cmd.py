@@ -159,7 +159,7 @@ def _job_placement(job, result, cloud):
     from mppf.core.errors import InputError
     from mppf.core.transform import apply_tf
 
-    planned = (job.extra.get("inputs") or {}).get("design", {}).get("sha256")
+    planned = job.reports.design_sha256
     if planned and planned != cloud.sha256:
         raise InputError("the job was planned for another design (its design SHA-256 differs from this file's)",
                          hint="give the job planned from this design file, or leave out --job")

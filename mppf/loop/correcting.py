@@ -16,6 +16,7 @@ of this cycle to "corrected".
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -36,6 +37,7 @@ from mppf.loop.settings import LoopSettings
 from mppf.loop.states import Decision
 from mppf.model.job import Job
 from mppf.model.job_parts import grid_from_json, grid_to_json
+from mppf.model.job_provenance import LoopProvenance
 from mppf.model.material import Material
 from mppf.model.press import PressConfig
 from mppf.planning.job import save_job
@@ -63,10 +65,7 @@ def plan_next(history: History, plate: PlateRecord, record: CycleRecord, press: 
     active = last_step(record).active
     # from the tips the plate last held, in steps within the dimpling limit (the PLC refuses larger ones)
     steps = steps_towards(press, _held(record, press, plate.thickness_mm), correction, active)
-    loop = {"plate_id": plate.plate_id, "cycle": record.cycle + 1, "corrects_job_sha256": record.job_sha256}
-    job = Job(press=job.press, thickness_mm=job.thickness_mm, steps=steps, tf_press_design=job.tf_press_design,
-              tf_press_flat=job.tf_press_flat, punch_x_mm=job.punch_x_mm, punch_y_mm=job.punch_y_mm, layout=job.layout,
-              extra={**job.extra, "loop": loop})
+    job = _next_job(job, steps, plate, record)
     path = save_job(job, Path(plate.settings["work_dir"]) / f"cycle-{record.cycle + 1:02d}.job.json")
     # ... and its record
     history.add_cycle(
@@ -166,10 +165,7 @@ def _plan_learned(history: History, plate: PlateRecord, record: CycleRecord, pre
     learned = step.learned
     # 4. the next cycle's steps, from the tips the plate last held to the new strokes
     steps = steps_towards(press, _held(record, press, plate.thickness_mm), learned, final.active)
-    loop = {"plate_id": plate.plate_id, "cycle": record.cycle + 1, "corrects_job_sha256": record.job_sha256}
-    job = Job(press=job.press, thickness_mm=job.thickness_mm, steps=steps, tf_press_design=job.tf_press_design,
-              tf_press_flat=job.tf_press_flat, punch_x_mm=job.punch_x_mm, punch_y_mm=job.punch_y_mm, layout=job.layout,
-              extra={**job.extra, "loop": loop})
+    job = _next_job(job, steps, plate, record)
     path = save_job(job, Path(plate.settings["work_dir"]) / f"cycle-{record.cycle + 1:02d}.job.json")
     history.add_cycle(
         plate.plate_id, record.cycle + 1, job_path=path.resolve(), job_sha256=job.sha256(), steps=steps,
@@ -223,3 +219,13 @@ def step_to_dict(step) -> dict:
     return {**learned_to_dict(step.learned), "share": round(step.plan.share, 4), "base_cycle": step.plan.base + 1,
             "measured_response": [round(float(r), 4) for r in step.plan.ratios],
             "measured_edge_response": [round(float(r), 4) for r in step.plan.edge_ratios]}
+
+
+def _next_job(job: Job, steps: list, plate: PlateRecord, record: CycleRecord) -> Job:
+    """The job of the next cycle: ``job`` with the corrected ``steps``, recording which cycle's job it corrects.
+
+    The planner's reports stay those of the first cycle (the job checks skip their step counts in a job
+    with ``loop`` provenance); the seal is made again when the job is saved.
+    """
+    loop = LoopProvenance(plate_id=plate.plate_id, cycle=record.cycle + 1, corrects_job_sha256=record.job_sha256)
+    return dataclasses.replace(job, steps=steps, sections=None, loop=loop, seal=None)

@@ -42,6 +42,7 @@ from mppf.loop.settings import LoopSettings
 from mppf.loop.states import CycleState, Decision
 from mppf.model.job import Job
 from mppf.model.job_parts import grid_from_json, grid_to_json
+from mppf.model.job_provenance import LoopProvenance
 from mppf.model.press import PressConfig
 from mppf.planning.job import save_job
 from mppf.planning.sectional import apply_section_corrections
@@ -227,8 +228,8 @@ def plan_next_sections(history: History, plate: PlateRecord, record: CycleRecord
     else:
         deltas, corrections = _model_free_sections(history, plate, record, press, settings, job)
         corrected = apply_section_corrections(job, deltas)
-    loop = {"plate_id": plate.plate_id, "cycle": record.cycle + 1, "corrects_job_sha256": record.job_sha256}
-    corrected = dataclasses.replace(corrected, extra={**corrected.extra, "loop": loop})
+    loop = LoopProvenance(plate_id=plate.plate_id, cycle=record.cycle + 1, corrects_job_sha256=record.job_sha256)
+    corrected = dataclasses.replace(corrected, loop=loop, seal=None)
     path = save_job(corrected, Path(plate.settings["work_dir"]) / f"cycle-{record.cycle + 1:02d}.job.json")
     history.add_cycle(
         plate.plate_id, record.cycle + 1, job_path=path.resolve(), job_sha256=corrected.sha256(),

@@ -1,13 +1,15 @@
 """The job file as data: the planned strokes of a plate, the contract between planner and press.
 
-A job is JSON, versioned (``"format": "mppf-job"``, ``"version": 4``: sealed; a plate formed
-section by section has its ``"sections"``, :mod:`mppf.model.job_sections`); see
+A job is JSON, versioned (``"format": "mppf-job"``, ``"version": 5``: sealed, its reports typed; a
+plate formed section by section has its ``"sections"``, :mod:`mppf.model.job_sections`); see
 ``docs/file-formats.md`` and ``docs/sections.md``. This module holds the job and its
 (de)serialisation; sealing, the seal check and the one loader of job files are
 :mod:`mppf.planning.job` (:func:`~mppf.planning.job.save_job`, :func:`~mppf.planning.job.load_job`).
 In memory, stroke arrays are (rows, cols) float mm with NaN where a punch is inactive; in the
 file, inactive entries are ``null``. Inactive punches are driven to their parking heights by
-the press driver. The parts (steps, plate layout) are :mod:`mppf.model.job_parts`.
+the press driver. The parts (steps, plate layout) are :mod:`mppf.model.job_parts`; the planner's
+reports :mod:`mppf.model.job_reports`; the sectional summary, the provenance and the seal
+:mod:`mppf.model.job_provenance`.
 """
 
 from __future__ import annotations
@@ -28,19 +30,28 @@ from mppf.model.job_parts import (
     steps_from_json,
     steps_to_json,
 )
+from mppf.model.job_provenance import (
+    BatchRecord,
+    LoopProvenance,
+    Seal,
+    SectionalSummary,
+    SectionPiece,
+)
+from mppf.model.job_reports import PlanReports
 from mppf.model.job_sections import Section, sections_from_json
 from mppf.model.press import PressConfig, press_from_dict
 
 JOB_FORMAT = "mppf-job"
-JOB_VERSION = 4
-"""The version written: a sealed job (single piece or in sections); older readers refuse it."""
+JOB_VERSION = 5
+"""The version written: a sealed job (single piece or in sections) whose reports are typed blocks
+(:mod:`mppf.model.job_reports`, :mod:`mppf.model.job_provenance`); older readers refuse it."""
 SEALED_VERSION = 4
 """The first version that must carry a seal (:mod:`mppf.core.seal`)."""
 SECTIONS_VERSION = 3
 """The first version that may hold sections (a plate larger than the bed)."""
-READ_VERSIONS = (1, 2, 3, 4)
+READ_VERSIONS = (1, 2, 3, 4, 5)
 """Job file versions this mppf reads (version 1: the plate layout in loose top-level keys; 1-3 unsealed,
-read only where nothing is pressed)."""
+read only where nothing is pressed; 4: sealed, its reports read into the same typed blocks as 5's)."""
 
 
 @dataclass
@@ -57,12 +68,22 @@ class Job:
     punch_y_mm : (rows,) float
     layout : PlateLayout or None
         The plate on the press (None only for old jobs without an outline).
-    extra : dict
-        The planner's reports (registration, validation, pose, input hashes, plate
-        corners, springback...), stored as-is.
+    reports : PlanReports
+        The planner's reports (surface fit, registration, pose, validation, plate corners
+        and size, counts, input files, springback); of section 1 for a sectional job.
     sections : list of Section or None
         A plate larger than the bed: its sections in pressing order (then ``steps``,
         the transforms and ``layout`` are those of section 1); None for a single piece.
+    sectional : SectionalSummary or None
+        The split of a sectional job (None for a single piece).
+    batch : BatchRecord or None
+        What ``mppf batch`` stored to resume (None outside a batch).
+    loop : LoopProvenance or None
+        Set in a job the forming loop corrected.
+    piece : SectionPiece or None
+        Set in a single-section job made from a sectional one (key ``"section"``).
+    seal : Seal or None
+        The seal of the file it was read from or saved to (None before it is saved).
     """
 
     press: PressConfig
@@ -73,8 +94,13 @@ class Job:
     punch_x_mm: np.ndarray | None = None
     punch_y_mm: np.ndarray | None = None
     layout: PlateLayout | None = None
-    extra: dict = field(default_factory=dict)
+    reports: PlanReports = field(default_factory=PlanReports)
     sections: list[Section] | None = None
+    sectional: SectionalSummary | None = None
+    batch: BatchRecord | None = None
+    loop: LoopProvenance | None = None
+    piece: SectionPiece | None = None
+    seal: Seal | None = None
 
     def __post_init__(self):
         if self.punch_x_mm is None:
@@ -99,13 +125,16 @@ class Job:
             doc["plate"] = self.layout.to_dict()
         if self.sections is not None:
             doc["sections"] = [s.to_dict() for s in self.sections]
-        for key, value in self.extra.items():
-            doc.setdefault(key, value)
+        doc.update(self.reports.to_doc())
+        for key, block in (("sectional", self.sectional), ("batch", self.batch), ("loop", self.loop),
+                           ("section", self.piece), ("seal", self.seal)):
+            if block is not None:
+                doc[key] = block.to_doc()
         return doc
 
     def to_json(self) -> str:
         """Serialized job (stable key order, so its hash is reproducible; the seal of the file it was read from
-        or saved to is in ``extra["seal"]``)."""
+        or saved to is ``seal``, last)."""
         return json.dumps(self.to_dict(), indent=1, allow_nan=False)
 
     def sha256(self) -> str:
@@ -129,11 +158,7 @@ def job_from_dict(doc: dict, source: str = "job") -> Job:
     thickness = check_number(f"{source}: thickness_mm", doc["thickness_mm"], low=0.0, low_open=True, unit="mm",
                              hint="re-plan the plate with 'mppf plan'", error=ConfigError)
     steps = steps_from_json(doc["steps"], press, source)
-    known = {"format", "version", "press", "thickness_mm", "steps", "tf_press_design", "tf_press_flat",
-             "punch_x_mm", "punch_y_mm", "plate", "sections"}
     layout = _layout_from_doc(doc, source)
-    if doc["version"] == 1:  # the loose layout keys of version 1 now live in the layout
-        known |= set(V1_LAYOUT_KEYS)
     transforms = {}
     for key in ("tf_press_design", "tf_press_flat"):
         try:
@@ -147,10 +172,26 @@ def job_from_dict(doc: dict, source: str = "job") -> Job:
         punch_x_mm=_axis_from_json(doc.get("punch_x_mm", press.punch_x_mm), press.cols, "punch_x_mm", source),
         punch_y_mm=_axis_from_json(doc.get("punch_y_mm", press.punch_y_mm), press.rows, "punch_y_mm", source),
         layout=layout,
-        extra={k: v for k, v in doc.items() if k not in known},
+        reports=PlanReports.from_doc(doc, f"{source}:"),
         sections=_sections_from_doc(doc, press, source),
+        **_blocks_from_doc(doc, source),
         **transforms,
     )
+
+
+_BLOCKS = {"sectional": SectionalSummary, "batch": BatchRecord, "loop": LoopProvenance, "piece": SectionPiece,
+           "seal": Seal}
+"""The job's typed blocks besides the planner's reports, by field (the piece's key is ``"section"``)."""
+
+
+def _blocks_from_doc(doc: dict, source: str) -> dict:
+    """The typed blocks present in the document (``sectional``, ``batch``, ``loop``, ``section``, ``seal``)."""
+    out = {}
+    for name, cls in _BLOCKS.items():
+        key = "section" if name == "piece" else name
+        if doc.get(key) is not None:
+            out[name] = cls.from_doc(doc[key], f"{source}: {key}")
+    return out
 
 
 def _sections_from_doc(doc: dict, press: PressConfig, source: str) -> list[Section] | None:

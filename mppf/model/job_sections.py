@@ -1,10 +1,11 @@
 """The sections of a job file: a plate larger than the bed, formed section by section.
 
-A sectional job (``"version": 3``) holds, besides the job's own keys (which describe section 1,
+A sectional job (from version 3) holds, besides the job's own keys (which describe section 1,
 so every reader of single-piece jobs still finds a valid first section), the list
 ``"sections"``: each with the shift of the plate for it, its reference marks, its press steps,
-its transforms and its plate layout. Single-piece jobs have no ``"sections"`` and stay
-version 2. See ``docs/sections.md``.
+its transforms, its plate layout, its planner's reports (:class:`~mppf.model.job_reports.PlanReports`)
+and its transition zone (:class:`~mppf.model.job_provenance.TransitionReport`). Single-piece jobs
+have no ``"sections"``. See ``docs/sections.md``.
 """
 
 from __future__ import annotations
@@ -23,6 +24,8 @@ from mppf.model.job_parts import (
     steps_from_json,
     steps_to_json,
 )
+from mppf.model.job_provenance import TransitionReport
+from mppf.model.job_reports import PlanReports
 from mppf.model.press import PressConfig
 
 
@@ -57,8 +60,10 @@ class Section:
     own_weight : (rows, cols) float
         Weight of this section's own stroke correction at each active punch (1 outside the
         transition zones, below 1 where it blends with the earlier sections; NaN parked).
-    extra : dict
-        Pose, validation and the transition report of the section, stored as-is.
+    reports : PlanReports
+        The section's pose, validation, step and punch counts and plate corners.
+    transition : TransitionReport or None
+        The section's transition zone and the step where it meets the earlier sections.
     """
 
     index: int
@@ -73,7 +78,8 @@ class Section:
     tf_press_flat: np.ndarray
     layout: PlateLayout
     own_weight: np.ndarray
-    extra: dict = field(default_factory=dict)
+    reports: PlanReports = field(default_factory=PlanReports)
+    transition: TransitionReport | None = None
 
     def shift_from_mm(self, previous: Section) -> np.ndarray:
         """(2,) float: how far the plate moves on the bed from ``previous`` to this section (mm)."""
@@ -94,7 +100,8 @@ class Section:
             "plate": self.layout.to_dict(),
             "own_weight": grid_to_json(self.own_weight),
             "steps": steps_to_json(self.steps),
-            **{k: v for k, v in self.extra.items() if k not in SECTION_KEYS},
+            **self.reports.to_doc(),
+            **({} if self.transition is None else {"transition": self.transition.to_doc()}),
         }
 
 
@@ -114,6 +121,9 @@ def section_from_dict(doc, press: PressConfig, source: str) -> Section:
         missing = sorted(SECTION_KEYS - set(doc)) if isinstance(doc, dict) else sorted(SECTION_KEYS)
         raise ConfigError(f"{source}: the section lacks {', '.join(missing)}",
                           hint="re-plan the plate with 'mppf plan'")
+    reports = PlanReports.from_doc(doc, f"{source}:")
+    transition = None if doc.get("transition") is None else TransitionReport.from_doc(doc["transition"],
+                                                                                       f"{source}: transition")
     try:
         marks = doc["marks"]
         section = Section(
@@ -126,8 +136,7 @@ def section_from_dict(doc, press: PressConfig, source: str) -> Section:
             tf_press_design=tf_from_list(doc["tf_press_design"], "tf_press_design"),
             tf_press_flat=tf_from_list(doc["tf_press_flat"], "tf_press_flat"),
             layout=PlateLayout.from_dict(doc["plate"], source),
-            own_weight=grid_from_json(doc["own_weight"]),
-            extra={k: v for k, v in doc.items() if k not in SECTION_KEYS})
+            own_weight=grid_from_json(doc["own_weight"]), reports=reports, transition=transition)
     except InputError as exc:
         raise ConfigError(f"{source}: {exc.message}", hint="re-plan the plate with 'mppf plan'") from None
     except (KeyError, TypeError, ValueError, OverflowError) as exc:

@@ -24,6 +24,7 @@ from pathlib import Path
 from mppf.core.errors import FileFormatError, InputError, MppfError
 from mppf.core.progress import NULL_REPORTER
 from mppf.core.validate import check_name
+from mppf.model.job_provenance import BatchRecord
 from mppf.model.material import MATERIALS
 from mppf.planning.batch_pool import planning_pool
 
@@ -146,9 +147,9 @@ def _manifest_plate(row: dict, path: Path, line: int, default_thickness_mm, defa
         return FileFormatError(path, message, line=line, hint=hint)
 
     if row.get(None):  # csv.DictReader puts the fields beyond the header's under None
-        extra = row[None]
-        raise bad(f"the row has {len(extra)} field(s) more than the header's {len(row) - 1} column(s): "
-                  f"{', '.join(repr(v) for v in extra[:3])}",
+        surplus = row[None]
+        raise bad(f"the row has {len(surplus)} field(s) more than the header's {len(row) - 1} column(s): "
+                  f"{', '.join(repr(v) for v in surplus[:3])}",
                   "remove them, or quote a value that holds a comma (\"a,b\")")
     design = (row.get("design") or "").strip()
     if not design:
@@ -233,10 +234,9 @@ def finished_row(plate: Plate, options: BatchOptions, key: str) -> dict | None:
         return {**row, "warnings": "; ".join(w for w in (row.get("warnings"), note) if w)}
     except InputError:
         return None
-    batch = job.extra.get("batch", {})
-    if batch.get("key") != key:
+    if job.batch is None or job.batch.key != key:
         return None
-    return {**batch.get("row", {}), "status": "skipped", "reason": "inputs unchanged since the finished job"}
+    return {**(job.batch.row or {}), "status": "skipped", "reason": "inputs unchanged since the finished job"}
 
 
 def plan_plate_files(plate: Plate, options: BatchOptions, key: str) -> dict:
@@ -263,11 +263,11 @@ def plan_plate_files(plate: Plate, options: BatchOptions, key: str) -> dict:
     job = plan_plate(design.points, flat_points, press, plate.thickness_mm, plan_options, design_faces=design.faces,
                      inputs=inputs)
     if strain_pct is None:
-        strain_pct = job.extra.get("registration", {}).get("neighbour_strain_p95_pct")
+        strain_pct = None if job.reports.registration is None else job.reports.registration.neighbour_strain_p95_pct
     # 3. the summary row, stored in the job so a resumed batch can show it without planning again
     row = summary_row(plate, job, strain_pct, warnings, time.perf_counter() - started,
                       time.process_time() - cpu_started)
-    job.extra["batch"] = {"key": key, "row": row}
+    job.batch = BatchRecord(key=key, row=row)
     save_job(job, job_path(plate, options))
     return row
 
@@ -288,18 +288,19 @@ def _flat(plate: Plate, options: BatchOptions, design, warnings: list):
 
 def summary_row(plate: Plate, job, strain_pct, warnings, seconds: float, cpu_seconds: float) -> dict:
     """One line of the batch summary for a planned plate (``time_s`` wall clock, ``cpu_s`` CPU of its worker)."""
-    sectional = job.extra.get("sectional")
-    size = (sectional or job.extra).get("plate_size_mm") or [None, None]
-    steps = sectional["n_steps_total"] if sectional else len(job.steps)
-    travel = sectional["max_travel_mm"] if sectional else job.extra.get("pose", {}).get("max_travel_mm")
-    if sectional and sectional.get("warnings"):
-        warnings = [*warnings, *sectional["warnings"]]
-    if job.extra.get("registration", {}).get("ambiguous_start"):
+    sectional, reports = job.sectional, job.reports
+    size = (sectional or reports).plate_size_mm
+    size = [None, None] if size is None else size
+    steps = sectional.n_steps_total if sectional else len(job.steps)
+    travel = sectional.max_travel_mm if sectional else reports.max_travel_mm
+    if sectional and sectional.warnings:
+        warnings = [*warnings, *sectional.warnings]
+    if reports.registration is not None and reports.registration.ambiguous_start:
         warnings = [*warnings, "nearly symmetric plate: check which way round it lies"]
     return {"plate": plate.name, "status": "planned", "length_mm": _round(size[0]), "width_mm": _round(size[1]),
             "thickness_mm": plate.thickness_mm, "sections": len(job.sections) if job.sections else 1,
             "steps": int(steps), "max_travel_mm": _round(travel, 1), "strain_pct": _round(strain_pct, 4),
-            "border_step_mm": _round(sectional["max_border_step_mm"], 3) if sectional else None,
+            "border_step_mm": _round(sectional.max_border_step_mm, 3) if sectional else None,
             "warnings": "; ".join(warnings), "reason": "", "time_s": round(seconds, 2),
             "cpu_s": round(cpu_seconds, 2),
             "peak_rss_mb": round(_peak_rss_mb(), 1), "job": f"{plate.name}.job.json"}

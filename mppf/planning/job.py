@@ -21,6 +21,7 @@ from mppf.model.job import (
     job_from_dict,
     read_job_document,
 )
+from mppf.model.job_provenance import Seal
 
 
 def load_job(path, *, require_seal: bool = True) -> Job:
@@ -94,7 +95,7 @@ def save_job(job: Job, path, *, sealed_by: str = "mppf plan", reason: str | None
     """Seal a job with the installation's key and write it atomically (a temporary file renamed into place).
 
     The seal (:func:`mppf.core.seal.seal_document`) replaces any the job carried and is kept in
-    ``job.extra["seal"]``, so ``job.sha256()`` is the hash of the file written.
+    ``job.seal``, so ``job.sha256()`` is the hash of the file written.
 
     Parameters
     ----------
@@ -115,7 +116,7 @@ def save_job(job: Job, path, *, sealed_by: str = "mppf plan", reason: str | None
 
     path = Path(path)
     doc = seal_document(job.to_dict(), load_key(), sealed_by=sealed_by, reason=reason)
-    job.extra = {**{k: v for k, v in job.extra.items() if k != SEAL_KEY}, SEAL_KEY: doc[SEAL_KEY]}
+    job.seal = Seal.from_doc(doc[SEAL_KEY], f"{path}: seal")
     tmp = path.with_name(path.name + ".tmp")
     try:
         tmp.write_text(indented_json(doc))  # job.to_json(): doc is job.to_dict() with its new seal last

@@ -21,6 +21,7 @@ import numpy as np
 from mppf.core.errors import ConfigError
 from mppf.core.polygon import contains, offset_convex
 from mppf.core.transform import apply_tf, make_tf
+from mppf.model.job_provenance import SectionalSummary
 
 PLACEMENT_TOLERANCE_MM = 0.01
 """Largest difference between a stored placement (mm) and the one re-derived from the plan."""
@@ -46,8 +47,8 @@ def check_plan(job) -> None:
         if off > PLACEMENT_TOLERANCE_MM:
             problems.append(f"{name} is {off:.2f} mm away from the punch axes of its press (pitch and matrix)")
     # a job the loop corrected keeps the planner's reports of its first cycle: their step counts are not its own
-    counted = "loop" not in job.extra
-    problems += _check_piece("", job.steps, job.layout, job.extra, job.press, counted)
+    counted = job.loop is None
+    problems += _check_piece("", job.steps, job.layout, job.reports, job.press, counted)
     if job.sections is not None:
         problems += _check_sections(job, counted)
     if problems:
@@ -56,15 +57,15 @@ def check_plan(job) -> None:
                           "nothing was sent to the press", hint=HINT)
 
 
-def _check_piece(where: str, steps, layout, extra: dict, press, counted: bool = True) -> list[str]:
-    """The checks of one piece (the job or a section): validation, step count, repeated steps, the outline."""
+def _check_piece(where: str, steps, layout, reports, press, counted: bool = True) -> list[str]:
+    """The checks of one piece (the job or a section, ``reports`` its
+    :class:`~mppf.model.job_reports.PlanReports`): validation, step count, repeated steps, the outline."""
     out = []
-    validation = extra.get("validation")
-    if isinstance(validation, dict) and validation.get("passed") is not True:
-        out.append(f"{where}the planner's validation did not pass (validation.passed is "
-                   f"{validation.get('passed')!r})")
-    counts = [("n_steps", extra.get("n_steps")),
-              ("validation.n_steps", validation.get("n_steps") if isinstance(validation, dict) else None)]
+    validation = reports.validation
+    if validation is not None and validation.passed is not True:
+        out.append(f"{where}the planner's validation did not pass (validation.passed is {validation.passed!r})")
+    counts = [("n_steps", reports.n_steps),
+              ("validation.n_steps", None if validation is None else validation.n_steps)]
     counts = counts if counted else []
     for name, value in counts:
         if value is not None and value != len(steps):
@@ -110,8 +111,7 @@ def _polygon_distance(a, b) -> float:
 def _check_sections(job, counted: bool = True) -> list[str]:
     """The sectional checks: the split complete, section 1 the job's own, each section's placement and marks."""
     sections, press = job.sections, job.press
-    info = job.extra.get("sectional") if isinstance(job.extra.get("sectional"), dict) else {}
-    out = _check_split(sections, info, counted)
+    out = _check_split(sections, job.sectional or SectionalSummary(), counted)
     first = sections[0]
     if len(first.steps) != len(job.steps) or any(
             not np.allclose(a.upper_mm, b.upper_mm, equal_nan=True) or not np.allclose(a.lower_mm, b.lower_mm,
@@ -126,30 +126,30 @@ def _check_sections(job, counted: bool = True) -> list[str]:
         out.append("the job's plate outline is not that of section 1")
     base = make_tf(translation=[-first.plate_centre_mm[0], -first.plate_centre_mm[1], 0.0]) @ first.tf_press_flat
     for s in sections:
-        out += _check_piece(f"section {s.index} ", s.steps, s.layout, s.extra, press, counted)
+        out += _check_piece(f"section {s.index} ", s.steps, s.layout, s.reports, press, counted)
         out += _check_section_placement(s, base, press)
     return out
 
 
-def _check_split(sections, info: dict, counted: bool = True) -> list[str]:
+def _check_split(sections, info: SectionalSummary, counted: bool = True) -> list[str]:
     """Every section of the split there once: counts, cells, the planner's step total (``counted``)."""
     out = []
-    n = info.get("n_sections")
+    n = info.n_sections
     if n is not None and n != len(sections):
         out.append(f"the plan has {n} section(s), the job holds {len(sections)} (a section was added or removed)")
     cells = [tuple(s.cell) for s in sections]
     repeated = sorted({c for c in cells if cells.count(c) > 1})
     if repeated:
         out.append(f"section cell(s) {repeated} appear more than once")
-    counts = info.get("counts")
-    if isinstance(counts, list) and len(counts) == 2 and all(isinstance(c, int) for c in counts):
+    counts = info.counts
+    if counts is not None and len(counts) == 2:
         grid = {(a, b) for a in range(counts[0]) for b in range(counts[1])}
         missing, foreign = sorted(grid - set(cells)), sorted(set(cells) - grid)
         if missing:
             out.append(f"the split's cell(s) {missing} have no section (a section was removed)")
         if foreign:
             out.append(f"section cell(s) {foreign} are outside the {counts[0]} x {counts[1]} split")
-    total = info.get("n_steps_total")
+    total = info.n_steps_total
     if counted and total is not None and total != sum(len(s.steps) for s in sections):
         out.append(f"the plan has {total} step(s) in all, the sections hold {sum(len(s.steps) for s in sections)}")
     return out

@@ -26,6 +26,7 @@ from mppf.forming.material import check_yield_uncertainty, weakest_material
 from mppf.geometry.surface import FittedPlate, fit_plate
 from mppf.model.job import Job
 from mppf.model.job_parts import PlateLayout, StepStrokes
+from mppf.model.job_reports import RegistrationReport
 from mppf.model.material import Material
 from mppf.model.plan_options import PlanOptions
 from mppf.model.press import PressConfig
@@ -105,12 +106,12 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
     n_steps = options.steps if options.steps is not None else steps_needed(upper, lower, strokes.active, press, t)
     step_list = steps_within_limit(upper, lower, strokes.active, press, t, n_steps)
     validation = _validation(step_list, press, t, strokes)
-    extra = planner_reports(laid.fitted, laid.registration, laid.belongs, strokes.pose, upper, lower, strokes.active,
-                            t, validation, laid.placement, int(n_steps), inputs, springback_report)
+    reports = planner_reports(laid.fitted, laid.registration, laid.belongs, strokes.pose, upper, lower,
+                              strokes.active, t, validation, laid.placement, int(n_steps), inputs, springback_report)
     layout = PlateLayout(outline_mm=strokes.outline_mm, net_outline_mm=strokes.net_outline_mm, margin_mm=margin,
                          design_mid_mm=target, material=options.material)
     return Job(press=press, thickness_mm=t, steps=step_list, tf_press_design=strokes.tf_press_design,
-               tf_press_flat=laid.placement.tf_press_flat, layout=layout, extra=extra)
+               tf_press_flat=laid.placement.tf_press_flat, layout=layout, reports=reports)
 
 
 @dataclass(frozen=True)
@@ -208,7 +209,7 @@ def first_press_material(material: Material | None, springback: bool, yield_unce
 
 
 def first_press_report(material: Material, yield_uncertainty_pct: float) -> dict:
-    """What the first press assumed (``extra["springback"]["first_press"]``): the declared scatter, the
+    """What the first press assumed (the springback report's ``first_press``): the declared scatter, the
     nominal and the planned yield stress (MPa)."""
     planned = weakest_material(material, yield_uncertainty_pct)
     return {"yield_uncertainty_pct": float(yield_uncertainty_pct),
@@ -257,7 +258,7 @@ def plan_summary(job: Job) -> dict:
     dict
         Registration, pose, strokes per matrix, steps and plate corners.
     """
-    extra = job.extra
+    reports = job.reports
     final = job.steps[-1]
     act = final.active
 
@@ -268,23 +269,23 @@ def plan_summary(job: Job) -> dict:
                 "limits_mm": [limits.min_mm, limits.max_mm],
                 "max_travel_mm": float(np.abs(vals - flat_mm).max())}
 
-    reg = extra.get("registration", {})
+    reg = reports.registration or RegistrationReport()
     return {
         "press": job.press.name,
         "matrix": [job.press.rows, job.press.cols],
         "thickness_mm": job.thickness_mm,
-        "inputs": extra.get("inputs", {}),
-        "registration": {k: reg.get(k) for k in ("method", "rms_mm", "iterations", "rotation_deg",
+        "inputs": reports.inputs.to_doc() if reports.inputs is not None else {},
+        "registration": {k: getattr(reg, k) for k in ("method", "rms_mm", "iterations", "rotation_deg",
                                                   "neighbour_strain_p95_pct", "area_mismatch_pct")},
-        "pose": extra.get("pose", {}),
+        "pose": reports.pose.to_doc() if reports.pose is not None else {},
         "n_steps": len(job.steps),
         "upper": matrix(final.upper_mm, job.press.upper, job.thickness_mm),
         "lower": matrix(final.lower_mm, job.press.lower, 0.0),
-        "max_travel_mm": extra.get("pose", {}).get("max_travel_mm"),
-        "min_gap_mm": extra.get("validation", {}).get("min_gap_mm"),
-        "max_neighbour_step_mm": extra.get("validation", {}).get("max_neighbour_step_mm"),
-        "plate_corners_mm": extra.get("plate_corners_mm"),
-        "plate_size_mm": extra.get("plate_size_mm"),
+        "max_travel_mm": reports.max_travel_mm,
+        "min_gap_mm": None if reports.validation is None else reports.validation.min_gap_mm,
+        "max_neighbour_step_mm": None if reports.validation is None else reports.validation.max_neighbour_step_mm,
+        "plate_corners_mm": None if reports.plate_corners_mm is None else reports.plate_corners_mm.tolist(),
+        "plate_size_mm": None if reports.plate_size_mm is None else reports.plate_size_mm.tolist(),
         "margin_mm": 0.0 if job.layout is None else job.layout.margin_mm,
-        "springback": extra.get("springback", {"enabled": False}),
+        "springback": reports.springback_doc(),
     }

@@ -3,7 +3,7 @@
 
 Each is one stage of the planner in ``docs/planning.md``: the inputs checked, the punches under the
 plate, the pose of least travel, the values on the punch grid, the press steps, the trim check and
-the reports a job keeps in ``Job.extra``. Lengths in mm.
+the reports a job keeps (:class:`~mppf.model.job_reports.PlanReports`). Lengths in mm.
 """
 
 from __future__ import annotations
@@ -14,6 +14,15 @@ from mppf.core.errors import GeometryError, InputError, LimitError
 from mppf.core.polygon import contains, distance_outside
 from mppf.core.transform import as_points, rotation_angle_deg
 from mppf.core.validate import check_number
+from mppf.model.job_reports import (
+    PlanInputs,
+    PlanReports,
+    PoseReport,
+    RegistrationReport,
+    SpringbackReport,
+    SurfaceFitReport,
+    ValidationReport,
+)
 from mppf.model.press import PressConfig
 from mppf.planning.contact import PlacedSurface
 from mppf.planning.pose import optimise_pose
@@ -170,28 +179,64 @@ def steps_within_limit(upper, lower, active, press: PressConfig, t: float, n_ste
 
 
 def planner_reports(fitted, registration, belongs, pose, upper, lower, active, t, validation, placement, n_steps,
-                    inputs, springback_report) -> dict:
-    """The planner's reports stored in the job (``Job.extra``).
+                    inputs, springback_report) -> PlanReports:
+    """The planner's reports stored in the job (:class:`~mppf.model.job_reports.PlanReports`).
 
     ``upper``, ``lower`` are (rows, cols) tip heights in mm, ``active`` (rows, cols) bool, ``t`` the
-    plate thickness in mm; the rest are the planner's intermediate results, each kept as its report.
+    plate thickness in mm; ``validation`` and ``springback_report`` the dicts of the validation and
+    the springback planning; ``inputs`` a :class:`~mppf.model.job_reports.PlanInputs` or its dict;
+    the rest are the planner's intermediate results, each kept as its report.
     """
-    return {
-        "planner": {"surface_kind": fitted.kind, "surface_degree": fitted.degree,
-                    "surface_fit_rms_mm": fitted.rms_mm, "surface_fit_max_mm": fitted.max_abs_mm},
-        "registration": {**registration.to_dict(), **belongs,
-                         "rotation_deg": rotation_angle_deg(registration.tf)},
-        "pose": {"tilt_x_deg": pose.tilt_x_deg, "tilt_y_deg": pose.tilt_y_deg, "offset_mm": pose.offset_mm,
-                 "max_travel_mm": float(max(np.abs(upper[active] - t).max(), np.abs(lower[active]).max())),
-                 "travel_definition": "largest |tip height - flat-plate tip height| (upper t, lower 0)"},
-        "validation": validation,
-        "plate_corners_mm": placement.corners_mm.tolist(),
-        "plate_size_mm": placement.size_mm.tolist(),
-        "n_active": int(active.sum()),
-        "n_steps": n_steps,
-        "inputs": inputs or {},
-        "springback": springback_report,
-    }
+    registration_doc = {**registration.to_dict(), **belongs, "rotation_deg": rotation_angle_deg(registration.tf)}
+    travel = float(max(np.abs(upper[active] - t).max(), np.abs(lower[active]).max()))
+    return PlanReports(
+        surface_fit=SurfaceFitReport(surface_kind=fitted.kind, surface_degree=fitted.degree,
+                                     surface_fit_rms_mm=fitted.rms_mm, surface_fit_max_mm=fitted.max_abs_mm),
+        registration=RegistrationReport.from_doc(registration_doc, "the registration report"),
+        pose=PoseReport(tilt_x_deg=pose.tilt_x_deg, tilt_y_deg=pose.tilt_y_deg, offset_mm=pose.offset_mm,
+                        max_travel_mm=travel,
+                        travel_definition="largest |tip height - flat-plate tip height| (upper t, lower 0)"),
+        validation=as_validation(validation), plate_corners_mm=np.asarray(placement.corners_mm, dtype=float),
+        plate_size_mm=np.asarray(placement.size_mm, dtype=float), n_active=int(active.sum()), n_steps=int(n_steps),
+        inputs=PlanInputs.of(inputs or {}), springback=as_springback(springback_report),
+    )
+
+
+def section_reports(pose, max_travel_mm: float, validation, n_steps: int, active, corners_mm) -> PlanReports:
+    """The reports of one section of a sectional plan: its pose, validation, counts and plate corners.
+
+    Parameters
+    ----------
+    pose : Pose
+        The section's pose of least travel (``tilt_x_deg``, ``tilt_y_deg``, ``offset_mm``).
+    max_travel_mm : float
+        The section's largest travel, mm.
+    validation : dict or ValidationReport
+    n_steps : int
+    active : (rows, cols) bool
+    corners_mm : (4, 3) float
+        The plate's corners on the bed in this section, mm.
+    """
+    return PlanReports(pose=PoseReport(tilt_x_deg=pose.tilt_x_deg, tilt_y_deg=pose.tilt_y_deg,
+                                       offset_mm=pose.offset_mm, max_travel_mm=float(max_travel_mm)),
+                       validation=as_validation(validation), plate_corners_mm=np.asarray(corners_mm, dtype=float),
+                       n_active=int(np.sum(active)), n_steps=int(n_steps))
+
+
+def as_validation(validation) -> ValidationReport:
+    """The validation report of :func:`mppf.planning.validate.validate_steps` (its dict, with the planner's
+    additions) as a :class:`~mppf.model.job_reports.ValidationReport`."""
+    if isinstance(validation, ValidationReport):
+        return validation
+    return ValidationReport.from_doc(validation, "the validation report")
+
+
+def as_springback(report) -> SpringbackReport:
+    """The springback report (a dict as the planner builds it, or already typed) as a
+    :class:`~mppf.model.job_reports.SpringbackReport`."""
+    if isinstance(report, SpringbackReport):
+        return report
+    return SpringbackReport.from_doc(report, "the springback report")
 
 
 def check_trim(contact_xy_mm, outline_xy, press: PressConfig) -> float:
@@ -227,7 +272,7 @@ def check_trim(contact_xy_mm, outline_xy, press: PressConfig) -> float:
 
 
 def overbend_report(surface) -> dict:
-    """The springback report of an over-bent surface (``Job.extra["springback"]``).
+    """The springback report of an over-bent surface (the dict of a job's ``springback`` report).
 
     Parameters
     ----------

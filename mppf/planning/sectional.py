@@ -19,6 +19,7 @@ from mppf.core.transform import apply_tf, invert_tf, make_tf
 from mppf.geometry.surface import fit_plate
 from mppf.model.job import Job
 from mppf.model.job_parts import PlateLayout
+from mppf.model.job_provenance import SectionalSummary, TransitionReport
 from mppf.model.job_sections import Section
 from mppf.model.plan_options import PlanOptions
 from mppf.model.press import PressConfig
@@ -27,7 +28,7 @@ from mppf.planning.contact import PlacedSurface, tip_heights
 from mppf.planning.placement import FlatPlacement, fits_bed, lay_flat, register_design
 from mppf.planning.plan import SURFACE_DEGREE, SURFACE_KIND, first_press_material, first_press_report, plan_job
 from mppf.planning.plan_steps import (active_punches, check_plan_inputs, check_trim, least_travel_pose, on_grid,
-                                      planner_reports, steps_within_limit)
+                                      as_validation, planner_reports, section_reports, steps_within_limit)
 from mppf.planning.sectional_borders import BORDER_STEP_LIMIT_MM, border_steps, border_warnings, recovered_residual
 from mppf.planning.sectional_overbend import closer_fit, whole_target
 from mppf.planning.sections import (TRANSITION_PITCHES, earlier_weight, index_offset, mark_punches, shifted,
@@ -71,7 +72,7 @@ def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm:
     -------
     Job
         With ``sections`` in pressing order; the job's own steps, transforms and layout are
-        section 1's; ``extra["sectional"]`` the split and the largest step between sections of the
+        section 1's; ``sectional`` the split and the largest step between sections of the
         design recovered from the strokes.
     """
     design, flat, t, margin = check_plan_inputs(design_points, flat_points, press, thickness_mm, steps, material,
@@ -144,18 +145,16 @@ def _plan_section(index, cell, centre, earlier, zone, steps, placement, ctx) -> 
     placed = PlacedSurface(surface, tf_press_design @ fitted.frame.tf_world_local)
     marks = _marks(press, active & active_punches(press, net), centre, tf_press_flat, placed, fitted, ctx, on_bed)
     travel = float(max(np.abs(final_up[active] - t).max(), np.abs(final_lo[active]).max()))
-    extra = {"pose": {"tilt_x_deg": pose.tilt_x_deg, "tilt_y_deg": pose.tilt_y_deg, "offset_mm": pose.offset_mm,
-                      "max_travel_mm": travel},
-             "validation": validation, "n_steps": int(n_steps), "n_active": int(active.sum()),
-             "plate_corners_mm": (placement.corners_mm + [-centre[0], -centre[1], 0.0]).tolist(),
-             "transition": {"zone_mm": float(zone), "blended_punches": int((active & (weight < 1.0 - 1e-9)).sum())}}
+    reports = section_reports(pose, travel, validation, int(n_steps), active,
+                              placement.corners_mm + [-centre[0], -centre[1], 0.0])
+    transition = TransitionReport(zone_mm=float(zone), blended_punches=int((active & (weight < 1.0 - 1e-9)).sum()))
     section = Section(index=index, cell=tuple(cell), plate_centre_mm=-np.asarray(centre, dtype=float),
                       marks_plate_mm=marks[0], marks_flat_mm=marks[1], marks_press_mm=marks[2],
                       mark_punches=marks[3], steps=step_list, tf_press_design=tf_press_design,
                       tf_press_flat=tf_press_flat,
                       layout=PlateLayout(outline_mm=outline, net_outline_mm=net, margin_mm=margin,
                                          design_mid_mm=target, material=ctx["material"]),
-                      own_weight=np.where(active, weight, np.nan), extra=extra)
+                      own_weight=np.where(active, weight, np.nan), reports=reports, transition=transition)
     return {"section": section, "centre": np.asarray(centre, dtype=float), "active": active, "pose": pose,
             "delta": (d_up, d_lo), "contact": (upper, lower), "fitted": fitted}
 
@@ -255,30 +254,32 @@ def _assemble(planned, border, split, zone, fitted, registration, belongs, place
     sections = []
     for p, step in zip(planned, border):
         section = p["section"]
-        section.extra["transition"]["border_step_mm"] = step
-        sections.append(section)
+        sections.append(dataclasses.replace(section, transition=dataclasses.replace(section.transition,
+                                                                                    border_step_mm=float(step))))
     first = planned[0]
-    s1 = first["section"]
+    s1 = sections[0]
     shift = np.array([*s1.plate_centre_mm, 0.0])
     placed1 = FlatPlacement(s1.tf_press_flat, placement.flat_press_mm + shift, placement.size_mm,
                             placement.corners_mm + shift)
     final = s1.steps[-1]
-    extra = planner_reports(fitted, registration, belongs, first["pose"], final.upper_mm, final.lower_mm,
-                            first["active"], t, s1.extra["validation"], placed1, len(s1.steps), inputs,
-                            springback_report)
-    extra["pose"]["max_travel_mm"] = s1.extra["pose"]["max_travel_mm"]
-    extra["sectional"] = {
-        "n_sections": split.n_sections, "counts": list(split.counts), "spacing_mm": split.spacing_mm.tolist(),
-        "shared_mm": split.transition_mm.tolist(), "transition_zone_mm": float(zone),
-        "order": "along x from -x to +x; across back and forth at each position along",
-        "plate_size_mm": placement.size_mm.tolist(),
-        "n_steps_total": int(sum(len(s.steps) for s in sections)),
-        "max_travel_mm": float(max(s.extra["pose"]["max_travel_mm"] for s in sections)),
-        "max_border_step_mm": float(max(border)),
-        "warnings": border_warnings(border, bool(springback_report["enabled"])),
-    }
+    reports = planner_reports(fitted, registration, belongs, first["pose"], final.upper_mm, final.lower_mm,
+                              first["active"], t, s1.reports.validation, placed1, len(s1.steps), inputs,
+                              springback_report)
+    pose = dataclasses.replace(reports.pose, max_travel_mm=s1.reports.max_travel_mm)  # section 1's own travel
+    reports = dataclasses.replace(reports, pose=pose)
+    sectional = SectionalSummary(
+        n_sections=split.n_sections, counts=tuple(split.counts), spacing_mm=tuple(split.spacing_mm.tolist()),
+        shared_mm=tuple(split.transition_mm.tolist()), transition_zone_mm=float(zone),
+        order="along x from -x to +x; across back and forth at each position along",
+        plate_size_mm=np.asarray(placement.size_mm, dtype=float),
+        n_steps_total=int(sum(len(s.steps) for s in sections)),
+        max_travel_mm=float(max(s.reports.max_travel_mm for s in sections)),
+        max_border_step_mm=float(max(border)),
+        warnings=tuple(border_warnings(border, bool(springback_report["enabled"]))),
+    )
     return Job(press=press, thickness_mm=t, steps=s1.steps, tf_press_design=s1.tf_press_design,
-               tf_press_flat=s1.tf_press_flat, layout=s1.layout, extra=extra, sections=sections)
+               tf_press_flat=s1.tf_press_flat, layout=s1.layout, reports=reports, sections=sections,
+               sectional=sectional)
 
 
 def apply_section_corrections(job: Job, corrections, *, steps: int | None = None, blend: bool = True) -> Job:
@@ -304,8 +305,8 @@ def apply_section_corrections(job: Job, corrections, *, steps: int | None = None
         raise InputError(f"need one correction per section ({0 if job.sections is None else len(job.sections)}), "
                          f"got {len(corrections)}")
     press, t = job.press, job.thickness_mm
-    info = job.extra["sectional"]
-    plate_half, zone = np.asarray(info["plate_size_mm"]) / 2.0, float(info["transition_zone_mm"])
+    info = job.sectional
+    plate_half, zone = np.asarray(info.plate_size_mm) / 2.0, float(info.transition_zone_mm)
     done, sections = [], []
     for s, (c_up, c_lo) in zip(job.sections, corrections):
         c_up, c_lo = np.asarray(c_up, dtype=float), np.asarray(c_lo, dtype=float)
@@ -321,10 +322,10 @@ def apply_section_corrections(job: Job, corrections, *, steps: int | None = None
         step_list = steps_within_limit(up, lo, final.active, press, t, n)
         validation = validate_steps(step_list, press, t)
         done.append({"centre": centre, "active": final.active, "delta": (d_up, d_lo)})
-        sections.append(dataclasses.replace(s, steps=step_list, extra={**s.extra, "validation": validation,
-                                                                       "n_steps": int(n)}))
+        sections.append(dataclasses.replace(s, steps=step_list, reports=dataclasses.replace(
+            s.reports, validation=as_validation(validation), n_steps=int(n))))
     return dataclasses.replace(job, steps=sections[0].steps, sections=sections,
-                               extra={**job.extra, "validation": sections[0].extra["validation"]})
+                               reports=dataclasses.replace(job.reports, validation=sections[0].reports.validation))
 
 
 def sections_summary(job: Job) -> list[dict]:
@@ -334,7 +335,7 @@ def sections_summary(job: Job) -> list[dict]:
         out.append({"index": s.index, "cell": list(s.cell), "plate_centre_mm": s.plate_centre_mm.tolist(),
                     "marks_press_mm": s.marks_press_mm.tolist(), "marks_plate_mm": s.marks_plate_mm.tolist(),
                     "mark_punches": (s.mark_punches + job.press.label_base).tolist(), "n_steps": len(s.steps),
-                    "max_travel_mm": s.extra.get("pose", {}).get("max_travel_mm"),
-                    "border_step_mm": s.extra.get("transition", {}).get("border_step_mm"),
-                    "blended_punches": s.extra.get("transition", {}).get("blended_punches")})
+                    "max_travel_mm": s.reports.max_travel_mm,
+                    "border_step_mm": None if s.transition is None else s.transition.border_step_mm,
+                    "blended_punches": None if s.transition is None else s.transition.blended_punches})
     return out

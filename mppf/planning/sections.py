@@ -202,8 +202,8 @@ def press_sequence(job) -> list:
 def section_job(job, index: int):
     """One section of a sectional job as a single-piece :class:`~mppf.model.job.Job`.
 
-    Its steps, transforms and plate layout are the section's; ``extra`` holds the section's
-    reports, the job's inputs and ``section`` (``index``, ``of``, ``plate_centre_mm``,
+    Its steps, transforms and plate layout are the section's; its reports the section's with the
+    job's inputs, and ``piece`` says which section it is (``index``, ``of``, ``plate_centre_mm``,
     ``own_weight``), so the single-piece stages (the press driver, the comparison at the punches,
     the correction) can work on one section at a time.
 
@@ -212,20 +212,22 @@ def section_job(job, index: int):
     InputError
         The job has no sections, or no section ``index`` (1-based).
     """
+    import dataclasses
+
     from mppf.core.errors import InputError
     from mppf.model.job import Job
-    from mppf.model.job_parts import grid_to_json
+    from mppf.model.job_provenance import SectionPiece
 
     if job.sections is None:
         raise InputError("the job is a single piece (no sections)")
     if not 1 <= index <= len(job.sections):
         raise InputError(f"section {index} does not exist: the job has sections 1..{len(job.sections)}")
     s = job.sections[index - 1]
-    extra = {**s.extra, "inputs": job.extra.get("inputs", {}),
-             "section": {"index": s.index, "of": len(job.sections), "plate_centre_mm": s.plate_centre_mm.tolist(),
-                         "own_weight": grid_to_json(s.own_weight)}}
+    piece = SectionPiece(index=s.index, of=len(job.sections), plate_centre_mm=np.asarray(s.plate_centre_mm, float),
+                         own_weight=s.own_weight)
     return Job(press=job.press, thickness_mm=job.thickness_mm, steps=list(s.steps), tf_press_design=s.tf_press_design,
-               tf_press_flat=s.tf_press_flat, layout=s.layout, extra=extra)
+               tf_press_flat=s.tf_press_flat, layout=s.layout,
+               reports=dataclasses.replace(s.reports, inputs=job.reports.inputs), piece=piece)
 
 
 def placement_text(section, previous=None, label=None) -> str:

@@ -41,17 +41,17 @@ def test_plan_records_the_declared_uncertainty_in_the_sealed_job(cylinder_files,
     assert first["yield_uncertainty_pct"] == 10.0
     assert first["planned_yield_mpa"] == pytest.approx(211.5)
     job = load_job(job_path)  # the seal holds it
-    assert job.extra["springback"]["first_press"] == first
+    assert job.reports.springback.first_press.to_doc() == first
     assert job.layout.material.yield_stress_mpa == 235.0
-    loaded_weak = min(abs(r) for r in job.extra["springback"]["loaded_radii_mm"] if r)
+    loaded_weak = min(abs(r) for r in job.reports.springback.loaded_radii_mm if r)
     code, captured, job_path = _plan(cylinder_files, tmp_path, capsys)  # the default with --springback
     assert code == 0, captured.err
     job = load_job(job_path)
-    first = job.extra["springback"]["first_press"]
+    first = job.reports.springback.first_press.to_doc()
     assert first["yield_uncertainty_pct"] == DEFAULT_YIELD_UNCERTAINTY_PCT
     assert first["planned_yield_mpa"] == pytest.approx(235.0 * (1 - DEFAULT_YIELD_UNCERTAINTY_PCT / 100))
     # planned for the weakest plate of a 10 % range, the loaded arc is gentler than the default's
-    assert min(abs(r) for r in job.extra["springback"]["loaded_radii_mm"] if r) < loaded_weak - 50.0 \
+    assert min(abs(r) for r in job.reports.springback.loaded_radii_mm if r) < loaded_weak - 50.0 \
         * (10.0 - DEFAULT_YIELD_UNCERTAINTY_PCT) / 10.0
 
 
@@ -113,6 +113,6 @@ def test_loop_plans_its_first_press_for_the_weakest_plate_and_records_it(hull_di
     with History(history_path) as history:
         assert history.plate("P2-U10").settings["loop"]["yield_uncertainty_pct"] == 10.0
         job = load_job(history.cycle("P2-U10", 1).job_path)
-    first = job.extra["springback"]["first_press"]
+    first = job.reports.springback.first_press.to_doc()
     assert first["yield_uncertainty_pct"] == 10.0 and first["planned_yield_mpa"] == pytest.approx(211.5)
     assert job.layout.material.yield_stress_mpa == 235.0

@@ -43,8 +43,8 @@ def test_a_deliberate_change_is_resealed_and_audited(setup, capsys):
     out = " ".join(capsys.readouterr().out.split())
     assert "resealed" in out and "changed since: step 2" in out
     resealed = load_job(job)
-    assert resealed.extra["seal"]["reason"] == "row 3 col 4 lowered 0.5 mm after the trial"
-    assert resealed.extra["seal"]["sealed_by"].startswith("mppf reseal by ")
+    assert resealed.seal.reason == "row 3 col 4 lowered 0.5 mm after the trial"
+    assert resealed.seal.sealed_by.startswith("mppf reseal by ")
     with AuditLog(audit) as log:
         (entry,) = [e for e in log.entries() if e.action == "reseal"]
     assert entry.outcome == "ok" and entry.job_sha256 == resealed.sha256()
@@ -88,7 +88,7 @@ def test_an_older_unsealed_job_is_resealed_after_the_checks(setup, tmp_path, cap
     assert main(["reseal", str(job), "--reason", "checked by hand", "-o", str(tmp_path / "new.json"),
                  "--audit", str(audit)]) == 0
     assert "was unsealed" in capsys.readouterr().out
-    assert load_job(tmp_path / "new.json").extra["seal"]["reason"] == "checked by hand"
+    assert load_job(tmp_path / "new.json").seal.reason == "checked by hand"
 
 
 def test_without_an_installed_press_reseal_needs_press(setup, tmp_path, capsys):

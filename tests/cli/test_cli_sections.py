@@ -85,9 +85,9 @@ def test_a_real_press_without_a_terminal_is_refused_before_moving(job, monkeypat
 def test_the_plans_border_warnings_are_shown_before_the_sections(job):
     from dataclasses import replace
 
-    assert job.extra["sectional"]["warnings"] == []  # this plan blends within the limit
+    assert job.sectional.warnings == ()  # this plan blends within the limit
     warning = "section 2: its strokes step by 5.5 mm at its border with the plate formed before it (limit 1 mm)"
-    warned = replace(job, extra={**job.extra, "sectional": {**job.extra["sectional"], "warnings": [warning]}})
+    warned = replace(job, sectional=replace(job.sectional, warnings=(warning,)))
     plc, lines, shown = RecordingPress(), [], []
     assert _run(warned, plc, lines, shown, dry_run=True, yes=False) == 4
     assert lines[0] == f"warning: {warning}" and lines[1].startswith("section 1: place the plate")

@@ -38,7 +38,7 @@ def test_job_file_holds_everything_the_issue_lists(cylinder_files, tmp_path, cap
     assert main(["plan", str(design), str(flat), "--thickness", "16", "-o", str(job_path), "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     doc = json.loads(job_path.read_text())
-    assert doc["format"] == "mppf-job" and doc["version"] == 4 and doc["seal"]["algorithm"] == "HMAC-SHA256"
+    assert doc["format"] == "mppf-job" and doc["version"] == 5 and doc["seal"]["algorithm"] == "HMAC-SHA256"
     assert doc["press"] == PRESS.to_dict()
     for key in ("tf_press_design", "tf_press_flat"):
         tf = np.array(doc[key])

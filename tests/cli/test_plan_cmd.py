@@ -47,8 +47,8 @@ def test_plan_writes_job_plot_and_json(plate_files, tmp_path, capsys):
     assert summary["upper"]["active"] == int(job.steps[-1].active.sum())
     assert summary["job"]["sha256"] == job.sha256()
     assert len(summary["plate_corners_mm"]) == 4
-    assert job.extra["inputs"]["design"]["sha256"] == read_points(design).sha256
-    assert job.extra["inputs"]["flat"]["path"] == str(flat)
+    assert job.reports.inputs.design.sha256 == read_points(design).sha256
+    assert job.reports.inputs.flat.path == str(flat)
     assert png.stat().st_size > 10_000 and png.read_bytes()[:4] == b"\x89PNG"
 
 
@@ -66,7 +66,7 @@ def test_plan_with_springback(plate_files, tmp_path, capsys):
     assert main(["plan", str(design), str(flat), "--thickness", "20", "--springback", "--material", "ah36",
                  "-o", str(job_path), "--json"]) == 0
     job = load_job(job_path)
-    assert job.extra["springback"]["enabled"]
+    assert job.reports.springback.enabled
     assert job.layout.material.yield_stress_mpa == 355.0
 
 

@@ -62,7 +62,7 @@ def test_an_older_job_that_stored_the_net_corner_is_read_with_the_cut_corner(pla
     doc["plate"]["reference_corner_mm"] = reference_corner_xy(job.layout.net_outline_mm).tolist()
     old = job_from_dict(doc)
     np.testing.assert_allclose(old.layout.reference_corner_mm, job.layout.reference_corner_mm)
-    assert doc["version"] == 4  # a sealed job (this one as written before its seal)
+    assert doc["version"] == 5  # a sealed job (this one as written before its seal)
 
 
 @pytest.mark.parametrize("name, text", [

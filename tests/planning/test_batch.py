@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from mppf.core.errors import FileFormatError, InputError
@@ -83,7 +84,7 @@ def test_batch_plans_skips_and_reports_failures(plate_dir, tmp_path):
     assert by_name["B1"]["status"] == "failed" and "broken.csv" in by_name["B1"]["reason"]
     assert (tmp_path / "S1.flat.csv").is_file()  # unfolded in the batch
     long_job = load_job(tmp_path / "L1.job.json")
-    assert len(long_job.sections) == 2 and long_job.extra["batch"]["key"] == input_key(plates[1], _options(tmp_path))
+    assert len(long_job.sections) == 2 and long_job.batch.key == input_key(plates[1], _options(tmp_path))
     # run again: both finished plates are skipped, the broken one fails again
     again = run_batch(plates, _options(tmp_path))
     assert [r["status"] for r in again] == ["skipped", "skipped", "failed"]
@@ -161,12 +162,14 @@ def test_bundled_long_plates_are_the_analytic_ones_and_plan_in_a_batch(tmp_path)
 def test_a_plan_that_steps_at_its_section_borders_is_a_warning_in_the_summary():
     from types import SimpleNamespace
 
+    from mppf.model.job_provenance import SectionalSummary
+    from mppf.model.job_reports import PlanReports
     from mppf.planning.batch import Plate, summary_row
 
     warning = "section 2: its strokes step by 5.5 mm at its border with the plate formed before it (limit 1 mm)"
-    sectional = {"plate_size_mm": [4200.0, 2400.0], "n_steps_total": 4, "max_travel_mm": 120.0,
-                 "max_border_step_mm": 5.5, "warnings": [warning]}
-    job = SimpleNamespace(extra={"sectional": sectional}, sections=[object(), object()], steps=[])
+    sectional = SectionalSummary(plate_size_mm=np.array([4200.0, 2400.0]), n_steps_total=4, max_travel_mm=120.0,
+                                 max_border_step_mm=5.5, warnings=(warning,))
+    job = SimpleNamespace(sectional=sectional, reports=PlanReports(), sections=[object(), object()], steps=[])
     row = summary_row(Plate(name="p", design="p.csv", flat=None, thickness_mm=20.0), job, 0.01, ["flat: fine"], 1.0,
                       1.0)
     assert row["warnings"] == f"flat: fine; {warning}" and row["border_step_mm"] == 5.5 and row["sections"] == 2

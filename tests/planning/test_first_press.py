@@ -53,13 +53,13 @@ def test_weakest_material_lowers_only_the_yield_stress():
 
 def test_plan_for_the_weakest_plate_records_what_it_assumed(cylinder_plans):
     for pct, job in cylinder_plans.items():
-        first = job.extra["springback"]["first_press"]
+        first = job.reports.springback.first_press.to_doc()
         assert first["yield_uncertainty_pct"] == pct
         assert first["nominal_yield_mpa"] == 235.0
         assert first["planned_yield_mpa"] == pytest.approx(235.0 * (1 - pct / 100))
         assert job.layout.material == STEEL  # the correction's nominal material stays the nominal one
     # the over-bent arc is the one the springback law asks for the weakest plate: a larger loaded radius
-    radii = {pct: min(abs(r) for r in job.extra["springback"]["loaded_radii_mm"] if r)
+    radii = {pct: min(abs(r) for r in job.reports.springback.loaded_radii_mm if r)
              for pct, job in cylinder_plans.items()}
     for pct, radius in radii.items():
         expected = 1.0 / float(loaded_curvature(1.0 / RADIUS_MM, T, weakest_material(STEEL, pct)))
@@ -96,7 +96,7 @@ def test_bad_uncertainty_is_refused_before_planning(pct):
 def test_uncertainty_without_springback_changes_nothing():
     flat = developed_cylinder(1e9, 2400.0, 1600.0)
     job = plan_job(flat, flat, PRESS, T, PlanOptions(yield_uncertainty_pct=10.0))
-    assert job.extra["springback"] == {"enabled": False}
+    assert job.reports.springback_doc() == {"enabled": False}
 
 
 def test_the_loop_default_is_the_documented_one():
@@ -117,7 +117,7 @@ def test_a_plate_planned_in_sections_is_under_bent_the_same_way():
     assert all(job.sections for job in jobs.values())  # larger than the bed
     radii = {}
     for pct, job in jobs.items():
-        report = job.extra["springback"]
+        report = job.reports.springback_doc()
         assert report["first_press"]["planned_yield_mpa"] == pytest.approx(235.0 * (1 - pct / 100))
         assert all(section.layout.material == STEEL for section in job.sections)
         radii[pct] = min(abs(r) for r in report["loaded_radii_mm"] if r)

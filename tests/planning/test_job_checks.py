@@ -77,8 +77,8 @@ def test_repeated_or_removed_steps_and_a_failed_validation_are_refused(single):
     if len(steps) > 1:
         with pytest.raises(ConfigError, match=r"n_steps is \d+ but the job holds"):
             check_plan(dataclasses.replace(single, steps=steps[:-1]))
-    failed = dataclasses.replace(single, extra={**single.extra, "validation": {**single.extra["validation"],
-                                                                              "passed": False}})
+    failed = dataclasses.replace(single, reports=dataclasses.replace(
+        single.reports, validation=dataclasses.replace(single.reports.validation, passed=False)))
     with pytest.raises(ConfigError, match="validation did not pass"):
         check_plan(failed)
 

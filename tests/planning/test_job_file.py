@@ -9,6 +9,7 @@ import pytest
 
 from mppf.core.errors import ConfigError, InputError
 from mppf.model.job import JOB_FORMAT, JOB_VERSION, Job, job_from_dict
+from mppf.model.job_reports import InputFile, PlanInputs, PlanReports, RegistrationReport
 from mppf.model.job_parts import StepStrokes
 from mppf.planning.job import load_job, save_job
 from mppf.model.press import example_press_path, load_press
@@ -31,13 +32,14 @@ def _job(n_steps: int = 2) -> Job:
     rot = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
     return Job(press=PRESS, thickness_mm=T, steps=steps, tf_press_design=make_tf(rot, [1.0, 2.0, 3.5]),
                tf_press_flat=make_tf(translation=[0.0, 0.0, T / 2]),
-               extra={"registration": {"method": "paired"}, "inputs": {"design": {"sha256": "ab"}}})
+               reports=PlanReports(registration=RegistrationReport(method="paired"),
+                                   inputs=PlanInputs(design=InputFile(sha256="ab"))))
 
 
 def test_document_layout():
     job = _job()
     doc = json.loads(job.to_json())
-    assert doc["format"] == JOB_FORMAT == "mppf-job" and doc["version"] == JOB_VERSION == 4
+    assert doc["format"] == JOB_FORMAT == "mppf-job" and doc["version"] == JOB_VERSION == 5
     assert doc["press"] == PRESS.to_dict()
     assert doc["thickness_mm"] == T
     # 4 x 4 row-major nested lists: the translation is the last column of the first three rows
@@ -69,7 +71,7 @@ def test_round_trip_and_hash(tmp_path):
         np.testing.assert_array_equal(a.active, b.active)
         np.testing.assert_allclose(a.upper_mm, b.upper_mm, atol=5e-5, equal_nan=True)
         np.testing.assert_allclose(a.lower_mm, b.lower_mm, atol=5e-5, equal_nan=True)
-    assert back.extra == job.extra
+    assert back.reports.to_doc() == job.reports.to_doc() and back.seal == job.seal is not None
     # the rounded file reads back to the same document, so the hash is stable
     assert back.sha256() == job.sha256() == load_job(save_job(back, tmp_path / "again.json")).sha256()
 
@@ -111,7 +113,7 @@ def _set(doc, path, value):
     "path, value, message",
     [
         (("format",), "something", "not an mppf job file (format 'something')"),
-        (("version",), 5, "job file version 5 is not supported"),
+        (("version",), 6, "job file version 6 is not supported"),
         (("press",), KeyError, "missing key 'press'"),
         (("thickness_mm",), KeyError, "missing key 'thickness_mm'"),
         (("steps",), KeyError, "missing key 'steps'"),
@@ -191,7 +193,7 @@ def test_plate_layout_round_trips_and_version_1_jobs_are_read(tmp_path):
     old = job_from_dict(doc)
     assert np.allclose(old.layout.outline_mm, back.layout.outline_mm) and old.layout.margin_mm == 100.0
     assert np.allclose(old.layout.reference_corner_mm, [-600.0, -360.0])
-    assert "plate_outline_mm" not in old.extra and old.extra["registration"] == {"method": "paired"}
+    assert old.reports.registration == RegistrationReport(method="paired", details={})
     # an old job without an outline has no layout
     for key in ("plate_outline_mm", "net_outline_mm", "margin_mm", "design_mid_mm", "material"):
         doc.pop(key)

@@ -83,7 +83,7 @@ def test_travel_is_minimal_and_centred(cylinder_job):
     travel = np.concatenate([final.upper_mm[act] - T, final.lower_mm[act]])
     # minimax: the largest upward and downward travel are equal
     assert travel.max() == pytest.approx(-travel.min(), abs=1e-6)
-    assert job.extra["pose"]["max_travel_mm"] == pytest.approx(np.abs(travel).max(), abs=1e-6)
+    assert job.reports.pose.max_travel_mm == pytest.approx(np.abs(travel).max(), abs=1e-6)
 
 
 def test_flat_plate_gives_flat_strokes():
@@ -95,7 +95,7 @@ def test_flat_plate_gives_flat_strokes():
     np.testing.assert_allclose(final.upper_mm[act], T, atol=1e-6)
     np.testing.assert_allclose(final.lower_mm[act], 0.0, atol=1e-6)
     # the flat lies centred on the bed, bottom skin at z = 0
-    corners = np.array(job.extra["plate_corners_mm"])
+    corners = np.array(job.reports.plate_corners_mm)
     np.testing.assert_allclose(np.abs(corners[:, :2]), [[1200.0, 800.0]] * 4, atol=1e-6)
     np.testing.assert_allclose(corners[:, 2], 0.0)
 
@@ -115,7 +115,7 @@ def test_multi_step_is_monotonic_and_ends_at_target(cylinder_job):
     job1, _ = cylinder_job
     flat = developed_cylinder(3000.0, 2800.0, 1500.0)
     job = plan_job(cylinder_points(3000.0, 2800.0, 1500.0), flat, PRESS, T, PlanOptions(steps=4))
-    assert len(job.steps) == 4 and job.extra["n_steps"] == 4
+    assert len(job.steps) == 4 and job.reports.n_steps == 4
     act = job.steps[-1].active
     np.testing.assert_allclose(job.steps[-1].upper_mm[act], job1.steps[-1].upper_mm[act], atol=1e-9)
     ups = np.array([s.upper_mm[act] for s in job.steps])
@@ -131,7 +131,7 @@ def test_step_count_follows_the_dimpling_limit():
     job = plan_job(design, flat, strict, T)
     n = len(job.steps)
     assert n > 1
-    assert job.extra["validation"]["max_neighbour_step_mm"] <= 5.0 + 1e-6
+    assert job.reports.validation.max_neighbour_step_mm <= 5.0 + 1e-6
     # one step fewer would exceed the limit: the validation refuses it
     with pytest.raises(LimitError, match="dimpling limit"):
         plan_job(design, flat, strict, T, PlanOptions(steps=n - 1))
@@ -145,7 +145,7 @@ def test_springback_over_bends_a_cylinder_then_refines_on_the_plate_model():
     job = plan_job(design, flat, PRESS, T, PlanOptions(material=steel, springback=True))
     loaded_radius = 1.0 / float(loaded_curvature(1.0 / radius, T, steel))
     assert loaded_radius < radius
-    report = job.extra["springback"]
+    report = job.reports.springback_doc()
     assert report["enabled"]
     # the first guess: the principal arc over-bent to the loaded radius
     assert min(abs(r) for r in report["loaded_radii_mm"] if r) == pytest.approx(loaded_radius, rel=1e-3)
@@ -175,7 +175,7 @@ def test_trim_margin_adds_the_punches_under_the_excess_band():
     net = plan_job(design, flat, PRESS, T)
     grown = plan_job(design, flat, PRESS, T, PlanOptions(margin_mm=100.0))
     assert net.layout.margin_mm == 0.0 and grown.layout.margin_mm == 100.0
-    assert grown.extra["n_active"] > net.extra["n_active"]
+    assert grown.reports.n_active > net.reports.n_active
     assert np.all(grown.steps[-1].active[net.steps[-1].active])  # the net punches stay
     outline = np.asarray(grown.layout.outline_mm)
     net_outline = np.asarray(grown.layout.net_outline_mm)
@@ -235,7 +235,7 @@ def test_unpaired_flat_uses_icp():
     design = cylinder_points(radius, 2800.0, 1500.0)
     flat = developed_cylinder(radius, 2800.0, 1500.0, n_u=37, n_v=27)
     job = plan_job(design, flat, PRESS, T)
-    assert job.extra["registration"]["method"] == "point"
+    assert job.reports.registration.method == "point"
     exp_up, _ = _expected_cylinder_tips(job, radius)
     act = job.steps[-1].active
     np.testing.assert_allclose(job.steps[-1].upper_mm[act], exp_up[act], atol=0.01)
@@ -251,8 +251,9 @@ def test_job_round_trip(tmp_path, cylinder_job):
         np.testing.assert_allclose(a.upper_mm, b.upper_mm, atol=1e-4, equal_nan=True)
         np.testing.assert_allclose(a.lower_mm, b.lower_mm, atol=1e-4, equal_nan=True)
     np.testing.assert_allclose(back.tf_press_design, job.tf_press_design)
-    for key in ("registration", "validation", "plate_corners_mm", "inputs", "springback", "n_steps", "pose"):
-        assert key in back.extra
+    for name in ("registration", "validation", "plate_corners_mm", "inputs", "springback", "n_steps", "pose"):
+        assert getattr(back.reports, name) is not None
+    assert back.reports.to_doc() == job.reports.to_doc()
     assert plan_summary(back)["n_steps"] == len(job.steps)
 
 
@@ -265,7 +266,7 @@ HULL = ["K1_midbody_bilge.csv", "K2_fwd_bilge_convex.csv", "K3_stern_saddle.csv"
 def test_hull_patch_plans_within_the_example_press(hull_dir, name):
     design = read_points(hull_dir / name).points
     job = plan_job(design, unfold(design).flat, PRESS, T)
-    validation = job.extra["validation"]
+    validation = job.reports.validation.to_doc()
     assert validation["passed"]
     for step in job.steps:
         act = step.active
@@ -273,8 +274,8 @@ def test_hull_patch_plans_within_the_example_press(hull_dir, name):
         assert PRESS.upper.min_mm <= step.upper_mm[act].min() and step.upper_mm[act].max() <= PRESS.upper.max_mm
         assert PRESS.lower.min_mm <= step.lower_mm[act].min() and step.lower_mm[act].max() <= PRESS.lower.max_mm
         assert (step.upper_mm - step.lower_mm)[act].min() >= T - 0.01
-    assert job.extra["validation"]["contact_exact_fraction"] == 1.0
-    assert job.extra["registration"]["neighbour_strain_p95_pct"] < 0.5
+    assert job.reports.validation.contact_exact_fraction == 1.0
+    assert job.reports.registration.neighbour_strain_p95_pct < 0.5
 
 
 def test_edge_contacts_use_the_trim_allowance():
@@ -283,7 +284,7 @@ def test_edge_contacts_use_the_trim_allowance():
     design = cylinder_points(2000.0, 2800.0, 1380.0)
     flat = developed_cylinder(2000.0, 2800.0, 1380.0)
     job = plan_job(design, flat, PRESS, T)
-    beyond = job.extra["validation"]["contact_beyond_edge_mm"]
+    beyond = job.reports.validation.contact_beyond_edge_mm
     assert 1.0 < beyond < PRESS.trim_allowance_mm
     with pytest.raises(GeometryError, match="past the plate edge"):
         plan_job(design, flat, _press(forming__trim_allowance_mm=beyond / 2), T)

@@ -60,7 +60,7 @@ def test_a_saved_job_is_sealed_and_loads_and_its_hash_is_the_files(job_path):
     import hashlib
 
     doc = json.loads(job_path.read_text())
-    assert doc["version"] == 4 and doc["seal"]["algorithm"] == "HMAC-SHA256"
+    assert doc["version"] == 5 and doc["seal"]["algorithm"] == "HMAC-SHA256"
     assert doc["seal"]["key_id"] == key_id(load_key())
     job = load_job(job_path)
     assert job.sha256() == hashlib.sha256(job_path.read_bytes()).hexdigest()
@@ -96,7 +96,7 @@ def test_a_removed_seal_another_key_and_an_old_job(job_path, tmp_path):
     del doc["seal"]
     (tmp_path / "bare.json").write_text(json.dumps(doc))
     with pytest.raises(ConfigError, match="the job has no seal"):
-        load_job(tmp_path / "bare.json", require_seal=False)  # a version-4 job without its seal
+        load_job(tmp_path / "bare.json", require_seal=False)  # a version-5 job without its seal
     other = seal_document(doc, bytes(32), sealed_by="elsewhere")
     (tmp_path / "other.json").write_text(json.dumps(other))
     with pytest.raises(ConfigError, match="sealed by another installation"):

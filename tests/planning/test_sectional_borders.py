@@ -21,4 +21,4 @@ def test_a_flat_bottom_plate_longer_than_the_bed_is_planned_in_sections():
     design = flat + np.array([93800.0, 2300.0, 0.0])  # in hull coordinates, as cut at the keel
     job = plan_plate(design, flat, load_press(example_press_path()), 20.0)
     assert len(job.sections) > 1
-    assert job.extra["sectional"]["max_border_step_mm"] < 0.01
+    assert job.sectional.max_border_step_mm < 0.01

@@ -157,7 +157,7 @@ def test_cylinder_recovered_design_has_no_step_between_sections(press, cylinder_
             if steps:
                 assert max(steps) < 0.2, (j + 1, k + 1)
     assert compared > 1000
-    assert cylinder_job.extra["sectional"]["max_border_step_mm"] < 0.2
+    assert cylinder_job.sectional.max_border_step_mm < 0.2
 
 
 def test_each_section_has_its_placement_and_marks(press, cylinder_job):
@@ -194,7 +194,7 @@ def test_each_section_has_its_placement_and_marks(press, cylinder_job):
 
 def test_sectional_job_file_round_trip_and_versions(press, cylinder_job, tmp_path):
     doc = json.loads(cylinder_job.to_json())
-    assert doc["version"] == JOB_VERSION == 4 and SECTIONS_VERSION == 3 and len(doc["sections"]) == 6
+    assert doc["version"] == JOB_VERSION == 5 and SECTIONS_VERSION == 3 and len(doc["sections"]) == 6
     back = job_from_dict(doc)
     assert back.to_json() == cylinder_job.to_json()
     assert [len(s.steps) for s in back.sections] == [len(s.steps) for s in cylinder_job.sections]
@@ -213,7 +213,7 @@ def test_sectional_job_file_round_trip_and_versions(press, cylinder_job, tmp_pat
 def test_a_plate_that_fits_is_planned_in_one_piece(press):
     design, flat = cylinder_plate(3000.0, 2000.0, 8000.0, spacing_mm=100.0)
     one = plan_plate(design, flat, press, T_MM)
-    assert one.sections is None and json.loads(one.to_json())["version"] == JOB_VERSION == 4
+    assert one.sections is None and json.loads(one.to_json())["version"] == JOB_VERSION == 5
     assert one.to_json() == plan_job(design, flat, press, T_MM).to_json()
     long_design, long_flat = cylinder_plate(5000.0, 2000.0, 8000.0, spacing_mm=100.0)
     with pytest.raises(LimitError, match="does not fit on the bed"):
@@ -225,14 +225,14 @@ def test_twisted_plate_in_sections_matches_its_exact_surface(press):
     design, local = twisted_plate(length, width, twist, spacing_mm=100.0)
     flat = unfold(design).flat
     job = plan_sectional(design, flat, press, T_MM)
-    assert job.extra["sectional"]["counts"] == [3, 1]
+    assert job.sectional.to_doc()["counts"] == [3, 1]
     surface = TwistSurface(4.0 * twist / (length * width))
     for section in job.sections:
         up, lo = _exact_tips(press, section, surface, hull_pose())
         final = section.steps[-1]
         assert np.abs(final.upper_mm[final.active] - up).max() < 0.2
         assert np.abs(final.lower_mm[final.active] - lo).max() < 0.2
-    assert job.extra["sectional"]["max_border_step_mm"] < 0.2
+    assert job.sectional.max_border_step_mm < 0.2
 
 
 @pytest.fixture(scope="module")
@@ -268,7 +268,7 @@ def test_springback_corrections_blend_in_the_transition_zone(press, springback_j
     there = LinearNDInterpolator(held[0][0][first.steps[-1].active], held[0][1][first.steps[-1].active])(where)
     steps = np.abs(held[1][1][border[:, 0], border[:, 1]] - there)
     assert np.isfinite(steps).sum() >= 10 and np.nanmax(steps) < 0.2
-    assert springback_job.extra["sectional"]["max_border_step_mm"] < 0.2
+    assert springback_job.sectional.max_border_step_mm < 0.2
 
 
 def test_one_section_as_a_single_piece_job(press, cylinder_job):
@@ -279,7 +279,7 @@ def test_one_section_as_a_single_piece_job(press, cylinder_job):
     third = section_job(cylinder_job, 3)
     assert third.sections is None and third.steps == cylinder_job.sections[2].steps
     assert np.array_equal(third.tf_press_design, cylinder_job.sections[2].tf_press_design)
-    assert third.extra["section"]["index"] == 3 and third.extra["section"]["of"] == 6
+    assert third.piece.index == 3 and third.piece.of == 6
     back = job_from_dict(json.loads(third.to_json()))
     assert back.layout.net_outline_mm.shape == cylinder_job.sections[2].layout.net_outline_mm.shape
     assert validate_job(back)["min_gap_mm"] >= T_MM - 0.01
@@ -322,7 +322,7 @@ def test_corrections_per_section_blend_like_the_plan(press, cylinder_job):
     act = planned.steps[-1].active
     diff = second.steps[-1].upper_mm[act] - planned.steps[-1].upper_mm[act]
     assert np.allclose(diff, 2.0 * (1.0 - planned.own_weight[act]), atol=1e-9)
-    assert first.sections[1].extra["validation"]["min_gap_mm"] >= T_MM - 0.01
+    assert first.sections[1].reports.validation.min_gap_mm >= T_MM - 0.01
     assert json.loads(first.to_json())["version"] == JOB_VERSION
 
 
@@ -353,16 +353,16 @@ def test_sections_whose_over_bends_disagree_are_warned_of(press, springback_job)
     from mppf.model.material import MATERIALS
     from mppf.planning.sectional import BORDER_STEP_LIMIT_MM, border_warnings
 
-    assert springback_job.extra["sectional"]["warnings"] == []
+    assert springback_job.sectional.warnings == ()
     design, flat = cylinder_plate(4200.0, 2400.0, RADIUS_MM, spacing_mm=200.0)
     job = plan_plate(design, flat, press, T_MM, PlanOptions(springback=True, material=MATERIALS["steel"]))
-    sectional = job.extra["sectional"]
+    sectional = job.sectional.to_doc()
     assert sectional["counts"] == [2, 2] and sectional["max_border_step_mm"] < 0.2 and sectional["warnings"] == []
     kcs = read_points(LONG / "kcs_stern_bilge_9000x2400.csv").points
     job = plan_plate(kcs, unfold(kcs).flat, press, T_MM, PlanOptions(springback=True, material=MATERIALS["steel"]))
-    sectional = job.extra["sectional"]
+    sectional = job.sectional.to_doc()
     assert sectional["max_border_step_mm"] > BORDER_STEP_LIMIT_MM
     warned = sectional["warnings"]
     assert warned and all("step" in w and "--springback" in w for w in warned)
-    assert len(warned) == sum(s.extra["transition"]["border_step_mm"] > BORDER_STEP_LIMIT_MM for s in job.sections)
+    assert len(warned) == sum(s.transition.border_step_mm > BORDER_STEP_LIMIT_MM for s in job.sections)
     assert border_warnings([0.0, 0.5], True) == [] and "kink" in border_warnings([0.0, 2.0], False)[0]

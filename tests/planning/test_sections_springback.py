@@ -87,13 +87,13 @@ def _edge(press, section):
 
 def test_every_section_presses_the_whole_plates_one_over_bent_target(press, case):
     job = case["job"]
-    assert job.extra["sectional"]["counts"] == case["counts"]
+    assert job.sectional.to_doc()["counts"] == case["counts"]
     for section in job.sections:
         up, lo = _target_tips(press, section, case["loaded"])
         final = section.steps[-1]
         assert np.abs(final.upper_mm[final.active] - up).max() < 0.2, section.index
         assert np.abs(final.lower_mm[final.active] - lo).max() < 0.2, section.index
-    radii = job.extra["springback"]
+    radii = job.reports.springback_doc()
     assert radii["enabled"] and "one over-bent target for the whole plate" in radii["method"]
     assert radii["loaded_radii_mm"][0] == pytest.approx(case["loaded"], rel=2e-3)
     # the over-bend is real: the strokes are far from the design's own (the plan without springback)
@@ -118,7 +118,7 @@ def test_the_recovered_target_has_no_step_at_section_borders(press, case):
                 worst = max(worst, float(np.abs(height[border][found] - there[found]).max()))
     assert compared > 50
     assert worst < 0.5 * BORDER_STEP_LIMIT_MM
-    sectional = job.extra["sectional"]
+    sectional = job.sectional.to_doc()
     assert sectional["max_border_step_mm"] < BORDER_STEP_LIMIT_MM and sectional["warnings"] == []
 
 
@@ -135,5 +135,5 @@ def test_the_marks_are_where_their_material_lies_on_the_target(press, case):
 
 def test_without_springback_the_sections_press_the_design(press, case):
     plain = case["plain"]
-    assert plain.extra["springback"] == {"enabled": False}
-    assert plain.extra["sectional"]["max_border_step_mm"] < 0.1
+    assert plain.reports.springback_doc() == {"enabled": False}
+    assert plain.sectional.max_border_step_mm < 0.1
