@@ -38,7 +38,9 @@ from __future__ import annotations
 
 import json
 import os
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -89,18 +91,12 @@ def plate_outline_xy(job: Job, flat_points) -> np.ndarray:
     return convex_outline(apply_tf(job.tf_press_flat, flat_points)[:, :2], "the flat plate on the press")
 
 
-class SimulatedPlateScanner:
-    """A :class:`mppf.core.scanner.Scanner` that presses and scans a simulated plate.
+@dataclass(frozen=True)
+class ShopOptions:
+    """The simulated plate and scanner of a :class:`SimulatedPlateScanner`.
 
-    Parameters
+    Attributes
     ----------
-    press : PressConfig
-    thickness_mm : float
-        Nominal thickness; the plate's true one scatters around it.
-    outline_xy_mm : (k, 2) float
-        The plate's outline on the press (:func:`plate_outline_xy`).
-    seed : int
-        Seeds the plate's true properties and every scan.
     material : Material
         Nominal material (the steel plate's nominal steel unless ``steel`` is given).
     plate_model : str
@@ -114,26 +110,55 @@ class SimulatedPlateScanner:
         (``yield_scatter``, ``thickness_scatter``), or of :class:`mppf.sim.fe.plate.FEPlate` (``scatter``,
         ``compliance``, ``cells_per_pitch``, ``layers``).
     noise_mm, occlusion_fraction, outlier_fraction : float
-        Scanner imperfections (see :class:`mppf.sim.scanner.SimulatedScanner`).
+        Scanner imperfections (mm; shares of the points; see :class:`mppf.sim.scanner.SimulatedScanner`).
     spacing_mm : float
-        The scanner's point spacing on the plate (mm; :class:`mppf.sim.scanner.SimulatedScanner`'s default 20).
+        The scanner's point spacing on the plate, mm.
     suffix : str
         Scan file format (".ply" or ".csv").
     reference_mark : bool
         Pick the plate's reference-corner mark (:func:`mppf.model.job_parts.reference_corner_xy` of the
         outline as cut, margin included) in every scan and write it next to the scan (``<scan>.mark.json``), as
         the operator does on the shop floor; the scan's pose stays arbitrary.
+    """
+
+    material: Material = field(default_factory=Material)
+    plate_model: str = "steel"
+    steel: Any = None
+    plate_options: dict | None = None
+    noise_mm: float = 0.3
+    occlusion_fraction: float = 0.2
+    outlier_fraction: float = 0.01
+    spacing_mm: float = 20.0
+    suffix: str = ".ply"
+    reference_mark: bool = True
+
+
+class SimulatedPlateScanner:
+    """A :class:`mppf.core.scanner.Scanner` that presses and scans a simulated plate.
+
+    Parameters
+    ----------
+    press : PressConfig
+    thickness_mm : float
+        Nominal thickness; the plate's true one scatters around it.
+    outline_xy_mm : (k, 2) float
+        The plate's outline on the press (:func:`plate_outline_xy`).
+    seed : int
+        Seeds the plate's true properties and every scan.
     net_outline_xy_mm : (j, 2) float, optional
         The net plate's outline (without the trim margin); default ``outline_xy_mm``.
+    **options
+        The fields of :class:`ShopOptions`: the plate (``material``, ``plate_model``,
+        ``steel``, ``plate_options``) and the scanner (``noise_mm``, ``occlusion_fraction``,
+        ``outlier_fraction``, ``spacing_mm``, ``suffix``, ``reference_mark``).
     """
 
     folder = None  # no station folder: its scans are made here (the Scanner protocol)
 
-    def __init__(self, press, thickness_mm: float, outline_xy_mm, *, seed: int = 0,
-                 material: Material = Material(), plate_model: str = "steel", steel=None,
-                 plate_options: dict | None = None, noise_mm: float = 0.3, occlusion_fraction: float = 0.2,
-                 outlier_fraction: float = 0.01, spacing_mm: float = 20.0, suffix: str = ".ply",
-                 reference_mark: bool = True, net_outline_xy_mm=None):
+    def __init__(self, press, thickness_mm: float, outline_xy_mm, *, seed: int = 0, net_outline_xy_mm=None,
+                 **options):
+        opts = ShopOptions(**options)
+        plate_model = opts.plate_model
         if plate_model not in PLATE_MODELS:
             raise InputError(f"unknown simulated plate model {plate_model!r}", hint=f"use {' or '.join(PLATE_MODELS)}")
         if plate_model == "fe":
@@ -144,19 +169,19 @@ class SimulatedPlateScanner:
         self.thickness_mm = float(thickness_mm)
         self.outline_xy_mm = np.asarray(outline_xy_mm, dtype=float)
         self.seed = int(seed)
-        self.material = material
+        self.material = opts.material
         self.plate_model = plate_model
-        self.steel = steel
-        self.plate_options = dict(plate_options or {})
-        self.noise_mm = noise_mm
-        self.occlusion_fraction = occlusion_fraction
-        self.outlier_fraction = outlier_fraction
-        self.spacing_mm = float(spacing_mm)
-        self.suffix = suffix
+        self.steel = opts.steel
+        self.plate_options = dict(opts.plate_options or {})
+        self.noise_mm = opts.noise_mm
+        self.occlusion_fraction = opts.occlusion_fraction
+        self.outlier_fraction = opts.outlier_fraction
+        self.spacing_mm = float(opts.spacing_mm)
+        self.suffix = opts.suffix
         self.net_outline_xy_mm = (self.outline_xy_mm if net_outline_xy_mm is None
                                   else np.asarray(net_outline_xy_mm, dtype=float))
         # the mark is on the corner of the plate as cut (mppf.model.job_parts.PlateLayout.reference_corner_mm)
-        self.mark_xy_mm = reference_corner_xy(self.outline_xy_mm) if reference_mark else None
+        self.mark_xy_mm = reference_corner_xy(self.outline_xy_mm) if opts.reference_mark else None
         self.plate = self.new_plate()
         self.pressed: list[list[int]] = []  # (cycle, step) pressed on self.plate, in order
         self.last_formed = None
