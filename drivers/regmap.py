@@ -76,14 +76,19 @@ def _load_fields(data: dict, src: str) -> dict:
     return {f.name: f for f in ordered}
 
 
+CODE_FIELDS = {"from": "from_states"}
+"""Keys of a code table entry whose :class:`Code` field has another name."""
+
+
 def _table(data: dict, key: str, what: str, src: str, extra: tuple = ()) -> CodeTable:
     entries = []
     for i, entry in enumerate(data.get(key, [])):
         where = f"{src}: [[{key}]] #{i + 1}"
         text_key = "text" if "text" in entry else "does" if "does" in entry else "entered"
+        fields = {CODE_FIELDS.get(k, k): tuple(_need(entry, k, list, where)) if k in ("commands", "checks")
+                  else _need(entry, k, str, where) for k in extra}
         entries.append(Code(_need(entry, "code", int, where), _need(entry, "name", str, where),
-                            _need(entry, text_key, str, where),
-                            {k: _need(entry, k, list if k in ("commands", "checks") else str, where) for k in extra}))
+                            _need(entry, text_key, str, where), **fields))
     if not entries:
         raise ConfigError(f"{src}: no [[{key}]] entries")
     return CodeTable(what, entries, src)
@@ -123,17 +128,17 @@ def _check_consistency(rmap: RegisterMap, src: str) -> None:
             raise ConfigError(f"{src}: {first}..{last} must be contiguous (one request)")
     precedence = [r.name for r in rmap.results]
     for command in rmap.commands:
-        checks = command["checks"]
+        checks = list(command.checks)
         unknown = [c for c in checks if c not in rmap.results]
         if unknown:
             raise ConfigError(f"{src}: command {command.name} checks unknown results {unknown}")
         if checks != sorted(checks, key=precedence.index):
             raise ConfigError(f"{src}: the checks of {command.name} are not in the order of [[result]]")
     for state in rmap.states:
-        unknown = [c for c in state["commands"] if c not in rmap.commands]
-        if unknown or state["setpoints"] not in ("accept", "refuse"):
+        unknown = [c for c in state.commands if c not in rmap.commands]
+        if unknown or state.setpoints not in ("accept", "refuse"):
             raise ConfigError(f"{src}: state {state.name}: unknown commands {unknown} or setpoints "
-                              f"{state['setpoints']!r} (accept or refuse)")
+                              f"{state.setpoints!r} (accept or refuse)")
     if rmap.max_write_registers % 2 or rmap.max_read_registers % 2:
         raise ConfigError(f"{src}: [map] max_write_registers and max_read_registers must be even")
 

@@ -76,12 +76,12 @@ def render_markdown(rmap) -> str:
                      for f in rmap.fields.values()], "---:|---:|---|---|---|---|---")
     lines += text(prose.SCAN) + text(prose.STATES)
     lines += _table(["code", "state", "entered when", "setpoint writes", "commands accepted"],
-                    [(s.code, s.name, s.text, "taken (state LOADED)" if s["setpoints"] == "accept"
-                      else "undone and counted", ", ".join(s["commands"])) for s in rmap.states],
+                    [(s.code, s.name, s.text, "taken (state LOADED)" if s.setpoints == "accept"
+                      else "undone and counted", ", ".join(s.commands)) for s in rmap.states],
                     "---:|---|---|---|---")
     lines += text(prose.STATE_NOTES) + text(prose.COMMANDS)
     lines += _table(["code", "command", "from", "arguments", "does", "checks (in this order)"],
-                    [(c.code, c.name, c["from"], c["arguments"], c.text, ", ".join(c["checks"]))
+                    [(c.code, c.name, c.from_states, c.arguments, c.text, ", ".join(c.checks))
                      for c in rmap.commands], "---:|---|---|---|---|---")
     lines += text(prose.RESULTS)
     lines += _table(["code", "result", "meaning"], [(r.code, r.name, r.text) for r in rmap.results], "---:|---|---")
@@ -99,7 +99,7 @@ def render_markdown(rmap) -> str:
                      for name, bit in sorted(rmap.status_bits.items(), key=lambda kv: kv[1])], "---:|---|---")
     lines += ["`fault_code`: a latched fault puts the PLC in FAULT until RESET.", ""]
     lines += _table(["code", "fault", "the punches", "meaning"],
-                    [(f.code, f.name, f["punches"], f.text) for f in rmap.faults], "---:|---|---|---")
+                    [(f.code, f.name, f.punches, f.text) for f in rmap.faults], "---:|---|---|---")
     lines += ["`stop_cause`: why the PLC stopped last.", ""]
     lines += _table(["code", "cause", "meaning"], [(c.code, c.name, c.text) for c in rmap.stop_causes], "---:|---|---")
     lines += text(prose.CONFORMANCE) + text(prose.ANSWERS)

@@ -57,16 +57,35 @@ class Field:
 class Code:
     """A named code of a table of the map (fault, result, stop cause, command, state).
 
-    ``extra`` holds the table's other keys (a state's ``commands``, a command's ``checks``...).
+    Attributes
+    ----------
+    code : int
+    name : str
+    text : str
+        What it means (a result's or fault's text, what a command does, what a state is entered by).
+    from_states : str or None
+        A command's states it is accepted in, in words (``from``).
+    arguments : str or None
+        A command's arguments, in words.
+    checks : tuple of str
+        A command's checks: the results it may refuse with, in the order of the result table.
+    setpoints : str or None
+        A state's treatment of setpoint writes: ``accept`` or ``refuse``.
+    commands : tuple of str
+        A state's accepted commands.
+    punches : str or None
+        A fault's punches, in words.
     """
 
     code: int
     name: str
     text: str
-    extra: dict
-
-    def __getitem__(self, key: str):
-        return self.extra[key]
+    from_states: str | None = None
+    arguments: str | None = None
+    checks: tuple[str, ...] = ()
+    setpoints: str | None = None
+    commands: tuple[str, ...] = ()
+    punches: str | None = None
 
 
 class CodeTable:

@@ -132,7 +132,7 @@ class Commands:
         name = self.map.commands.name(code)
         from_owner = self._auth_ok(pair[1])
         refusal = "BAD_COMMAND" if name is None else next(
-            (check for check in self.map.commands.by_name[name]["checks"] if self._refuses(check, name, pair[1])),
+            (check for check in self.map.commands.by_name[name].checks if self._refuses(check, name, pair[1])),
             None)
         if refusal is None:
             getattr(self, f"_do_{name.lower()}")(pair[1])
@@ -173,7 +173,7 @@ class Commands:
         if check == "FAULT_ACTIVE":
             return self.state == "FAULT"
         if check == "WRONG_STATE":
-            return command not in self.map.states.by_name[self.state]["commands"]
+            return command not in self.map.states.by_name[self.state].commands
         if check == "REMOTE_DISABLED":
             return not self.remote_key
         if check == "SEQUENCE_REUSED":

@@ -256,7 +256,7 @@ class PlcProgram(Commands, Motion, ProgramFaults, Quirks):
     def _guard_registers(self) -> None:
         """Take setpoint changes while they are allowed, undo them (and foreign writes) otherwise."""
         refused = changed = False
-        accept = self.map.states.by_name[self.state]["setpoints"] == "accept"
+        accept = self.map.states.by_name[self.state].setpoints == "accept"
         for side in MATRICES:
             now = self._setpoint_words(side)
             if now != self._copy[side]:
@@ -301,7 +301,7 @@ class PlcProgram(Commands, Motion, ProgramFaults, Quirks):
             "remote_enabled": self.remote_key,
             "owned": self.owner != 0,
             "lease_ok": self.owner != 0 and self._lease_fresh(),
-            "setpoints_locked": self.map.states.by_name[self.state]["setpoints"] == "refuse",
+            "setpoints_locked": self.map.states.by_name[self.state].setpoints == "refuse",
         }
 
     def publish(self) -> None:

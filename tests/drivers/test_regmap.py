@@ -94,13 +94,14 @@ def test_states_commands_and_results_are_one_coherent_table(rmap):
     names = [state.name for state in rmap.states]
     assert names == ["IDLE", "LOADED", "VALIDATED", "EXECUTING", "COMPLETE", "STOPPING", "STOPPED", "FAULT"]
     assert [state.code for state in rmap.states] == list(range(1, 9))
-    takes = {s.name for s in rmap.states if s["setpoints"] == "accept"}
+    takes = {s.name for s in rmap.states if s.setpoints == "accept"}
     assert takes == {"IDLE", "LOADED", "VALIDATED"}
-    go = [s.name for s in rmap.states if "GO" in s["commands"]]
+    go = [s.name for s in rmap.states if "GO" in s.commands]
     assert go == ["VALIDATED"]  # GO only on a validated job
-    assert all("CLAIM" in s["commands"] for s in rmap.states)
+    assert all("CLAIM" in s.commands for s in rmap.states)
     assert rmap.results.code("ACCEPTED") == 0 and rmap.results.entries[0].name == "ACCEPTED"
-    assert rmap.commands.by_name["GO"]["checks"][-1] == "TOKEN_MISMATCH"
+    assert rmap.commands.by_name["GO"].checks[-1] == "TOKEN_MISMATCH"
+    assert rmap.commands.by_name["GO"].from_states and rmap.faults.entries[-1].punches is not None
 
 
 def test_checks_out_of_the_order_of_precedence_are_refused():
