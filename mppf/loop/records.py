@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mppf.core.errors import ConfigError
+from mppf.geometry.files import sha256_of
 from mppf.loop.states import CycleState, Decision, PlateStatus
 from mppf.model.job import Job
 from mppf.model.job_parts import StepStrokes, grid_from_json, grid_to_json
@@ -167,9 +168,14 @@ class CycleRecord:
 
 
 def load_cycle_job(record: CycleRecord) -> Job:
-    """The job file of a cycle; ConfigError when it changed since it was recorded."""
+    """The job file of a cycle; ConfigError when it changed since it was recorded.
+
+    The recorded SHA-256 is that of the file's bytes, which is ``job.sha256()`` of a job this mppf wrote; a job
+    of an older format version (recorded by an older mppf) reads back in this version's layout, so its own file's
+    bytes are compared.
+    """
     job = load_job(record.job_path)
-    if job.sha256() != record.job_sha256:
+    if job.sha256() != record.job_sha256 and sha256_of(record.job_path) != record.job_sha256:
         raise ConfigError(
             f"job file {record.job_path} of cycle {record.cycle} changed since it was recorded",
             hint="restore it; the strokes are also in the history ('mppf history --json')",
