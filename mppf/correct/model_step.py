@@ -4,7 +4,7 @@ With the plate's nominal material (the loop's default) the correction is compute
 the springback law instead of ``-lambda e``: each curvature component of the error is
 divided by the slope of the springback map at the loaded curvature, so a twist error,
 which springs back much more than a bend, gets a larger step. See ``docs/compare.md``,
-section "The springback-model step and the secant gains".
+section "The springback-model step".
 """
 
 from __future__ import annotations
