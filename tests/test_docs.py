@@ -1,25 +1,22 @@
-"""Every name the docs give exists: modules, functions and options of the installed package.
+"""Every name the docs give exists: modules, functions, files and options of the installed package.
 
-For each ``docs/*.md`` and ``README.md`` the test reads the code spans, the fenced code blocks
-and the links, and checks, against the installed package and the working tree:
+For each ``docs/*.md`` and ``README.md`` the test reads the code spans, fenced code blocks and links:
 
-- **dotted names** ``mppf.a.b.c`` (in spans and blocks, ``from mppf.a import b`` too): the
-  longest importable module is imported, the rest resolved by ``getattr`` (a dataclass field or
-  an attribute a class sets on ``self`` counts); ``name(..., key=)`` needs a parameter ``key``;
-- **paths** in spans and blocks (``mppf/...``, ``drivers/...``, ``sim/...``, ``tests/...``,
-  ``docs/...``, ``benchmarks/...``, ``examples/...``, ``.ci/...``; in spans also a path inside a
-  package such as ``correct/step.py``), ``tests/x.py::test_y`` naming a test in that file, and
+- **dotted names** ``mppf.a.b.c`` (in spans and blocks, ``from mppf.a import b`` too): the longest
+  importable module is imported, the rest resolved by ``getattr`` (a dataclass field or an
+  attribute a class sets on ``self`` counts); ``name(..., key=)`` needs a parameter ``key``;
+- **paths** (``mppf/``, ``drivers/``, ``sim/``, ``tests/``, ``docs/``, ``benchmarks/``,
+  ``examples/``, ``.ci/``; in spans also inside a package, ``correct/step.py``, and a bare
+  ``name.py`` anywhere in the tree), ``tests/x.py::test_y`` naming a test of that file, and
   relative links with their ``#anchor`` (a heading of the target);
-- **commands and options**: ``mppf CMD ... --opt`` in a span or a block line must be a command
-  of the click group :data:`mppf.cli.cli` with that option; a span of one option alone
-  (``--resume``) must be an option of some ``mppf`` command or of a ``benchmarks/`` script, and
-  ``benchmarks/x.py --opt`` an option of that script;
-- **unqualified callables**: a span that is a call (``correct_step(...)``, ``Job.sha256()``) or
-  a name the text calls a function, method or class (``the function `x` ``) must be defined in
-  ``mppf/``, ``drivers/`` or ``sim/`` (by the source's syntax tree), with its keywords among the
-  parameters. Math notation (``sqrt(...)``, names of one or two letters, a span with ``=`` or
-  ``<=`` between spaces) and Python's built-ins are not names of the code; a span whose first name is an installed module other than mppf
-  (``scipy.spatial.ConvexHull``) is resolved by importing it.
+- **commands and options**: ``mppf CMD ... --opt`` in a span or a block line, asked of the click
+  group :data:`mppf.cli.cli`; a span of one option alone (``--resume``) must be an option of some
+  command or ``benchmarks/`` script, and ``benchmarks/x.py --opt`` one of that script;
+- **unqualified callables**: a span that is a call (``correct_step(...)``, ``Job.sha256()``; every
+  call in it) or a name the text calls a function, method or class must be defined in ``mppf/``,
+  ``drivers/`` or ``sim/`` (by the source's syntax tree), its keywords among the parameters. Math
+  (``sqrt(...)``, names of one or two letters, a span with `` = `` or `` <= ``) and built-ins are
+  not code; a name whose first part is another installed module (``scipy.spatial``) is imported.
 """
 
 from __future__ import annotations
@@ -34,17 +31,15 @@ import re
 from functools import cache
 from pathlib import Path
 
+import click
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = sorted((ROOT / "docs").glob("*.md")) + [ROOT / "README.md"]
-ROOTS = ("mppf", "drivers", "sim", "tests", "docs", "benchmarks", "examples", ".ci")
-"""First folders of a path named from the repository's top."""
+ROOTS = ("mppf", "drivers", "sim", "tests", "docs", "benchmarks", "examples", ".ci")  # a path's first folder
 PACKAGE_DIRS = (ROOT / "mppf", ROOT / "drivers", ROOT / "sim")
 MATH_NOTATION = {"sqrt", "mean", "std", "exp", "log", "sin", "cos", "tan", "atan2", "sum"}
-OUTSIDE_OPTIONS = {"--strict-markers"}
-"""Options of other programs that the docs name alone in a span (pytest's)."""
-
+OUTSIDE_OPTIONS = {"--strict-markers"}  # other programs' options the docs name alone in a span (pytest's)
 SPAN = re.compile(r"(`+)(.+?)\1")
 DOTTED = re.compile(r"(?<![\w./-])mppf(?:\.[A-Za-z_]\w*)+")
 FROM_IMPORT = re.compile(r"^\s*from\s+(mppf[\w.]*)\s+import\s+\(?([\w\s,]+)\)?")
@@ -181,8 +176,17 @@ def path_problems(token: str, inside_packages: bool) -> list[str]:
 
 
 def check_paths(text: str, in_block: bool) -> list[str]:
-    """Problems with the paths in one span or block line."""
+    """Problems with the paths in one span or block line (a span of a bare ``name.py``: a file of the tree)."""
+    if not in_block and re.fullmatch(r"\w+\.py", text) and text not in python_files():
+        return [f"no file {text} in mppf/, drivers/, sim/, tests/ or benchmarks/"]
     return [problem for token in text.split() for problem in path_problems(token, not in_block)]
+
+
+@cache
+def python_files() -> frozenset[str]:
+    """The names of the Python files of the package, its tests and benchmarks."""
+    folders = PACKAGE_DIRS + (ROOT / "tests", ROOT / "benchmarks")
+    return frozenset(path.name for folder in folders for path in folder.rglob("*.py"))
 
 
 @cache
@@ -214,8 +218,6 @@ def check_link(doc: Path, target: str) -> list[str]:
 @cache
 def command_options() -> dict[str, frozenset[str]]:
     """Each ``mppf`` command's option names, asked of the click group (``""``: the group's own)."""
-    import click
-
     from mppf.cli import cli
 
     context = click.Context(cli)
@@ -367,6 +369,7 @@ Real: `mppf.correct.model_step.model_step`, `mppf.loop.decide.decide(..., verdic
 `mppf.loop.decide.decide(..., no_such_keyword=1)`
 `mppf/correct/no_such.py`
 `correct/no_such.py`
+`no_such.py`
 `tests/test_docs.py::test_no_such_test`
 `mppf loop --no-such-option`
 `mppf no-such-command --json`
