@@ -266,11 +266,8 @@ def known_option(option: str) -> bool:
 
 @cache
 def definitions() -> dict[str, frozenset[str] | None]:
-    """Every name defined in the package's source, with the keywords it takes (None: any).
-
-    Functions and methods take their parameters; classes their annotated fields and their
-    ``__init__``'s parameters; module and class constants none.
-    """
+    """Every name defined in the package's source, with the keywords it takes (None: any): a function
+    or method its parameters, a class its annotated fields and ``__init__``'s parameters, a constant none."""
     defined: dict[str, set[str] | None] = {}
     def add(name: str, params: set[str] | None) -> None:
         if name not in defined or defined[name] is None or params is None:
