@@ -6,6 +6,7 @@ Frozen :class:`~mppf.model.job_record.DocRecord` blocks of the job file, each un
 ``"seal"``); see ``docs/file-formats.md`` and ``docs/sections.md``. Lengths in mm.
 """
 
+# ruff: noqa: RUF009 - the field helpers of mppf.model.job_record return dataclasses.field(default=None, ...)
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -80,11 +81,16 @@ class TransitionReport(DocRecord):
         Active punches whose correction blends with the earlier sections'.
     border_step_mm : float or None
         Largest step of the recovered design where this section meets the earlier ones, mm.
+    start_share : float or None
+        Where the section's steps start: this share of the way from the flat plate's tips to the tips
+        touching the plate the earlier sections formed (1: where it lies;
+        :func:`mppf.planning.section_start.section_start`); None: from the flat plate.
     """
 
     zone_mm: float | None = number()
     blended_punches: int | None = integer()
     border_step_mm: float | None = number()
+    start_share: float | None = number()
 
 
 @dataclass(frozen=True)

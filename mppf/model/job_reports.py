@@ -8,6 +8,7 @@ hash, the loop the springback report) and never keys of a dict. See ``docs/file-
 ("Keys the planner adds"). Lengths in mm, angles in degrees.
 """
 
+# ruff: noqa: RUF009 - the field helpers of mppf.model.job_record return dataclasses.field(default=None, ...)
 from __future__ import annotations
 
 from dataclasses import dataclass
