@@ -1,7 +1,5 @@
-"""What the docs name and whether it exists: modules, functions, files and options of the installed package.
-
-For each ``docs/*.md`` and ``README.md``, :func:`doc_problems` reads the code spans, fenced code
-blocks and links and checks (``tests/test_docs.py`` runs it):
+"""What the docs name and whether it exists. For each ``docs/*.md`` and ``README.md``, :func:`doc_problems`
+reads the code spans, fenced code blocks and links and checks (``tests/test_docs.py`` runs it):
 
 - **dotted names** ``mppf.a.b.c`` (in spans and blocks, ``from mppf.a import b`` too): the longest
   importable module is imported, the rest resolved by ``getattr`` (a dataclass field or an
@@ -9,7 +7,8 @@ blocks and links and checks (``tests/test_docs.py`` runs it):
 - **paths** (``mppf/``, ``drivers/``, ``sim/``, ``tests/``, ``docs/``, ``benchmarks/``,
   ``examples/``, ``.ci/``; in spans also inside a package, ``correct/step.py``, and a bare
   ``name.py`` anywhere in the tree), ``tests/x.py::test_y`` naming a test of that file, and
-  relative links with their ``#anchor`` (a heading of the target);
+  relative links with their ``#anchor`` (a heading of the target), and sections cited by title
+  (``x.md, "Title"``; ``see "Title"``: a heading or bold label of that doc starts so);
 - **commands and options**: ``mppf CMD ... --opt`` in a span or a block line, asked of the click
   group :data:`mppf.cli.cli`; a span of one option alone (``--resume``) must be an option of some
   command or ``benchmarks/`` script, and ``benchmarks/x.py --opt`` one of that script;
@@ -49,6 +48,8 @@ NAMED = re.compile(r"^[A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*$")
 OPTION = re.compile(r"(?<![\w-])(--?[A-Za-z][\w-]*)")
 COMMAND = re.compile(r"(?:^|(?<=[\s(`$]))mppf((?:\s+--[\w-]+)*)\s+([a-z][a-z-]*(?:\\?\|[a-z][a-z-]*)*)")
 KINDS = r"(?:function|method|class|property|generator)"
+# a section cited by its title: ``x.md, "Title"``, or ``see "Title"`` / ``("Title")`` in the same doc
+SECTION_REF = re.compile(r"(?:\b([a-z][\w-]*\.md)\)?,?\s+(?:section\s+)?|\bsee\s+|\()\"([A-Z][a-z][^\"]*)\"")
 
 
 def doc_parts(text: str) -> tuple[list[tuple[int, str, str, str]], list[tuple[int, str]], list[tuple[int, str]]]:
@@ -87,6 +88,9 @@ def spans_links(lines: list[tuple[int, str]], spans: list, links: list) -> None:
     plain = SPAN.sub(lambda m: re.sub(r"[^\n]", " ", m.group(0)), text)
     for match in LINK.finditer(plain):
         links.append((first + plain[: match.start()].count("\n"), match.group(1)))
+    unticked = text.replace("`", "")
+    for match in SECTION_REF.finditer(unticked):  # a section by its title: (doc name or None, title)
+        links.append((first + unticked[: match.start()].count("\n"), (match.group(1), match.group(2))))
 
 
 def keywords(call: str) -> list[str]:
@@ -216,8 +220,30 @@ def heading_anchors(path: Path) -> frozenset[str]:
     return frozenset(anchors)
 
 
-def check_link(doc: Path, target: str) -> list[str]:
-    """Problems with one link target of ``doc`` (outside links are not followed)."""
+@cache
+def section_titles(path: Path) -> tuple[str, ...]:
+    """A markdown file's headings (without a leading number) and bold labels, lower case, no backticks."""
+    text = path.read_text()
+    titles = [re.sub(r"^\d+[a-z]?\.\s*", "", line.lstrip("#").strip()) for line in text.splitlines()
+              if re.match(r"^#{1,6}\s", line)] + re.findall(r"\*\*([^*]+)\*\*", text)
+    return tuple(re.sub(r"\s+", " ", title.replace("`", "")).lower() for title in titles)
+
+
+def check_section(doc: Path, name: str | None, title: str) -> list[str]:
+    """Problems with a section of ``name`` (None: of ``doc``) cited by its title."""
+    cited = (ROOT / "docs" / name) if name and not (doc.parent / name).exists() else doc.parent / (name or doc.name)
+    if not cited.exists():
+        return [f"section \"{title}\" of {name}: {name} does not exist"]
+    wanted = re.sub(r"\s+", " ", title).lower().rstrip("?:.")
+    if not any(known.startswith(wanted) for known in section_titles(cited)):
+        return [f"{cited.name} has no section \"{title}\" (no heading or bold label starts so)"]
+    return []
+
+
+def check_link(doc: Path, target: str | tuple[str | None, str]) -> list[str]:
+    """Problems with one link target of ``doc`` (outside links are not followed), or a section cited."""
+    if isinstance(target, tuple):
+        return check_section(doc, *target)
     if re.match(r"^[a-z]+:", target):
         return []
     path, _, anchor = target.partition("#")
@@ -343,6 +369,18 @@ def check_name(dotted: str, call: str | None) -> list[str]:
     if call and params is not None:
         return [f"{dotted} takes no keyword {key!r}" for key in keywords(call) if key not in params]
     return []
+
+
+def code_problems() -> list[str]:
+    """The sections of ``docs/`` that the package's source cites (``docs/x.md``, "Title") and the docs lack."""
+    problems = []
+    for folder in PACKAGE_DIRS:
+        for source in sorted(folder.rglob("*.py")):
+            text = re.sub(r"\s*\n\s*#?\s*", " ", source.read_text().replace("`", ""))  # comments wrapped too
+            for match in re.finditer(r"\bdocs/([\w-]+\.md),?\s+(?:section\s+)?\"([A-Z][^\"]*)\"", text):
+                found = check_section(ROOT / "docs" / "index.md", match.group(1), match.group(2))
+                problems += [f"{source.relative_to(ROOT)}: {problem}" for problem in found]
+    return problems
 
 
 def doc_problems(doc: Path, text: str) -> list[str]:

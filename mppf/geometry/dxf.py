@@ -1,6 +1,6 @@
 """The flat plate for the NC cutter: a DXF drawing (``ezdxf``) in the flat's coordinates, mm.
 
-Layers (see ``docs/file-formats.md``, "Flat plate for the cutter"):
+Layers (see ``docs/file-formats.md``, "Flat plate for the NC cutter"):
 
 =========  ======================================================================
 ``CUT``    the outline the plate is cut along: the net outline grown by the trim margin
