@@ -17,10 +17,10 @@ pressed in sections (its punch contacts are fixed to the first placement: ``FEPl
 it is left out here.
 
 Mode ``direct`` (the only one): the sectional loop's correction
-(:func:`mppf.loop.sectional.plan_next_sections`'s, per section: :func:`mppf.correct.compensate.compensate`
-model-free with the secant gain, then :func:`mppf.planning.sectional.apply_section_corrections`) on the TRUE
-deviation: the formed mid-surface against the design placed as section 1 places it, best plane removed
-over the whole plate; at each section's punches where the section places the design. No scanner.
+(:func:`mppf.loop.sectional.plan_next_sections`'s: the loop's one correction, :func:`mppf.correct.step.correct_step`,
+per section on its plane-free deviation, then :func:`mppf.planning.sectional.apply_section_corrections` not
+blended) on the TRUE deviation: the formed mid-surface against the design placed as section 1 places it, best
+plane removed over the whole plate; at each section's punches where the section places the design. No scanner.
 
 Per cycle: form max and RMS over the whole net plate, the **border kink**: at each section's bed edge
 inside the plate, the deviation's departure from the straight line through its values one pitch to
@@ -29,16 +29,14 @@ where a section ended shows here), largest over the borders of all sections; and
 more than 300 mm inside the plate's edges (``inner_max``: the simulated plate's free corners and ends beyond
 the outer punches depend on its grid on long plates).
 
-Variants (``--correction``, :data:`CORRECTIONS`; ``--gain`` scales every correction; ``--weightless`` takes the
-plate's own weight off, as if it were all carried beside the press).
+Variant: ``--weightless`` takes the plate's own weight off, as if it were all carried beside the press.
 
 Resumable: every finished run is written at once to ``--results`` (JSON keyed by physics, plate, seed,
 max cycles, grid and ``--label``); ``--budget-s`` (default 540) stops starting new runs after that long.
 ``--table`` prints the tables of the file only.
 
 Run:  python benchmarks/bench_loop_sectional.py [--plates cylinder twisted kcs_stern real0010 real0008]
-          [--physics steel] [--seeds 1] [--grid-mm 150] [--correction blend|field|secant|learned] [--gain F]
-          [--weightless] [--label before] [--results FILE.json] [--table]
+          [--physics steel] [--seeds 1] [--grid-mm 150] [--weightless] [--label before] [--results FILE.json] [--table]
 """
 
 from __future__ import annotations
@@ -201,45 +199,11 @@ def border_kink(press, planned: Planned, dev) -> float:
     return worst
 
 
-CORRECTIONS = ("blend", "field", "secant", "learned")
-"""How the sections are corrected. ``blend``: as the loop does (:func:`mppf.loop.sectional.plan_next_sections`):
-each section's model-free correction (:func:`mppf.correct.compensate.compensate`, the secant gain per punch from
-the cycle before) on its deviation, blended where sections overlap
-(:func:`mppf.planning.sectional.apply_section_corrections`). ``field`` and ``secant``: one correction of the
-whole plate, each section's deviation without its best plane (the plane is the section's pose, not its shape),
-not blended (``blend=False``); ``field`` through the springback model (``compensate`` with the nominal material),
-``secant`` model-free with the secant gains of these plane-free deviations; ``learned``: the single plate's
-correction (:func:`mppf.correct.step.correct_step`, its memory of every cycle, the edge beyond the outer punches
-and its step policy) per section on the plane-free deviations, not blended."""
-
-
 def section_shapes(press, job, devs) -> list:
     """Per section, (rows, cols) mm: its deviation at its active punches without its best plane (its pose)."""
     from mppf.loop.sectional import section_shapes as shapes
 
     return shapes(press, [s.steps[-1].active for s in job.sections], devs)
-
-
-def correct_sections(press, job, devs, previous, how: str, gain: float = 1.0):
-    """The next cycle's job, every section corrected on the true deviation; the per-section mean gains; the
-    deviations the secant of the next cycle takes (``previous``: per section the (lower strokes, deviation) of
-    the cycle before, or None)."""
-    from mppf.correct.compensate import CompensateOptions, compensate
-    from mppf.correct.result import PreviousCycle
-    from mppf.planning.sectional import apply_section_corrections
-
-    errors = devs if how == "blend" else section_shapes(press, job, devs)
-    deltas, gains = [], []
-    for s, error, prev in zip(job.sections, errors, previous):
-        final = s.steps[-1]
-        c = compensate(final.upper_mm, final.lower_mm, error, press=press, thickness_mm=THICKNESS_MM,
-                       previous=None if prev is None else PreviousCycle(*prev),
-                       options=CompensateOptions(gain=gain, material=NOMINAL if how == "field" else None))
-        deltas.append((np.where(final.active, c.upper_mm - final.upper_mm, 0.0),
-                       np.where(final.active, c.lower_mm - final.lower_mm, 0.0)))
-        used = np.asarray(c.gain, dtype=float)
-        gains.append(float(np.nanmean(used)) if np.isfinite(used).any() else float("nan"))
-    return apply_section_corrections(job, deltas, blend=how == "blend"), gains, errors
 
 
 class LearnedSections:
@@ -282,13 +246,11 @@ class LearnedSections:
         return apply_section_corrections(job, deltas, blend=False)
 
 
-def run_direct(press, planned: Planned, plate, max_cycles: int, how: str = "blend", weightless: bool = False,
-               gain: float = 1.0) -> dict:
+def run_direct(press, planned: Planned, plate, max_cycles: int, weightless: bool = False) -> dict:
     """Press, measure the true deviation, correct every section; up to ``max_cycles`` cycles."""
     job = planned.job
-    row = {"max": [], "rms": [], "kink": [], "decisions": [], "ok_at": None, "verdict": None, "gain": [],
+    row = {"max": [], "rms": [], "kink": [], "decisions": [], "ok_at": None, "verdict": None,
            "steps": [], "sections": len(job.sections), "plan_cpu_s": round(planned.plan_cpu_s, 2)}
-    previous = [None] * len(job.sections)
     learned = LearnedSections(len(job.sections))
     for cycle in range(1, max_cycles + 1):
         press_cycle(press, plate, job, weightless)
@@ -299,19 +261,11 @@ def run_direct(press, planned: Planned, plate, max_cycles: int, how: str = "blen
         row["steps"].append([len(s.steps) for s in job.sections])
         if cycle_ended(row, cycle, max_cycles, row["max"][-1], row["rms"][-1]):
             break
-        if how == "learned":
-            job = learned.correct(press, planned, job, dev, (row["max"][-1], row["rms"][-1]))
-            row["verdict"] = "; ".join(learned.verdicts) or None
-            row["decisions"].append("continue" if job is not None else "cannot_converge")
-            if job is None:
-                break
-            continue
-        devs = section_punch_deviations(press, planned, dev)
-        corrected, gains, errors = correct_sections(press, job, devs, previous, how, gain)
-        previous = [(s.steps[-1].lower_mm, e) for s, e in zip(job.sections, errors)]
-        row["gain"].append([round(g, 2) for g in gains])
-        row["decisions"].append("continue")
-        job = corrected
+        job = learned.correct(press, planned, job, dev, (row["max"][-1], row["rms"][-1]))
+        row["verdict"] = "; ".join(learned.verdicts) or None
+        row["decisions"].append("continue" if job is not None else "cannot_converge")
+        if job is None:
+            break
     return row
 
 
@@ -347,8 +301,7 @@ def run_part(args, results: dict) -> bool:
             try:
                 planned.setdefault(name, Planned(press, name, Path(tmp)))
                 plate = make_plate(press, planned[name], physics, seed, args.grid_mm, args.true_yield)
-                row = run_direct(press, planned[name], plate, args.max_cycles, args.correction, args.weightless,
-                                 args.gain)
+                row = run_direct(press, planned[name], plate, args.max_cycles, args.weightless)
             except MppfError as exc:  # a failed run counts as not in tolerance
                 row = {"max": [], "rms": [], "kink": [], "decisions": ["error"], "ok_at": None,
                        "verdict": f"{type(exc).__name__}: {exc.message[:200]}"}
@@ -362,8 +315,8 @@ def run_part(args, results: dict) -> bool:
 
 
 def _key(physics: str, name: str, seed: int, args) -> str:
-    physics = physics + ("-weightless" if args.weightless else "") + (f"-gain{args.gain:g}" if args.gain != 1 else "")
-    return f"{physics}|{name}|{seed}|{args.max_cycles}|{args.grid_mm:g}|{args.correction}|{args.label}"
+    physics = physics + ("-weightless" if args.weightless else "")
+    return f"{physics}|{name}|{seed}|{args.max_cycles}|{args.grid_mm:g}|learned|{args.label}"
 
 
 def main(argv=None) -> int:
@@ -374,10 +327,6 @@ def main(argv=None) -> int:
     parser.add_argument("--max-cycles", type=int, default=5)
     parser.add_argument("--grid-mm", type=float, default=150.0, help="cell size of the simulated plate's grid (mm)")
     parser.add_argument("--true-yield", type=float, default=265.0, help="the simulated steel's yield stress (MPa)")
-    parser.add_argument("--correction", choices=CORRECTIONS, default="blend",
-                        help="how the sections are corrected (see CORRECTIONS)")
-    parser.add_argument("--gain", type=float, default=1.0,
-                        help="factor on every correction (the first's, and the default where no secant is known)")
     parser.add_argument("--weightless", action="store_true",
                         help="take the plate's own weight off (as if all of it were carried beside the press)")
     parser.add_argument("--label", default="now", help="names the code measured (e.g. before, after)")

@@ -145,7 +145,6 @@ def _record(history, draft: Draft, settings, work_dir, setup):
 @click.option("--rms-tolerance", type=float, default=_DEFAULTS.rms_tolerance_mm, show_default=True,
               help="Largest RMS deviation (mm).")
 @click.option("--max-cycles", type=int, default=_DEFAULTS.max_cycles, show_default=True, help="Press cycles at most.")
-@click.option("--gain", type=float, default=_DEFAULTS.gain, show_default=True, help="Gain of the first correction.")
 @click.option("--no-springback", is_flag=True, help="Plan without springback pre-compensation.")
 @click.option("--yield-uncertainty", "yield_uncertainty", type=float, default=_DEFAULTS.yield_uncertainty_pct,
               show_default=True, help="Scatter of the plate's yield stress (+- %, the mill certificate's): the first "
@@ -195,7 +194,7 @@ def _record(history, draft: Draft, settings, work_dir, setup):
               help="Write the plate's pictures and report.html into its work folder at the end.")
 @click.option("--operator", help="Who runs the plate (printed in the report).")
 @units_option
-def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, rms_tolerance, max_cycles, gain,
+def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, rms_tolerance, max_cycles,
          no_springback, margin_mm, material, history_path, audit_path, plate_id, work_dir, seed, time_scale,
          scan_timeout, on_pressed, on_pressed_timeout, mark_timeout, mark_settle, rescans, rescan_timeout, resume,
          as_json, yes, write_report_, operator, units, physics, yield_uncertainty):
@@ -233,7 +232,7 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
 
         find_ccx()  # without CalculiX: how to install it (exit 2), before anything is recorded
     settings = LoopSettings(tolerance_mm=tolerance, rms_tolerance_mm=rms_tolerance, max_cycles=max_cycles,
-                            gain=gain, springback=not no_springback, margin_mm=margin_mm, on_pressed=on_pressed,
+                            springback=not no_springback, margin_mm=margin_mm, on_pressed=on_pressed,
                             yield_uncertainty_pct=check_yield_uncertainty(yield_uncertainty),
                             on_pressed_timeout_s=_positive("--on-pressed-timeout", on_pressed_timeout),
                             mark_timeout_s=_positive("--mark-timeout", mark_timeout),

@@ -1,30 +1,28 @@
-"""Stroke compensation: the next strokes of one press step from the deviation measured at the punches.
+"""Stroke compensation on the plate model: the next strokes of one press step from a deviation at the punches.
 
-:func:`compensate` is the correction as a short sequence of calls: the wanted step of one
-strategy (:mod:`mppf.correct.model_step`, the springback-model step with the plate's
-nominal material; or :mod:`mppf.correct.displacement`, the displacement adjustment with a
-secant gain per punch), smoothed on the punch grid, then held to the press's dimpling and
-stroke limits (:mod:`mppf.correct.limits`). Both matrices move alike, so the gap stays the
-plate thickness. The loop's calibrated correction is :mod:`mppf.correct.calibrated`.
+:func:`compensate` is one virtual cycle's correction in the planner's springback pre-compensation
+(:func:`mppf.correct.virtual_cycles.refine_strokes`): the springback-model step with the plate's
+nominal material (:mod:`mppf.correct.model_step`), smoothed on the punch grid, then held to the
+press's dimpling and stroke limits (:mod:`mppf.correct.limits`). Both matrices move alike, so the
+gap stays the plate thickness. The loop corrects a pressed plate with
+:func:`mppf.correct.step.correct_step`, not with this.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from mppf.core.grid import neighbour_mean
 from mppf.core.validate import check_number
-from mppf.correct.displacement import displacement_step
 from mppf.correct.limits import limit_correction, limited_notes
 from mppf.correct.model_step import MAX_STEP_RATIO, model_step
-from mppf.correct.result import Correction, PreviousCycle, punch_grid
+from mppf.correct.result import Correction, punch_grid
 from mppf.model.material import Material
 from mppf.model.press import PressConfig
 
-__all__ = ["SMOOTHING", "CompensateOptions", "Correction", "PreviousCycle", "compensate", "limit_correction"]
+__all__ = ["SMOOTHING", "CompensateOptions", "Correction", "compensate", "limit_correction"]
 
 SMOOTHING = 0.25
 """Weight of the neighbour average in the smoothed correction (0 = none, 1 = only neighbours)."""
@@ -35,19 +33,15 @@ GAP_NOTE_MM = 0.5
 
 @dataclass(frozen=True)
 class CompensateOptions:
-    """How :func:`compensate` corrects (the defaults are the displacement adjustment's).
+    """How :func:`compensate` corrects.
 
     Attributes
     ----------
     gain : float
-        Default lambda (the first cycle, and where the secant is unreliable); > 0 (default 1).
+        Factor on the springback-model step (:func:`mppf.correct.model_step.model_correction`); > 0
+        (default 1).
     smoothing : float
         Weight of the neighbour average in the correction, in [0, 1] (default :data:`SMOOTHING`).
-    material : Material or None
-        Nominal plate material: correct through the springback model
-        (:func:`mppf.correct.model_step.model_correction`, times ``gain``) instead of
-        ``-lambda e``; the previous cycle is then not used (the model gives the slope, no secant
-        from noisy data). Default None: the displacement adjustment.
     max_step_ratio : float or None
         Trust region of the model step: scaled down as a whole when a punch would move by more
         than this times the largest measured error (default :data:`mppf.correct.model_step.MAX_STEP_RATIO`);
@@ -57,30 +51,28 @@ class CompensateOptions:
 
     gain: float = 1.0
     smoothing: float = SMOOTHING
-    material: Material | None = None
     max_step_ratio: float | None = MAX_STEP_RATIO
 
 
-def compensate(upper_mm, lower_mm, punch_error_mm, *, press: PressConfig, thickness_mm: float,
-               previous: PreviousCycle | Mapping | None = None,
+def compensate(upper_mm, lower_mm, punch_error_mm, *, press: PressConfig, thickness_mm: float, material: Material,
                options: CompensateOptions = CompensateOptions()) -> Correction:
-    """Correct the strokes of one press step from the measured deviation at the punches.
+    """Correct the strokes of one press step through the springback model from a deviation at the punches.
 
     Parameters
     ----------
     upper_mm, lower_mm : (rows, cols) float
         Tip heights pressed in the cycle just measured (NaN where inactive).
     punch_error_mm : (rows, cols) float
-        Deviation of the formed plate from the design at each punch along press z
-        (``Comparison.punch_deviation_mm``): positive = plate above the design. NaN
-        where unknown (no correction there).
+        Deviation of the (predicted) plate from the design at each punch along press z: positive =
+        plate above the design. NaN where unknown (filled from the known ones; no correction
+        with fewer than 6 known).
     press : PressConfig
     thickness_mm : float
         Plate thickness; a note is added where the gap ``upper - lower`` differs from it.
-    previous : PreviousCycle or mapping with ``lower_mm`` and ``punch_error_mm``, optional
-        The cycle before, for the secant gain (the displacement adjustment only).
+    material : Material
+        The plate's material the springback model takes.
     options : CompensateOptions
-        Gain, smoothing, the material of the model step and its trust region.
+        Gain, smoothing and the trust region of the model step.
 
     Returns
     -------
@@ -94,12 +86,9 @@ def compensate(upper_mm, lower_mm, punch_error_mm, *, press: PressConfig, thickn
     upper, lower, error, gain, smoothing = _check_inputs(press, upper_mm, lower_mm, punch_error_mm, options.gain,
                                                          options.smoothing)
     active = np.isfinite(upper) & np.isfinite(lower)
-    # 1. the wanted change: through the springback model, or -lambda e with a secant gain
-    if options.material is not None:
-        step = model_step(upper, lower, error, press=press, thickness_mm=thickness_mm, material=options.material,
-                          gain=gain, max_step_ratio=options.max_step_ratio)
-    else:
-        step = displacement_step(press, lower, error, active, gain=gain, previous=previous)
+    # 1. the wanted change, through the springback model
+    step = model_step(upper, lower, error, press=press, thickness_mm=thickness_mm, material=material, gain=gain,
+                      max_step_ratio=options.max_step_ratio)
     # 2. smoothed on the punch grid
     smooth = (1.0 - smoothing) * step.wanted_mm + smoothing * neighbour_mean(step.wanted_mm, step.known)
     smooth = np.where(step.known, smooth, 0.0)
@@ -119,7 +108,7 @@ def _check_inputs(press: PressConfig, upper_mm, lower_mm, punch_error_mm, gain, 
     """The three punch grids as arrays of the press's shape, the gain and the smoothing checked."""
     upper, lower, error = (punch_grid(press, a, name) for a, name in
                            ((upper_mm, "upper_mm"), (lower_mm, "lower_mm"), (punch_error_mm, "punch_error_mm")))
-    gain = check_number("the default gain", gain, low=0.0, low_open=True, hint="1.0 is a safe start")
+    gain = check_number("the model step's gain", gain, low=0.0, low_open=True, hint="1.0 is a safe start")
     smoothing = check_number("smoothing", smoothing, low=0.0, high=1.0)
     return upper, lower, error, gain, smoothing
 

@@ -1,5 +1,5 @@
-"""What the corrections exchange: the corrected strokes, one strategy's wanted step, and the
-cycle before (for the secant gain). Punch grids are (rows, cols) float mm, NaN where a punch
+"""What the planner's stroke compensation exchanges: the corrected strokes and the model step's wanted
+change. Punch grids are (rows, cols) float mm, NaN where a punch
 is inactive or no value is known."""
 
 from __future__ import annotations
@@ -12,22 +12,6 @@ from mppf.core.errors import InputError
 from mppf.model.press import PressConfig
 
 
-@dataclass(frozen=True)
-class PreviousCycle:
-    """What the secant gain needs from the last cycle.
-
-    Attributes
-    ----------
-    lower_mm : (rows, cols) float
-        Lower tip heights pressed in the last cycle (the upper ones moved alike).
-    punch_error_mm : (rows, cols) float
-        The deviation measured after the last cycle (NaN where unknown).
-    """
-
-    lower_mm: np.ndarray
-    punch_error_mm: np.ndarray
-
-
 @dataclass(frozen=True, eq=False)
 class Correction:
     """Corrected strokes for the next cycle.
@@ -37,7 +21,7 @@ class Correction:
     upper_mm, lower_mm : (rows, cols) float
         Corrected tip heights (NaN where the punch is inactive).
     gain : (rows, cols) float
-        lambda used per punch (NaN where inactive).
+        The model step's gain per punch (NaN where inactive).
     applied_mm : (rows, cols) float
         Correction added to both matrices (0 where inactive or no error known).
     clipped : (rows, cols) bool
@@ -56,7 +40,7 @@ class Correction:
 
 @dataclass(frozen=True, eq=False)
 class Step:
-    """The change one correction strategy wants, before smoothing and limits.
+    """The change the springback-model step wants, before smoothing and limits.
 
     Attributes
     ----------
@@ -65,7 +49,7 @@ class Step:
     known : (rows, cols) bool
         Punches the step acts on.
     gain : (rows, cols) float
-        lambda per punch (NaN where inactive).
+        The gain per punch (NaN where inactive).
     notes : list of str
     """
 

@@ -3,11 +3,11 @@
 Before anything is pressed, :func:`refine_strokes` runs the shop's own correction loop on the
 plate model (:mod:`mppf.forming.precompensate`) with the NOMINAL material: predict the
 sprung-back plate from the strokes, measure its deviation from the design at every punch,
-correct the strokes (:func:`mppf.correct.compensate.compensate`, the same springback-model step
-the real loop uses), and repeat until the predicted deviation is below ``tolerance_mm``. This
-is the simulation-based displacement adjustment of die design, done per plate; the planner
-(:func:`mppf.planning.plan.plan_job`) and the calibrated correction (:mod:`mppf.correct.calibrated`)
-run it.
+correct the strokes (:func:`mppf.correct.compensate.compensate`, the springback-model step), and
+repeat until the predicted deviation is below ``tolerance_mm``. This is the simulation-based
+displacement adjustment of die design, done per plate, before the first press; the planner
+(:func:`mppf.planning.plan.plan_job`) runs it. The model is its own truth here, so the step has
+no trust region; the loop's correction of a pressed plate is :func:`mppf.correct.step.correct_step`.
 
 What it cannot know is the plate's true yield stress and thickness (they scatter around
 the nominal values); the real bend - measure - compare loop corrects that.
@@ -108,8 +108,8 @@ def refine_strokes(press: PressConfig, start: StepStrokes, target_mid_mm, outlin
             best = (worst, upper, lower)
         if worst < tolerance_mm or len(history) > iterations:
             break
-        step = compensate(upper, lower, error, press=press, thickness_mm=thickness_mm,
-                          options=CompensateOptions(material=material, max_step_ratio=None))
+        step = compensate(upper, lower, error, press=press, thickness_mm=thickness_mm, material=material,
+                          options=CompensateOptions(max_step_ratio=None))
         upper, lower = np.where(act, step.upper_mm, np.nan), np.where(act, step.lower_mm, np.nan)
     notes.append(f"{len(history) - 1} virtual cycle(s) on the plate model (nominal material): predicted "
                  f"largest deviation at the punches {history[0]:.2f} -> {best[0]:.2f} mm")

@@ -1,17 +1,20 @@
 """Correcting a compared cycle: the next cycle's strokes from the deviations measured so far.
 
-With the plate's nominal material (``model_gain``), ``calibrate`` and ``learn`` (the
-defaults) and a job that carries the design at the punches, the correction learns from
-every step the press did and every scan (:func:`mppf.correct.learned.learned_correction`:
-the plate's plastic memory replayed, its yield stress and hardening fitted, its response
-learned by secant updates, aimed short of the design, inside a trust region); an
-interrupted cycle counts with the steps recorded as done (read-back tips) and the one
-stopped on its way. When that correction finds no way on, the loop stops with a verdict
-(:func:`mppf.correct.verdict.convergence_verdict`) instead of pressing on to the cycle
-limit. Without ``learn``: the calibrated correction
-(:func:`mppf.correct.calibrated.calibrated_step`) or :func:`mppf.correct.compensate.compensate`
-as before. The next cycle's job and its history record are written together with the move
-of this cycle to "corrected".
+The loop has one correction, :func:`mppf.correct.step.correct_step`: it learns from every step
+the press did and every scan (:func:`mppf.correct.learned.learned_correction`: the plate's
+plastic memory replayed, its yield stress and hardening fitted, its response learned by secant
+updates, aimed short of the design, inside a trust region), sized by the step policy; an
+interrupted cycle counts with the steps recorded as done (read-back tips) and the one stopped
+on its way. Cycles that pressed other punches than the last one count at the punches the last
+one pressed (:class:`mppf.correct.punch_grid.PunchGrid` fills the others). When the correction
+finds no way on, the loop stops with a verdict (:func:`mppf.correct.verdict.convergence_verdict`)
+instead of pressing on to the cycle limit. The next cycle's job and its history record are
+written together with the move of this cycle to "corrected".
+
+The correction needs the design's heights at the punches and the nominal material in the job's
+plate layout (every job planned by the loop has them); :func:`check_correctable` refuses a plate
+whose job lacks the heights when the loop starts, and :func:`corrected_plate` takes the material
+recorded with the plate for an older job without it.
 """
 
 from __future__ import annotations
@@ -21,24 +24,22 @@ from pathlib import Path
 
 import numpy as np
 
-from mppf.correct.calibrated import calibrated_step
-from mppf.correct.compensate import CompensateOptions, compensate
-from mppf.correct.learned import LearnedCorrection, steps_towards
-from mppf.correct.policy import DEFAULT_NOISE_MM
+from mppf.core.errors import InputError
 from mppf.correct.inputs import CorrectedPlate, CorrectionHistory
-from mppf.correct.step import Tolerances, correct_step, outcome
+from mppf.correct.learned import LearnedCorrection, steps_towards
 from mppf.correct.memory import PressedCycle
-from mppf.correct.result import Correction, PreviousCycle
+from mppf.correct.policy import DEFAULT_NOISE_MM
+from mppf.correct.step import Tolerances, correct_step, outcome
 from mppf.correct.verdict import Verdict
 from mppf.loop.history import History
-from mppf.loop.pressing import last_step, pressed_steps
+from mppf.loop.pressing import pressed_steps
 from mppf.loop.records import CycleRecord, PlateRecord, load_cycle_job
 from mppf.loop.settings import LoopSettings
 from mppf.loop.states import Decision
 from mppf.model.job import Job
 from mppf.model.job_parts import grid_from_json, grid_to_json
 from mppf.model.job_provenance import LoopProvenance
-from mppf.model.material import Material
+from mppf.model.material import MATERIALS, Material
 from mppf.model.press import PressConfig
 from mppf.planning.job import save_job
 from mppf.planning.steps import flat_heights
@@ -57,95 +58,6 @@ def plan_next(history: History, plate: PlateRecord, record: CycleRecord, press: 
         it as "cannot_converge"), or None: the next cycle is planned.
     """
     job = load_cycle_job(record)
-    if _learns(settings, job, history, record):
-        return _plan_learned(history, plate, record, press, settings, job)
-    # correct the strokes just pressed by what was measured
-    correction = next_correction(history, plate, record, press, settings, job)
-    # the next cycle presses them on the same punches: its job file...
-    active = last_step(record).active
-    # from the tips the plate last held, in steps within the dimpling limit (the PLC refuses larger ones)
-    steps = steps_towards(press, _held(record, press, plate.thickness_mm), correction, active)
-    job = _next_job(job, steps, plate, record)
-    path = save_job(job, Path(plate.settings["work_dir"]) / f"cycle-{record.cycle + 1:02d}.job.json")
-    # ... and its record
-    history.add_cycle(
-        plate.plate_id, record.cycle + 1, job_path=path.resolve(), job_sha256=job.sha256(), steps=steps,
-        gain=float(np.nanmean(correction.gain)), correction=correction_to_dict(correction),
-        previous_decision=Decision.CONTINUE,
-    )
-    return None
-
-
-def next_correction(history: History, plate: PlateRecord, record: CycleRecord, press: PressConfig,
-                    settings: LoopSettings, job: Job) -> Correction:
-    """The correction of the cycle's last step: calibrated when it may and can be, else :func:`compensate`."""
-    step = last_step(record)
-    nominal = job.layout.material if settings.model_gain and job.layout is not None else None
-    correction = None
-    if nominal and settings.calibrate:
-        correction = _calibrated(history, plate, record, press, job, nominal)
-    if correction is None:
-        correction = compensate(
-            step.upper_mm, step.lower_mm, record.punch_deviation_mm, press=press, thickness_mm=plate.thickness_mm,
-            previous=_previous(history, record), options=CompensateOptions(gain=settings.gain, material=nominal),
-        )
-    return correction
-
-
-def _previous(history: History, record: CycleRecord) -> PreviousCycle | None:
-    """The cycle before, for the secant gain per punch (None for the first cycle)."""
-    if record.cycle == 1:
-        return None
-    before = history.cycle(record.plate_id, record.cycle - 1)
-    return PreviousCycle(lower_mm=last_step(before).lower_mm, punch_error_mm=before.punch_deviation_mm)
-
-
-def _calibrated(history: History, plate: PlateRecord, record: CycleRecord, press: PressConfig, job: Job,
-                nominal: Material) -> Correction | None:
-    """:func:`mppf.correct.calibrated.calibrated_step` on every measured cycle, or None.
-
-    None (the loop then takes :func:`compensate`) when a cycle was interrupted (its plate
-    does not show its strokes) or not measured, when the cycles pressed different punches,
-    or when :func:`calibrated_step` declines.
-    """
-    records = history.cycles(plate.plate_id)[: record.cycle]
-    if any(r.interrupted or r.punch_deviation_mm is None for r in records):
-        return None
-    step = last_step(record)
-    if any(not np.array_equal(last_step(r).active, step.active) for r in records):
-        return None
-    cycles = [(last_step(r).upper_mm, last_step(r).lower_mm, r.punch_deviation_mm) for r in records]
-    return calibrated_step(press, cycles, step, job.layout, plate.thickness_mm, nominal)
-
-
-def correction_to_dict(correction: Correction) -> dict:
-    """The correction as stored with the next cycle."""
-    return {
-        "gain": grid_to_json(correction.gain),
-        "applied_mm": grid_to_json(correction.applied_mm),
-        "clipped_punches": int(np.sum(correction.clipped)),
-        "notes": list(correction.notes),
-    }
-
-
-# -- the learned correction ------------------------------------------------------------------
-
-
-def _learns(settings: LoopSettings, job: Job, history: History, record: CycleRecord) -> bool:
-    """The learned correction applies: asked for, nominal material and design at the punches known, one punch set."""
-    layout = job.layout
-    if not (settings.learn and settings.model_gain and settings.calibrate) or layout is None:
-        return False
-    if layout.material is None or layout.design_mid_mm is None:
-        return False
-    active = record.steps[-1].active
-    return all(np.array_equal(s.active, active) for r in history.cycles(record.plate_id)[: record.cycle]
-               for s in r.steps)
-
-
-def _plan_learned(history: History, plate: PlateRecord, record: CycleRecord, press: PressConfig,
-                  settings: LoopSettings, job: Job) -> Verdict | None:
-    """The learned correction, its verdict, and the next cycle's job and record."""
     records = history.cycles(plate.plate_id)[: record.cycle]
     final = record.steps[-1]  # the strokes this cycle aimed at (all of them, even if interrupted)
     # 1. every step the press did, cycle by cycle, and what the scanner measured after each cycle
@@ -157,7 +69,7 @@ def _plan_learned(history: History, plate: PlateRecord, record: CycleRecord, pre
     edge = grid_from_json((record.comparison or {}).get("punch_edge_mm"))  # the net edge beyond the outer rows
     noise = ((record.comparison or {}).get("form") or {}).get("noise_mm") or DEFAULT_NOISE_MM
     tolerances = Tolerances(settings.tolerance_mm, settings.rms_tolerance_mm, float(noise))
-    corrected = CorrectedPlate(press, job.layout.design_mid_mm, plate.thickness_mm, job.layout.material, final.active)
+    corrected = corrected_plate(job.layout, plate, press, final.active)
     step = correct_step(corrected, CorrectionHistory(cycles, outcomes, strokes, edge), tolerances)
     # 3. stop with a verdict when it finds no way on
     if step.verdict is not None:
@@ -173,6 +85,52 @@ def _plan_learned(history: History, plate: PlateRecord, record: CycleRecord, pre
         previous_decision=Decision.CONTINUE,
     )
     return None
+
+
+def check_correctable(job: Job, plate: PlateRecord) -> None:
+    """Refuse, before anything is pressed, a plate whose job lacks what the correction needs.
+
+    The correction (:func:`mppf.correct.step.correct_step`) aims at the design's mid-surface heights at
+    the punches (``PlateLayout.design_mid_mm``, every section's for a plate in sections); a job written by
+    an older mppf may lack them. The nominal material is not checked: :func:`corrected_plate` takes the
+    one recorded with the plate when the job has none.
+
+    Raises
+    ------
+    InputError
+        The job (or a section of it) has no plate layout or no design heights at the punches (exit 2).
+    """
+    parts = [(f"section {s.index}", s.layout) for s in job.sections] if job.sections else [("its job", job.layout)]
+    for name, layout in parts:
+        if layout is None or layout.design_mid_mm is None:
+            raise InputError(
+                f"plate {plate.plate_id}: {name} carries no design heights at the punches (design_mid_mm), which "
+                "the loop's correction aims at; the job was written by an older mppf",
+                hint="start the plate again with this mppf (mppf loop DESIGN FLAT ... under a new --plate-id): "
+                     "it plans the job with them")
+
+
+def corrected_plate(layout, plate: PlateRecord, press: PressConfig, active) -> CorrectedPlate:
+    """What :func:`mppf.correct.step.correct_step` corrects: the layout's design heights and material.
+
+    Parameters
+    ----------
+    layout : PlateLayout
+        The job's (or a section's) plate layout, with its design heights at the punches
+        (:func:`check_correctable`).
+    plate : PlateRecord
+        Its thickness, and the nominal material recorded with it (``settings["material"]``, default
+        ``"steel"``), taken when the layout (of an older job) has none.
+    press : PressConfig
+    active : (rows, cols) bool
+        The punches of the cycle just pressed.
+
+    Returns
+    -------
+    CorrectedPlate
+    """
+    material = layout.material or MATERIALS.get(plate.settings.get("material", "steel"), Material())
+    return CorrectedPlate(press, layout.design_mid_mm, plate.thickness_mm, material, active)
 
 
 def _promised(record: CycleRecord):

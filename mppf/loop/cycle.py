@@ -41,7 +41,7 @@ from mppf.core.presslink import PressLink
 from mppf.core.progress import NULL_REPORTER, Reporter
 from mppf.core.scanner import Scanner
 from mppf.geometry.read import PointCloud
-from mppf.loop.correcting import plan_next
+from mppf.loop.correcting import check_correctable, plan_next
 from mppf.loop.decide import decide
 from mppf.loop.endings import Ending, ending
 from mppf.loop.history import History
@@ -178,7 +178,9 @@ def run_loop(
     Raises
     ------
     InputError
-        The design file changed since the plate was planned, or the history refuses a
+        The plate's job lacks the design heights at the punches the correction aims at (an older
+        job: :func:`mppf.loop.correcting.check_correctable`, before anything is pressed), the
+        design file changed since the plate was planned, or the history refuses a
         state change; or a scan is unreadable (FileFormatError) or does not match the
         design (GeometryError): that scan is recorded as rejected, the cycle waits in
         "pressed" for another one.
@@ -219,6 +221,9 @@ def _start_run(history, plate_id, link, scanner, reporter, on_cycle, place) -> _
     settings = LoopSettings.from_dict(plate.settings["loop"])
     press = press_from_dict(plate.press, source=f"history of plate {plate_id}")
     design = read_checked(plate.design_path, plate.design_sha256, "design", plate.settings.get("units", "mm"))
+    last = history.cycles(plate_id)[-1]
+    if last.state != CycleState.DONE:  # a job the correction cannot take is refused before anything is pressed
+        check_correctable(load_cycle_job(last), plate)
     return _Run(history, plate, press, settings, design, link, scanner, reporter, on_cycle, [], {}, place)
 
 

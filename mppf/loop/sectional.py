@@ -11,15 +11,10 @@ A cycle of a sectional job (version 3, :mod:`mppf.model.job_sections`):
 2. one scan of the whole plate, compared with the whole design (as one piece: :mod:`mppf.loop.measuring`);
 3. the deviations at every section's punches (:func:`section_deviations`: the punch axes taken to
    the design by the section's ``tf_press_design``), stored with the cycle's comparison (``sections``);
-4. the correction of every section, the single-piece loop's model-free one
-   (:func:`mppf.loop.correcting.next_correction` without the material model: :func:`mppf.correct.compensate.compensate`
-   with the secant gain per punch) on :func:`mppf.planning.sections.section_job`, with the section's strokes and
-   deviations of every cycle (:class:`SectionHistory`);
-5. :func:`mppf.planning.sectional.apply_section_corrections`: the next cycle's job, blended in the
-   transition zones as planned; one history cycle for all sections; the verdict is the whole plate's.
-
-The material-model corrections (calibrated, learned) model one plate on one bed and are not used on
-sectional plates (:func:`plan_next_sections`).
+4. the correction of every section, the single-piece loop's one correction (:func:`mppf.correct.step.correct_step`)
+   on the section's plane-free deviations of every cycle (:class:`SectionHistory`, :func:`section_shapes`);
+5. :func:`mppf.planning.sectional.apply_section_corrections`: the next cycle's job (one correction of the whole
+   plate, not blended); one history cycle for all sections; the verdict is the whole plate's.
 """
 
 from __future__ import annotations
@@ -33,7 +28,7 @@ import numpy as np
 from mppf.core.presslink import PressLink
 from mppf.core.progress import Reporter
 from mppf.correct.verdict import Verdict
-from mppf.loop.correcting import correction_to_dict, next_correction
+from mppf.loop.correcting import corrected_plate
 from mppf.loop.history import History
 from mppf.loop.pressing import close_cut_step, press_step
 from mppf.loop.records import CycleRecord, PlateRecord, load_cycle_job
@@ -46,7 +41,7 @@ from mppf.model.job_provenance import LoopProvenance
 from mppf.model.press import PressConfig
 from mppf.planning.job import save_job
 from mppf.planning.sectional import apply_section_corrections
-from mppf.planning.sections import placement_text, section_job
+from mppf.planning.sections import placement_text
 
 #: Called before the steps of each section: ``place(section, previous)`` (previous None for the first section
 #: pressed in this run); it tells the operator where the plate goes and, on a real press, waits for the
@@ -194,17 +189,14 @@ def plan_next_sections(history: History, plate: PlateRecord, record: CycleRecord
                        settings: LoopSettings) -> Verdict | None:
     """Correct every section by its measured deviations and record the next cycle ("planned"), or stop.
 
-    With the learned correction (the loop's default: ``settings.learn``, the nominal material known) every
-    section gets the single plate's correction (:func:`mppf.correct.step.correct_step`: its memory of every
+    Every section gets the single plate's correction (:func:`mppf.correct.step.correct_step`: its memory of every
     cycle, its step policy) on its **plane-free** deviation (:func:`section_shapes`: the deviation at its
     punches without its best plane, which is the section's pose, not its shape), with the whole plate's form
     max and RMS as the outcomes; the corrections are one correction of the whole plate and are not blended
     (:func:`mppf.planning.sectional.apply_section_corrections` with ``blend=False``). When a section's
     correction finds no way on (its verdict: cannot converge, strokes beyond the limits...), the loop stops
     with that verdict: the sections form one plate, and the others' corrections alone would throw it.
-    Otherwise each section gets the model-free correction
-    (:func:`mppf.loop.correcting.next_correction` without the material model), blended where sections
-    overlap. The new steps go from flat, validated; the compared cycle moves to "corrected" in the same
+    The new steps go from flat, validated; the compared cycle moves to "corrected" in the same
     transaction.
 
     Returns
@@ -218,47 +210,26 @@ def plan_next_sections(history: History, plate: PlateRecord, record: CycleRecord
         Corrected strokes the press cannot take.
     """
     job = load_cycle_job(record)
-    learned = settings.learn and settings.model_gain and settings.calibrate and all(
-        s.layout.material is not None and s.layout.design_mid_mm is not None for s in job.sections)
-    if learned:
-        deltas, corrections, verdicts = _learned_sections(history, plate, record, press, settings, job)
-        if verdicts:  # the sections form one plate: one that cannot go on stops it
-            return verdicts[0]
-        corrected = apply_section_corrections(job, deltas, blend=False)
-    else:
-        deltas, corrections = _model_free_sections(history, plate, record, press, settings, job)
-        corrected = apply_section_corrections(job, deltas)
+    deltas, corrections, verdicts = _learned_sections(history, plate, record, press, settings, job)
+    if verdicts:  # the sections form one plate: one that cannot go on stops it
+        return verdicts[0]
+    corrected = apply_section_corrections(job, deltas, blend=False)
     loop = LoopProvenance(plate_id=plate.plate_id, cycle=record.cycle + 1, corrects_job_sha256=record.job_sha256)
     corrected = dataclasses.replace(corrected, loop=loop, seal=None)
     path = save_job(corrected, Path(plate.settings["work_dir"]) / f"cycle-{record.cycle + 1:02d}.job.json")
     history.add_cycle(
         plate.plate_id, record.cycle + 1, job_path=path.resolve(), job_sha256=corrected.sha256(),
         steps=cycle_steps(corrected), gain=_mean_gain(corrections),
-        correction={"strategy": "sections-learned" if learned else "sections", "sections": corrections},
+        correction={"strategy": "sections-learned", "sections": corrections},
         previous_decision=Decision.CONTINUE,
     )
     return None
 
 
-def _model_free_sections(history, plate, record, press, settings, job) -> tuple[list, list]:
-    """Per section the model-free correction's change of its final strokes, and its record."""
-    model_free = dataclasses.replace(settings, model_gain=False)
-    deltas, corrections = [], []
-    for s in job.sections:
-        view = SectionHistory(history, s.index)
-        c = next_correction(view, plate, view.cycle(record.plate_id, record.cycle), press, model_free,
-                            section_job(job, s.index))
-        final = s.steps[-1]
-        deltas.append((np.where(final.active, c.upper_mm - final.upper_mm, 0.0),
-                       np.where(final.active, c.lower_mm - final.lower_mm, 0.0)))
-        corrections.append({"section": s.index, **correction_to_dict(c)})
-    return deltas, corrections
-
-
 def _learned_sections(history, plate, record, press, settings, job) -> tuple[list, list, list]:
     """Per section the learned correction's change of its final strokes, its record, and the verdicts."""
+    from mppf.correct.inputs import CorrectionHistory
     from mppf.correct.policy import DEFAULT_NOISE_MM
-    from mppf.correct.inputs import CorrectedPlate, CorrectionHistory
     from mppf.correct.step import Tolerances, correct_step, outcome
     from mppf.loop.correcting import pressed_cycle, step_to_dict
 
@@ -280,8 +251,7 @@ def _learned_sections(history, plate, record, press, settings, job) -> tuple[lis
                                     None if promised is None else grid_from_json(promised)))
             strokes.append((r.steps[-1].upper_mm, r.steps[-1].lower_mm))
         final = s.steps[-1]
-        corrected = CorrectedPlate(press, s.layout.design_mid_mm, plate.thickness_mm, s.layout.material,
-                                   final.active)
+        corrected = corrected_plate(s.layout, plate, press, final.active)
         step = correct_step(corrected, CorrectionHistory(cycles, outcomes, strokes), tolerances)
         if step.verdict is not None:
             verdicts.append(step.verdict)

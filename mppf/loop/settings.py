@@ -1,8 +1,13 @@
-"""The loop's settings: when it stops and how hard it corrects (stored with each plate)."""
+"""The loop's settings: when it stops, how it plans the first cycle, how it waits (stored with each plate).
+
+The loop corrects one way (:func:`mppf.correct.step.correct_step`), so no setting chooses a correction;
+the keys that did in older histories (:data:`RETIRED_KEYS`) are read and ignored.
+"""
 
 from __future__ import annotations
 
 import dataclasses
+import logging
 from dataclasses import dataclass
 
 from mppf.core.defaults import RMS_TOLERANCE_MM, TOLERANCE_MM
@@ -15,10 +20,15 @@ MAX_CYCLES_LIMIT = 50
 MAX_RESCANS = 10
 """Most rescans a cycle may ask for."""
 
+RETIRED_KEYS = ("gain", "model_gain", "calibrate", "learn")
+"""Keys of older plates' settings that chose corrections the loop no longer has; ignored when read."""
+
+_log = logging.getLogger("mppf")
+
 
 @dataclass(frozen=True)
 class LoopSettings:
-    """When the loop stops and how hard it corrects.
+    """When the loop stops, how it plans the first cycle and how it waits for scans.
 
     Attributes
     ----------
@@ -29,14 +39,6 @@ class LoopSettings:
         In tolerance = both limits met.
     max_cycles : int
         Press cycles at most (the first, planned one included), 1 to :data:`MAX_CYCLES_LIMIT`.
-    gain : float
-        Displacement-adjustment gain lambda (with ``model_gain``: a factor on the
-        springback-model correction).
-    model_gain : bool
-        Correct through the springback model with the nominal material of the job (the
-        slope of the springback law at the loaded curvature, per punch and per curvature
-        component). Off: the secant gains of the displacement adjustment (gain ``gain`` in
-        the first correction); see :func:`mppf.correct.compensate.compensate`.
     divergence_factor : float
         The loop stops as diverged when the RMS deviation is more than this factor (> 1)
         times the best one before it in two cycles running, or grows two cycles in a row
@@ -55,11 +57,6 @@ class LoopSettings:
         Trim margin the flat plate is cut with (mm, see :func:`mppf.planning.plan.plan_job`);
         None = the press's ``[forming] margin_mm``. The scans carry it; the tolerance is
         judged on the net plate.
-    calibrate : bool
-        With ``model_gain``: fit the plate's effective yield stress to the measured cycles
-        and solve the next strokes on the calibrated plate model
-        (:func:`mppf.correct.calibrated.calibrated_step`); the model step of
-        :func:`mppf.correct.compensate.compensate` when the fit explains too little.
     on_pressed : str or None
         Command run when a cycle is pressed, after its scan request is written (``--on-pressed``;
         the request's path is its last argument and ``$MPPF_SCAN_REQUEST``; no shell:
@@ -85,15 +82,11 @@ class LoopSettings:
     tolerance_mm: float = TOLERANCE_MM
     rms_tolerance_mm: float = RMS_TOLERANCE_MM
     max_cycles: int = 5
-    gain: float = 1.0
     divergence_factor: float = 1.5
     springback: bool = True
     yield_uncertainty_pct: float = DEFAULT_YIELD_UNCERTAINTY_PCT
     offset_mm: float | None = None
-    model_gain: bool = True
     margin_mm: float | None = None
-    calibrate: bool = True
-    learn: bool = True
     on_pressed: str | None = None
     on_pressed_timeout_s: float = 60.0
     mark_settle_s: float = 5.0
@@ -103,7 +96,7 @@ class LoopSettings:
 
     def __post_init__(self):
         checks = {  # name: (lower bound, exclusive)
-            "tolerance_mm": 0.0, "rms_tolerance_mm": 0.0, "gain": 0.0, "divergence_factor": 1.0,
+            "tolerance_mm": 0.0, "rms_tolerance_mm": 0.0, "divergence_factor": 1.0,
             "on_pressed_timeout_s": 0.0, "mark_timeout_s": 0.0,
             "rescan_timeout_s": 0.0,
         }
@@ -127,6 +120,11 @@ class LoopSettings:
 
     @classmethod
     def from_dict(cls, doc: dict) -> LoopSettings:
-        """Inverse of :meth:`to_dict` (unknown keys ignored)."""
+        """Inverse of :meth:`to_dict`; unknown keys are ignored (noted on the ``mppf`` log, except the
+        :data:`RETIRED_KEYS` of older histories, which are ignored silently)."""
         names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(str(k) for k in doc if k not in names and k not in RETIRED_KEYS)
+        if unknown:
+            _log.info("loop settings: ignoring unknown key(s) %s (written by another version of mppf)",
+                      ", ".join(unknown))
         return cls(**{k: v for k, v in doc.items() if k in names})

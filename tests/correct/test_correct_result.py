@@ -1,4 +1,4 @@
-"""What the corrections exchange (mppf.correct.result): punch grids checked against the press's shape."""
+"""What the stroke compensation exchanges (mppf.correct.result): punch grids checked against the press's shape."""
 
 from __future__ import annotations
 

@@ -39,9 +39,9 @@ def test_model_correction_divides_each_curvature_component_by_its_springback_slo
     corr = model_correction(upper, lower, np.where(active, 2.0, np.nan), press=press, thickness_mm=THICKNESS_MM,
                             material=steel)
     assert np.abs(corr[active]).max() < 1e-6 and np.all(corr[~active] == 0)
-    # through compensate: the model replaces -lambda e, the limits still apply
+    # through compensate: the model's step, held to the limits
     c = compensate(upper, lower, np.where(active, a * px**2 / 2, np.nan), press=press, thickness_mm=THICKNESS_MM,
-                   options=CompensateOptions(smoothing=0.0, material=steel))
+                   material=steel, options=CompensateOptions(smoothing=0.0))
     assert any("springback-model" in n for n in c.notes)
     assert np.allclose((c.upper_mm - c.lower_mm)[active], THICKNESS_MM)
     assert np.abs(np.diff(c.applied_mm[active.any(axis=1)][:, active.any(axis=0)], axis=1)).max() \
@@ -53,8 +53,7 @@ def test_model_step_is_scaled_into_its_trust_region(press, grid):
     px, py, active, lower = grid
     upper = lower + THICKNESS_MM
     error = np.where(active, 2e-5 * px * py, np.nan)  # a gross twist: tens of mm at the corners
-    corr = compensate(upper, lower, error, press=press, thickness_mm=THICKNESS_MM,
-                      options=CompensateOptions(material=Material()))
+    corr = compensate(upper, lower, error, press=press, thickness_mm=THICKNESS_MM, material=Material())
     applied = corr.applied_mm[active]
     largest_error = np.nanmax(np.abs(error))
     assert np.abs(applied).max() <= MAX_STEP_RATIO * largest_error + 1e-9

@@ -3,12 +3,18 @@ last), the next cycle it records, and the stop with a verdict when it finds no w
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 import mppf.correct.step
+from mppf.core.errors import EXIT_INPUT, InputError
+from mppf.correct.inputs import CorrectedPlate, CorrectionHistory
+from mppf.correct.memory import PressedCycle
+from mppf.correct.step import Tolerances, correct_step, outcome
 from mppf.correct.verdict import Verdict
-from mppf.loop.correcting import pressed_cycle
+from mppf.loop.correcting import corrected_plate, pressed_cycle
 from mppf.loop.cycle import run_loop
 from mppf.loop.history import History
 from mppf.loop.options import LoopOptions, PlateInputs
@@ -17,6 +23,7 @@ from mppf.loop.records import CycleRecord
 from mppf.loop.settings import LoopSettings
 from mppf.loop.states import CycleState, Decision
 from mppf.model.job_parts import StepStrokes, grid_to_json
+from mppf.model.material import MATERIALS
 from mppf.model.press import example_press_path, load_press
 from mppf.planning.job import load_job
 from mppf.sim.plc.link import InProcessPress
@@ -98,17 +105,63 @@ def test_a_correction_that_finds_no_way_on_stops_the_plate_with_its_verdict(plan
     assert verdict.reason in end.why and "cycle 1: form max" in end.why and end.region.startswith("largest form")
 
 
-@pytest.mark.parametrize("learn", [False])
-def test_without_learning_the_calibrated_correction_is_used(planned_plate, tmp_path, learn):
+def _older(job, **layout):
+    """``job`` as an older mppf wrote it: its plate layout without some of its fields, unsealed."""
+    return dataclasses.replace(job, layout=dataclasses.replace(job.layout, **layout), seal=None)
+
+
+def test_a_job_without_design_heights_is_refused_when_the_loop_starts(planned_plate, tmp_path):
+    """The correction aims at the design's heights at the punches: a job without them (an older mppf's) is
+    refused before anything is pressed, with what to do (exit 2), not when the first correction is due."""
     design, flat, press, job = planned_plate
     with History(tmp_path / "h.sqlite") as history:
-        record_plate(history, PlateInputs(design, flat, press, 20.0), job, plate_id="C1", work_dir=tmp_path / "C1",
-                     options=LoopOptions(settings=LoopSettings(max_cycles=2, learn=learn)))
-        scanner = SimulatedPlateScanner.for_job(press, 20.0, load_job(history.cycle("C1", 1).job_path), flat.points,
-                                                seed=3, **CLEAR_VIEW)
+        record_plate(history, PlateInputs(design, flat, press, 20.0), _older(job, design_mid_mm=None),
+                     plate_id="O1", work_dir=tmp_path / "O1", options=LoopOptions(settings=LoopSettings(max_cycles=2)))
+        scanner = SimulatedPlateScanner.for_job(press, 20.0, job, flat.points, seed=3, **CLEAR_VIEW)
+        with InProcessPress(press) as link, pytest.raises(InputError, match="no design heights") as refused:
+            run_loop(history, "O1", link, scanner)
+        cycle = history.cycle("O1", 1)
+        assert cycle.state == CycleState.PLANNED and cycle.step_started == 0  # nothing pressed
+    assert refused.value.exit_code == EXIT_INPUT and "--plate-id" in refused.value.hint
+
+
+def test_an_older_job_without_its_material_is_corrected_for_the_material_recorded_with_the_plate(
+        planned_plate, tmp_path):
+    design, flat, press, job = planned_plate
+    with History(tmp_path / "h.sqlite") as history:
+        plate = record_plate(history, PlateInputs(design, flat, press, 20.0), _older(job, material=None),
+                             plate_id="M1", work_dir=tmp_path / "M1",
+                             options=LoopOptions(settings=LoopSettings(max_cycles=2), setup={"material": "ah36"}))
+        scanner = SimulatedPlateScanner.for_job(press, 20.0, job, flat.points, seed=3, **CLEAR_VIEW)
         with InProcessPress(press) as link:
-            result = run_loop(history, "C1", link, scanner)
-    assert len(result.cycles) == 2 and "strategy" not in result.cycles[1].correction
+            result = run_loop(history, "M1", link, scanner)
+    active = job.steps[-1].active
+    assert corrected_plate(_older(job, material=None).layout, plate, press, active).nominal == MATERIALS["ah36"]
+    assert corrected_plate(job.layout, plate, press, active).nominal == job.layout.material  # the job's own first
+    assert len(result.cycles) >= 2 and result.cycles[1].correction["strategy"] == "learned"
+
+
+def test_cycles_that_pressed_other_punches_are_corrected_by_the_one_correction(planned_plate):
+    """A cycle that pressed fewer punches than the last one (a punch set that changed) no longer turns the loop to
+    another correction: :func:`mppf.correct.step.correct_step` counts it at the punches the last cycle pressed
+    (the others filled from their neighbours) and corrects every one of those."""
+    design, flat, press, job = planned_plate
+    final = job.steps[-1]
+    rows, cols = np.nonzero(final.active)
+    fewer = final.active.copy()
+    fewer[rows.min(), cols[rows == rows.min()].min()] = False  # the earlier cycle left one corner punch out
+    px, _ = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
+    span = float(np.ptp(px[final.active]))
+    mids = [np.where(fewer, 0.5 * (s.upper_mm + s.lower_mm), np.nan) for s in job.steps]
+    error = np.where(fewer, 3.0 * ((px - px[final.active].mean()) / span) ** 2, np.nan)  # a bend left at the ends
+    history = CorrectionHistory([PressedCycle(mids, error)], [outcome(3.0, 1.2, error)],
+                                [(final.upper_mm, final.lower_mm)])
+    plate = CorrectedPlate(press, job.layout.design_mid_mm, 20.0, job.layout.material, final.active)
+    step = correct_step(plate, history, Tolerances(2.5, 1.0))
+    assert step.verdict is None
+    assert np.isfinite(step.learned.lower_mm[final.active]).all()  # the corner punch too
+    assert np.abs(step.learned.change_mm[final.active]).max() > 0.1
+    assert step.learned.predicted_rms_mm < 1.2
 
 
 def test_after_an_interruption_the_next_corrections_start_from_what_was_pressed(planned_plate, tmp_path):
