@@ -1,22 +1,21 @@
 """What the docs name and whether it exists. For each ``docs/*.md`` and ``README.md``, :func:`doc_problems`
 reads the code spans, fenced code blocks and links and checks (``tests/test_docs.py`` runs it):
 
-- **dotted names** ``mppf.a.b.c`` (in spans and blocks, ``from mppf.a import b`` too): the longest
-  importable module is imported, the rest resolved by ``getattr`` (a dataclass field or an
-  attribute a class sets on ``self`` counts); ``name(..., key=)`` needs a parameter ``key``;
-- **paths** (``mppf/``, ``drivers/``, ``sim/``, ``tests/``, ``docs/``, ``benchmarks/``,
-  ``examples/``, ``.ci/``; in spans also inside a package, ``correct/step.py``, and a bare
-  ``name.py`` anywhere in the tree), ``tests/x.py::test_y`` naming a test of that file, and
-  relative links with their ``#anchor`` (a heading of the target), and sections cited by title
-  (``x.md, "Title"``; ``see "Title"``: a heading or bold label of that doc starts so);
-- **commands and options**: ``mppf CMD ... --opt`` in a span or a block line, asked of the click
-  group :data:`mppf.cli.cli`; a span of one option alone (``--resume``) must be an option of some
-  command or ``benchmarks/`` script, and ``benchmarks/x.py --opt`` one of that script;
-- **unqualified callables**: a span that is a call (``correct_step(...)``, ``Job.sha256()``; every
-  call in it) or a name the text calls a function, method or class must be defined in ``mppf/``,
-  ``drivers/`` or ``sim/`` (by the source's syntax tree), its keywords among the parameters. Math
-  (``sqrt(...)``, names of one or two letters, a span with `` = `` or `` <= ``) and built-ins are
-  not code; a name whose first part is another installed module (``scipy.spatial``) is imported.
+- **dotted names** ``mppf.a.b.c`` (also ``from mppf.a import b`` in blocks): the longest importable
+  module imported, the rest by ``getattr`` (a dataclass field or an attribute set on ``self`` counts);
+  ``name(..., key=)`` needs a parameter ``key``;
+- **paths** (from ``mppf/ drivers/ sim/ tests/ docs/ benchmarks/ examples/ .ci/``; in spans also inside
+  a package, ``correct/step.py``, and a bare ``name.py`` or ``test_name`` anywhere in the tree),
+  ``tests/x.py::test_y``, relative links with their ``#anchor``, and sections cited by title
+  (``x.md, "Title"``, ``see "Title"``: a heading or bold label of that doc starts so);
+- **commands and options**: ``mppf CMD ... --opt`` in a span or block line, asked of the click group
+  :data:`mppf.cli.cli`; a lone ``--opt`` span must be an option of some command or ``benchmarks/``
+  script, and ``benchmarks/x.py --opt`` one of that script;
+- **unqualified callables**: a call span (``correct_step(...)``, ``Job.sha256()``; every call in it)
+  or a name the text calls a function, method or class must be defined in ``mppf/``, ``drivers/``
+  or ``sim/`` (by the syntax tree), its keywords among the parameters. Math (``sqrt(...)``, names
+  of one or two letters, a span with `` = `` or `` <= ``) and built-ins are not code; a name whose
+  first part is another installed module (``scipy.spatial``) is imported.
 """
 
 from __future__ import annotations
@@ -194,17 +193,19 @@ def path_problems(token: str, inside_packages: bool) -> list[str]:
 
 
 def check_paths(text: str, in_block: bool) -> list[str]:
-    """Problems with the paths in one span or block line (a span of a bare ``name.py``: a file of the tree)."""
-    if not in_block and re.fullmatch(r"\w+\.py", text) and text not in python_files():
-        return [f"no file {text} in mppf/, drivers/, sim/, tests/ or benchmarks/"]
+    """Problems with the paths in one span or block line (a span of a bare ``name.py`` or ``test_x``: in the tree)."""
+    if not in_block and re.fullmatch(r"\w+\.py|test_\w+", text) and text not in tree_names():
+        return [f"no file or test {text} in mppf/, drivers/, sim/, tests/ or benchmarks/"]
     return [problem for token in text.split() for problem in path_problems(token, not in_block)]
 
 
 @cache
-def python_files() -> frozenset[str]:
-    """The names of the Python files of the package, its tests and benchmarks."""
-    folders = PACKAGE_DIRS + (ROOT / "tests", ROOT / "benchmarks")
-    return frozenset(path.name for folder in folders for path in folder.rglob("*.py"))
+def tree_names() -> frozenset[str]:
+    """The Python files (with and without ``.py``) of the package, tests and benchmarks, and the test functions."""
+    files = [path for folder in PACKAGE_DIRS + (ROOT / "tests", ROOT / "benchmarks") for path in folder.rglob("*.py")]
+    tests = {name for path in files if path.name.startswith("test_")
+             for name in re.findall(r"^\s*(?:async\s+)?def (test_\w+)", path.read_text(), re.MULTILINE)}
+    return frozenset({path.name for path in files} | {path.stem for path in files} | tests)
 
 
 @cache
@@ -299,9 +300,8 @@ def check_options(span: str, in_block: bool) -> list[str]:
 
 def known_option(option: str) -> bool:
     """Whether an option alone in a span belongs to some command or benchmark script."""
-    if option in OUTSIDE_OPTIONS or any(option in opts for opts in command_options().values()):
-        return True
-    return any(f'"{option}"' in script.read_text() for script in (ROOT / "benchmarks").glob("*.py"))
+    return option in OUTSIDE_OPTIONS or any(option in opts for opts in command_options().values()) or any(
+        f'"{option}"' in script.read_text() for script in (ROOT / "benchmarks").glob("*.py"))
 
 
 @cache

@@ -34,6 +34,7 @@ Real: `mppf.correct.model_step.model_step`, `mppf.loop.decide.decide(..., verdic
 `mppf/correct/no_such.py`
 `correct/no_such.py`
 `no_such.py`
+`test_no_such_thing`
 `tests/test_docs.py::test_no_such_test`
 `mppf loop --no-such-option`
 `mppf no-such-command --json`
