@@ -7,14 +7,13 @@ a step interrupted during its motion part of the way, :data:`INTERRUPTED_SHARE`)
 its top skin with noise, occlusion, outliers and an arbitrary pose
 (:class:`mppf.sim.scanner.SimulatedScanner`) into the plate's work folder.
 
-The plate is, by default, the simulated steel plate (:class:`mppf.sim.plate.plate.SteelPlate`:
-an elastic-plastic plate in equilibrium between the balls, plastic memory from step to
-step and cycle to cycle, press compliance, seeded scatter), written independently of the
-planner's plate model. ``plate_model="planner"`` gives the old simple plate instead
-(:class:`mppf.sim.planner_plate.PlannerModelPlate`: the planner's own model with a scattered yield
-stress and thickness; no memory); ``plate_model="fe"`` the FE plate (:class:`mppf.sim.fe.plate.FEPlate`:
-the same interface, computed by CalculiX, one ccx run per press step, its restart file in the state). The
-plate's state is saved in the work folder after every
+The plate is one of the two simulated plates behind one interface
+(:class:`mppf.sim.simulated_plate.SimulatedPlate`): by default the simulated steel plate
+(:class:`mppf.sim.plate.plate.SteelPlate`: an elastic-plastic plate in equilibrium between the balls,
+plastic memory from step to step and cycle to cycle, press compliance, seeded scatter), written
+independently of the planner's plate model; ``plate_model="fe"`` the FE plate
+(:class:`mppf.sim.fe.plate.FEPlate`: computed by CalculiX, one ccx run per press step, its restart file in
+the state). The plate's state is saved in the work folder after every
 cycle (:data:`STATE_FILE`, with the steps it has been pressed with), so a dry run resumed in
 another process (``mppf loop --resume``) continues on the same plate and never presses a
 step on it twice.
@@ -52,10 +51,11 @@ from mppf.model.job import Job
 from mppf.model.job_parts import reference_corner_xy
 from mppf.model.material import Material
 from mppf.sim.scanner import SimulatedScanner
+from mppf.sim.simulated_plate import SimulatedPlate
 
-PLATE_MODELS = ("steel", "planner", "fe")
-"""The simulated plates: the steel plate of :mod:`mppf.sim.plate`, the planner's own model, or the FE plate
-computed by CalculiX (:mod:`mppf.sim.fe`)."""
+PLATE_MODELS = ("steel", "fe")
+"""The simulated plates (:class:`mppf.sim.simulated_plate.SimulatedPlate`): the finite-difference steel plate of
+:mod:`mppf.sim.plate`, or the FE plate computed by CalculiX (:mod:`mppf.sim.fe`)."""
 
 PHYSICS = {"fd": "steel", "fe": "fe"}
 """The ``--physics`` choices of the commands and the plate model each one names."""
@@ -100,14 +100,13 @@ class ShopOptions:
     material : Material
         Nominal material (the steel plate's nominal steel unless ``steel`` is given).
     plate_model : str
-        "steel" (default), "planner" or "fe" (:data:`PLATE_MODELS`).
+        "steel" (default) or "fe" (:data:`PLATE_MODELS`).
     steel : PlateSteel, optional
         The steel plate's nominal steel (default ``PlateSteel.from_material(material)``):
         a mill's steel differs from the nominal material the planner assumes.
     plate_options : dict, optional
         More keyword arguments of :class:`mppf.sim.plate.plate.SteelPlate` (``scatter``,
-        ``compliance``, ``grid_spacing_mm``...), or of :class:`mppf.sim.planner_plate.PlannerModelPlate`
-        (``yield_scatter``, ``thickness_scatter``), or of :class:`mppf.sim.fe.plate.FEPlate` (``scatter``,
+        ``compliance``, ``grid_spacing_mm``...), or of :class:`mppf.sim.fe.plate.FEPlate` (``scatter``,
         ``compliance``, ``cells_per_pitch``, ``layers``).
     noise_mm, occlusion_fraction, outlier_fraction : float
         Scanner imperfections (mm; shares of the points; see :class:`mppf.sim.scanner.SimulatedScanner`).
@@ -205,13 +204,8 @@ class SimulatedPlateScanner:
         net = None if job.layout is None else job.layout.net_outline_mm
         return cls(press, thickness_mm, plate_outline_xy(job, flat_points), net_outline_xy_mm=net, **options)
 
-    def new_plate(self):
+    def new_plate(self) -> SimulatedPlate:
         """The flat plate before its first step (its true properties drawn from the seed)."""
-        if self.plate_model == "planner":
-            from mppf.sim.planner_plate import PlannerModelPlate
-
-            return PlannerModelPlate(self.press, self.outline_xy_mm, self.thickness_mm, self.material, seed=self.seed,
-                                     **self.plate_options)
         from mppf.sim.plate.material import PlateSteel
 
         steel = PlateSteel.from_material(self.material) if self.steel is None else self.steel
@@ -284,11 +278,7 @@ class SimulatedPlateScanner:
         axes lie in the plate's frame (the first section's press x, y): the plate is shifted there first.
         """
         placement = getattr(step, "placement_mm", None)
-        if hasattr(self.plate, "place"):
-            self.plate.place((0.0, 0.0) if placement is None else placement)
-        elif placement is not None and np.any(np.asarray(placement) != 0.0):
-            raise InputError(f"the {self.plate_model!r} plate model cannot be pressed in sections (it keeps no memory "
-                             "of the sections pressed before)", hint="use the steel plate (plate_model='steel')")
+        self.plate.place((0.0, 0.0) if placement is None else placement)  # the FE plate refuses a later section
         share = 1.0 if step.complete else INTERRUPTED_SHARE
         self.plate.press_step(step.upper_mm, step.lower_mm, step.active, share=share)
         self.pressed.append([int(step.cycle), int(step.step)])

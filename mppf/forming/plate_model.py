@@ -2,8 +2,9 @@
 
 One model of how a plate takes the shape of the punches, used by the planner to
 pre-compensate springback (:mod:`mppf.forming.precompensate`, with the NOMINAL material) and by
-the simulated plate of the dry runs (:mod:`mppf.sim.forming`, with the plate's TRUE,
-scattered material). The math is in ``docs/compare.md``, section "The simulated plate".
+:mod:`mppf.sim.forming` (with a plate's TRUE, scattered material), the quick formed plate the tests
+of the scanner and the comparison sample; the dry runs press the steel or the FE plate
+(:class:`mppf.sim.simulated_plate.SimulatedPlate`). The math is in ``docs/compare.md``, section "The simulated plate".
 
 1. **Contact.** At every active punch pair the plate's mid-surface passes midway between
    the lower ball (top at ``lower_mm``) and the upper ball (bottom at ``upper_mm``):

@@ -174,11 +174,13 @@ def test_loop_with_a_bad_scan_file_exits_2_and_resumes(plate_files, tmp_path, ca
         upper, lower = record.steps[-1].setpoints_mm(press)
         scanner.acquire(1, ScanContext(plate_id="K2-B", work_dir=scans, since_s=time.time(), upper_mm=upper,
                                        lower_mm=lower, active=record.steps[-1].active))
+    # the good scan is taken: the loop ends after its one cycle (the steel plate's first press under-bends: exit 5)
     assert main(["loop", "--resume", "--plate-id", "K2-B", "--history", str(tmp_path / "history.sqlite"),
-                 "--scan-timeout", "5"]) == 0
+                 "--scan-timeout", "5"]) == 5
     with History(tmp_path / "history.sqlite") as history:
         record = history.cycle("K2-B", 1)
     assert record.state == "done" and Path(record.scan_path).name == "scan-cycle-01.ply"
+    assert record.decision == "max_cycles"
     audit = sqlite3.connect(tmp_path / "audit.sqlite")
     (gos,) = audit.execute("SELECT COUNT(*) FROM audit WHERE action = 'go'").fetchone()
     assert gos == len(record.steps)  # the resumes pressed nothing
@@ -190,10 +192,11 @@ def _scanner(history, plate_id, press, flat_path):
     from mppf.sim.shop import SimulatedPlateScanner
 
     job = load_job(history.cycle(plate_id, 1).job_path)
-    # the planner's own plate model: this scan only has to be a usable scan of the plate as pressed
-    # (the steel plate takes five times longer to press), seen whole without stray returns (no rescan is asked for)
+    # the steel plate on a coarse grid: this scan only has to be a usable scan of the plate as pressed, seen whole
+    # without stray returns (no rescan is asked for)
     return SimulatedPlateScanner.for_job(press, 20.0, job, read_points(flat_path).points, seed=1,
-                                         plate_model="planner", occlusion_fraction=0.0, outlier_fraction=0.0)
+                                         plate_options={"grid_spacing_mm": 150.0}, occlusion_fraction=0.0,
+                                         outlier_fraction=0.0)
 
 
 # -- the press policy, shared with mppf press ------------------------------------------------------

@@ -33,12 +33,17 @@ def _record(tmp_path, planned_plate, history, plate_id, max_cycles=1):
     return press
 
 
+COARSE_GRID_MM = 150.0
+"""The steel plate's grid here (mm): coarse, the forming is not under test."""
+
+
 def _scanner(history, plate_id, press, planned_plate):
-    """The plate and its scanner: the planner's own plate model, since these tests are of the state machine
-    (what is pressed, recorded and resumed), not of the forming; the steel plate takes five times longer to press.
-    The scanner sees the whole plate without stray returns: no rescans (they have their own tests)."""
+    """The plate and its scanner: the steel plate on a coarse grid, since these tests are of the state machine
+    (what is pressed, recorded and resumed), not of the forming. The scanner sees the whole plate without stray
+    returns: no rescans (they have their own tests)."""
     job = load_job(history.cycle(plate_id, 1).job_path)
-    return SimulatedPlateScanner.for_job(press, 20.0, job, planned_plate[1].points, seed=1, plate_model="planner",
+    return SimulatedPlateScanner.for_job(press, 20.0, job, planned_plate[1].points, seed=1,
+                                         plate_options={"grid_spacing_mm": COARSE_GRID_MM},
                                          occlusion_fraction=0.0, outlier_fraction=0.0,
                                          spacing_mm=35.0)  # the cycle, not the scan, is under test
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mppf.core.errors import InputError
 from mppf.core.scanner import PressedStep
 from mppf.model.press import example_press_path, load_press
 from mppf.sim.plate.plate import SteelPlate
@@ -56,7 +55,7 @@ def test_the_second_section_bends_the_plate_beyond_the_first_sections_reach():
     assert np.allclose(again.formed.height_mm(end, np.zeros(3)), twice)
 
 
-def test_the_scanner_presses_each_step_at_its_placement_and_the_planner_plate_refuses_sections(tmp_path):
+def test_the_scanner_presses_each_step_at_its_placement(tmp_path):
     up, lo, active = _bowl(SteelPlate(PRESS, LONG, 20.0, seed=None, grid_spacing_mm=150.0), 40.0, 0.0)
     step = PressedStep(1, 1, up, lo, active)
     shifted = PressedStep(1, 2, up, lo, active)
@@ -66,6 +65,3 @@ def test_the_scanner_presses_each_step_at_its_placement_and_the_planner_plate_re
     assert np.allclose(scanner.plate.placement_mm, 0.0)
     scanner._press(shifted)
     assert np.allclose(scanner.plate.placement_mm, (600.0, 0.0))
-    planner = SimulatedPlateScanner(PRESS, 20.0, LONG, plate_model="planner")
-    with pytest.raises(InputError, match="cannot be pressed in sections"):
-        planner._press(shifted)

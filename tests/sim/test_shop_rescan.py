@@ -29,11 +29,11 @@ def _context(press, work_dir):
 
 def test_a_rescan_is_a_new_take_in_the_first_takes_pose(tmp_path):
     press = load_press(example_press_path())
-    scanner = SimulatedPlateScanner(press, T, OUTLINE, seed=5, plate_model="planner", outlier_fraction=0.0)
+    scanner = SimulatedPlateScanner(press, T, OUTLINE, seed=5, outlier_fraction=0.0)
     context = _context(press, tmp_path)
     first = read_points(scanner.acquire(1, context)).points
     rescan_path = scanner.rescan(1, 1, context)
-    again = SimulatedPlateScanner(press, T, OUTLINE, seed=5, plate_model="planner", outlier_fraction=0.0)
+    again = SimulatedPlateScanner(press, T, OUTLINE, seed=5, outlier_fraction=0.0)
     assert scanner.pressed == [[1, 1]]  # the rescan pressed nothing
     rescan = read_points(rescan_path).points
     assert rescan_path.name == "scan-cycle-01-rescan-1.ply" and not (tmp_path / (rescan_path.name + ".mark.json")).exists()
@@ -56,7 +56,7 @@ def test_a_rescan_is_a_new_take_in_the_first_takes_pose(tmp_path):
 def test_a_given_pose_changes_nothing_else(tmp_path):
     """The pose may be given (a fixed station); the take's points relative to the plate are those of the random pose."""
     press = load_press(example_press_path())
-    scanner = SimulatedPlateScanner(press, T, OUTLINE, seed=2, plate_model="planner")
+    scanner = SimulatedPlateScanner(press, T, OUTLINE, seed=2)
     scanner.acquire(1, _context(press, tmp_path))
     formed = scanner.last_formed
     free = SimulatedScanner(seed=9).sample(formed)
@@ -70,7 +70,7 @@ def test_a_rescan_aimed_at_listed_areas_sees_them_whole_and_little_else(tmp_path
     import dataclasses
 
     press = load_press(example_press_path())
-    scanner = SimulatedPlateScanner(press, T, OUTLINE, seed=5, plate_model="planner", outlier_fraction=0.0)
+    scanner = SimulatedPlateScanner(press, T, OUTLINE, seed=5, outlier_fraction=0.0)
     context = _context(press, tmp_path)
     first = read_points(scanner.acquire(1, context)).points
     area = [[-300.0, -200.0], [100.0, -200.0], [100.0, 150.0], [-300.0, 150.0]]

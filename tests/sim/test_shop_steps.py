@@ -41,7 +41,7 @@ def _context(tmp_path, steps):
                        active=last.active, steps=tuple(steps), reporter=NULL_REPORTER)
 
 
-def _scanner(press, model="planner"):
+def _scanner(press, model="steel"):
     return SimulatedPlateScanner(press, T, OUTLINE, seed=4, plate_model=model, noise_mm=0.0, occlusion_fraction=0.0,
                                  outlier_fraction=0.0, reference_mark=False)
 
@@ -50,9 +50,8 @@ def _centre_height(scanner):
     return float(scanner.plate.formed.height_mm(np.array([0.0]), np.array([0.0]))[0])
 
 
-@pytest.mark.parametrize("model", ["planner", "steel"])
-def test_every_step_is_pressed_once_and_a_resumed_run_goes_on_with_the_same_plate(press, tmp_path, model):
-    scanner = _scanner(press, model)
+def test_every_step_is_pressed_once_and_a_resumed_run_goes_on_with_the_same_plate(press, tmp_path):
+    scanner = _scanner(press)
     first = _steps(press, 1, [40.0, 80.0])
     scanner.acquire(1, _context(tmp_path, first))
     assert scanner.pressed == [[1, 1], [1, 2]] and (tmp_path / STATE_FILE).exists()
@@ -60,7 +59,7 @@ def test_every_step_is_pressed_once_and_a_resumed_run_goes_on_with_the_same_plat
     scanner.acquire(1, _context(tmp_path, first))
     assert scanner.pressed == [[1, 1], [1, 2]]
     # another process (a resumed dry run) takes the plate from the work folder
-    other = _scanner(press, model)
+    other = _scanner(press)
     second = _steps(press, 2, [60.0])
     other.acquire(2, _context(tmp_path, second))
     assert other.pressed == [[1, 1], [1, 2], [2, 1]]
@@ -82,6 +81,9 @@ def test_an_interrupted_step_takes_the_tips_part_of_the_way(press, tmp_path):
     assert 0.0 < INTERRUPTED_SHARE < 1.0
 
 
-def test_an_unknown_plate_model_is_refused(press):
-    with pytest.raises(InputError, match="unknown simulated plate model"):
-        SimulatedPlateScanner(press, T, OUTLINE, plate_model="rubber")
+@pytest.mark.parametrize("model", ["rubber", "planner"])
+def test_an_unknown_plate_model_is_refused(press, model):
+    """Two plates: the steel plate and the FE plate; the planner's old plate is retired."""
+    with pytest.raises(InputError, match=f"unknown simulated plate model '{model}'") as refused:
+        SimulatedPlateScanner(press, T, OUTLINE, plate_model=model)
+    assert refused.value.hint == "use steel or fe"
