@@ -29,14 +29,17 @@ where a section ended shows here), largest over the borders of all sections; and
 more than 300 mm inside the plate's edges (``inner_max``: the simulated plate's free corners and ends beyond
 the outer punches depend on its grid on long plates).
 
-Variant: ``--weightless`` takes the plate's own weight off, as if it were all carried beside the press.
+Variants: ``--weightless`` takes the plate's own weight off, as if it were all carried beside the press;
+``--start formed`` starts every later section's steps from the plate the sections before it formed
+(:func:`mppf.planning.section_start.from_formed_plate`) instead of from flat.
 
 Resumable: every finished run is written at once to ``--results`` (JSON keyed by physics, plate, seed,
 max cycles, grid and ``--label``); ``--budget-s`` (default 540) stops starting new runs after that long.
 ``--table`` prints the tables of the file only.
 
 Run:  python benchmarks/bench_loop_sectional.py [--plates cylinder twisted kcs_stern real0010 real0008]
-          [--physics steel] [--seeds 1] [--grid-mm 150] [--weightless] [--label before] [--results FILE.json] [--table]
+          [--physics steel] [--seeds 1] [--grid-mm 150] [--weightless] [--start flat|formed] [--label before]
+          [--results FILE.json] [--table]
 """
 
 from __future__ import annotations
@@ -101,13 +104,16 @@ def plate_files(name: str, work: Path):
 class Planned:
     """A long plate planned in sections with the nominal material; the design as each section places it."""
 
-    def __init__(self, press, name: str, work: Path):
+    def __init__(self, press, name: str, work: Path, start: str = "flat"):
         from mppf.loop.plate import plan_first_cycle
+        from mppf.planning.section_start import from_formed_plate
 
         self.name = name
         self.design, self.flat = plate_files(name, work)
         t0 = time.process_time()
         self.job = plan_first_cycle(self.design, self.flat, press, THICKNESS_MM, material=NOMINAL)
+        if start == "formed" and self.job.sections is not None:  # later sections from the formed plate
+            self.job = from_formed_plate(self.job)
         self.plan_cpu_s = time.process_time() - t0
         if self.job.sections is None:
             raise ValueError(f"{name} fits the bed: not a sectional plate")
@@ -299,7 +305,7 @@ def run_part(args, results: dict) -> bool:
                 return False
             t0 = time.monotonic()
             try:
-                planned.setdefault(name, Planned(press, name, Path(tmp)))
+                planned.setdefault(name, Planned(press, name, Path(tmp), args.start))
                 plate = make_plate(press, planned[name], physics, seed, args.grid_mm, args.true_yield)
                 row = run_direct(press, planned[name], plate, args.max_cycles, args.weightless)
             except MppfError as exc:  # a failed run counts as not in tolerance
@@ -315,7 +321,7 @@ def run_part(args, results: dict) -> bool:
 
 
 def _key(physics: str, name: str, seed: int, args) -> str:
-    physics = physics + ("-weightless" if args.weightless else "")
+    physics = physics + ("-weightless" if args.weightless else "") + ("-formed" if args.start == "formed" else "")
     return f"{physics}|{name}|{seed}|{args.max_cycles}|{args.grid_mm:g}|learned|{args.label}"
 
 
@@ -327,6 +333,9 @@ def main(argv=None) -> int:
     parser.add_argument("--max-cycles", type=int, default=5)
     parser.add_argument("--grid-mm", type=float, default=150.0, help="cell size of the simulated plate's grid (mm)")
     parser.add_argument("--true-yield", type=float, default=265.0, help="the simulated steel's yield stress (MPa)")
+    parser.add_argument("--start", choices=("flat", "formed"), default="flat",
+                        help="where later sections' steps start: flat (as planned) or the formed plate "
+                             "(mppf.planning.section_start.from_formed_plate)")
     parser.add_argument("--weightless", action="store_true",
                         help="take the plate's own weight off (as if all of it were carried beside the press)")
     parser.add_argument("--label", default="now", help="names the code measured (e.g. before, after)")

@@ -18,7 +18,7 @@ from mppf.core.rigid import fit_rigid
 from mppf.core.transform import apply_tf, invert_tf, make_tf
 from mppf.geometry.surface import fit_plate
 from mppf.model.job import Job
-from mppf.model.job_parts import PlateLayout
+from mppf.model.job_parts import PlateLayout, StepStrokes
 from mppf.model.job_provenance import SectionalSummary, TransitionReport
 from mppf.model.job_sections import Section
 from mppf.model.plan_options import PlanOptions
@@ -30,6 +30,7 @@ from mppf.planning.plan import SURFACE_DEGREE, SURFACE_KIND, first_press_materia
 from mppf.planning.plan_steps import (active_punches, check_plan_inputs, check_trim, least_travel_pose, on_grid,
                                       as_validation, planner_reports, section_reports, steps_within_limit)
 from mppf.planning.sectional_borders import BORDER_STEP_LIMIT_MM, border_steps, border_warnings, recovered_residual
+from mppf.planning.section_start import formed_punches, plan_section_steps
 from mppf.planning.sectional_overbend import closer_fit, whole_target
 from mppf.planning.sections import (TRANSITION_PITCHES, earlier_weight, index_offset, mark_punches, shifted,
                                     split_plate)
@@ -136,7 +137,7 @@ def _plan_section(index, cell, centre, earlier, zone, steps, placement, ctx) -> 
     zero = np.zeros(press.shape)
     weight, d_up, d_lo = _blend(press, centre, active, zero, zero, earlier, zone, placement.size_mm / 2.0)
     final_up, final_lo = np.where(active, upper + d_up, np.nan), np.where(active, lower + d_lo, np.nan)
-    # press steps from flat, validated
+    # press steps from flat, validated (a later section's from the formed plate: section_start.from_formed_plate)
     n_steps = steps if steps is not None else steps_needed(final_up, final_lo, active, press, t)
     step_list = steps_within_limit(final_up, final_lo, active, press, t, n_steps)
     validation = validate_steps(step_list, press, t)
@@ -318,11 +319,15 @@ def apply_section_corrections(job: Job, corrections, *, steps: int | None = None
         # held to the strokes the press has (a blend of two sections' corrections may reach past them)
         up = np.where(final.active, np.clip(final.upper_mm + d_up, press.upper.min_mm, press.upper.max_mm), np.nan)
         lo = np.where(final.active, np.clip(final.lower_mm + d_lo, press.lower.min_mm, press.lower.max_mm), np.nan)
-        n = steps if steps is not None else steps_needed(up, lo, final.active, press, t)
-        step_list = steps_within_limit(up, lo, final.active, press, t, n)
-        validation = validate_steps(step_list, press, t)
+        formed = formed_punches(press, centre, final.active, [(d["centre"], d["active"]) for d in done]) \
+            if s.transition is not None and s.transition.start_share is not None else np.zeros(press.shape, bool)
+        start, step_list, share = plan_section_steps(press, t, s.layout.design_mid_mm,
+                                                     StepStrokes(up, lo, final.active), formed, steps)
+        n = len(step_list)
+        validation = validate_steps(step_list, press, t, start=start)
         done.append({"centre": centre, "active": final.active, "delta": (d_up, d_lo)})
-        sections.append(dataclasses.replace(s, steps=step_list, reports=dataclasses.replace(
+        transition = None if s.transition is None else dataclasses.replace(s.transition, start_share=share)
+        sections.append(dataclasses.replace(s, steps=step_list, transition=transition, reports=dataclasses.replace(
             s.reports, validation=as_validation(validation), n_steps=int(n))))
     return dataclasses.replace(job, steps=sections[0].steps, sections=sections,
                                reports=dataclasses.replace(job.reports, validation=sections[0].reports.validation))

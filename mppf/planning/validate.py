@@ -223,7 +223,7 @@ def check_setpoints(upper_mm, lower_mm, press: PressConfig, plc_limits: dict | N
 
 # -------------------------------------------------------------------- steps ---
 def validate_steps(steps: list[StepStrokes], press: PressConfig, thickness_mm: float,
-                   plc_limits: dict | None = None) -> dict:
+                   plc_limits: dict | None = None, start=None) -> dict:
     """Check every step of a job before anything is written.
 
     Checks: the thickness at most ``press.max_thickness_mm``; active strokes finite and
@@ -232,7 +232,9 @@ def validate_steps(steps: list[StepStrokes], press: PressConfig, thickness_mm: f
     :data:`mppf.planning.step_checks.GAP_TOLERANCE_MM`); no step
     adding more than ``max_neighbour_diff_mm`` to the height difference of neighbouring
     punches; strokes monotonic from step to step. Inactive punches are not checked here (they
-    are parked: :func:`check_job_document`, :func:`check_setpoints`).
+    are parked: :func:`check_job_document`, :func:`check_setpoints`). ``start``: (upper, lower)
+    (rows, cols) mm where the tips stand before the first step (a later section of a plate in sections,
+    :func:`mppf.planning.section_start.section_start`); None: at the flat plate's heights.
 
     Returns
     -------
@@ -252,6 +254,8 @@ def validate_steps(steps: list[StepStrokes], press: PressConfig, thickness_mm: f
     limits = stroke_limits(press, plc_limits)
     problems = _Problems()
     track = StepTrack.start(press, thickness_mm)
+    for side, heights in zip(("upper", "lower"), start or ()):  # a later section: from the formed plate
+        track.prev[side] = np.where(np.isfinite(heights), heights, track.prev[side])
     for k, step in enumerate(steps, start=1):
         check_step(k, step, press, limits, thickness_mm, problems, track)
     problems.raise_if_any("the planned strokes fail validation",
@@ -346,9 +350,12 @@ def validate_job(job: Job, *, press_file: PressConfig | None = None, plc_shape: 
         problems.raise_if_any("the job's press reaches beyond the PLC's stroke limits",
                               "plan the plate with the press description of this press (its limits are the PLC's)")
     report = validate_steps(job.steps, press, job.thickness_mm, plc_limits)
-    for section in job.sections or []:  # a plate in sections: every section's steps too
+    from mppf.planning.section_start import section_start
+
+    for k, section in enumerate(job.sections or []):  # a plate in sections: every section's steps too
         try:
-            report[f"section {section.index}"] = validate_steps(section.steps, press, job.thickness_mm, plc_limits)
+            report[f"section {section.index}"] = validate_steps(section.steps, press, job.thickness_mm, plc_limits,
+                                                                section_start(job.sections, k, press, job.thickness_mm))
         except LimitError as exc:
             raise LimitError(f"section {section.index}: {exc.message}", hint=exc.hint) from None
     return report
