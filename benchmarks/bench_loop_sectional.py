@@ -31,7 +31,7 @@ the outer punches depend on its grid on long plates).
 
 Variants: ``--weightless`` takes the plate's own weight off, as if it were all carried beside the press;
 ``--start formed`` starts every later section's steps from the plate the sections before it formed
-(:func:`mppf.planning.section_start.from_formed_plate`) instead of from flat.
+(:func:`mppf.planning.sectional.from_formed_plate`) instead of from flat.
 
 Resumable: every finished run is written at once to ``--results`` (JSON keyed by physics, plate, seed,
 max cycles, grid and ``--label``); ``--budget-s`` (default 540) stops starting new runs after that long.
@@ -106,7 +106,7 @@ class Planned:
 
     def __init__(self, press, name: str, work: Path, start: str = "flat"):
         from mppf.loop.plate import plan_first_cycle
-        from mppf.planning.section_start import from_formed_plate
+        from mppf.planning.sectional import from_formed_plate
 
         self.name = name
         self.design, self.flat = plate_files(name, work)
@@ -335,7 +335,7 @@ def main(argv=None) -> int:
     parser.add_argument("--true-yield", type=float, default=265.0, help="the simulated steel's yield stress (MPa)")
     parser.add_argument("--start", choices=("flat", "formed"), default="flat",
                         help="where later sections' steps start: flat (as planned) or the formed plate "
-                             "(mppf.planning.section_start.from_formed_plate)")
+                             "(mppf.planning.sectional.from_formed_plate)")
     parser.add_argument("--weightless", action="store_true",
                         help="take the plate's own weight off (as if all of it were carried beside the press)")
     parser.add_argument("--label", default="now", help="names the code measured (e.g. before, after)")

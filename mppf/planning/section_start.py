@@ -275,35 +275,3 @@ def plan_section_steps(press: PressConfig, thickness_mm: float, design_mid_mm, f
                                                               thickness_mm)
     return None, steps_from(None, final.upper_mm, final.lower_mm, active, thickness_mm, n), None
 
-
-def from_formed_plate(job):
-    """The sectional job with every later section's steps from the plate the sections before it formed.
-
-    Each section after the first that meets formed plate gets the start and steps of
-    :func:`plan_section_steps` (its ``transition.start_share`` set; the loop's corrections,
-    :func:`mppf.planning.sectional.apply_section_corrections`, keep starting there); the final strokes are
-    unchanged, every section validated from its start. The planner itself presses every section from flat:
-    measured on the steel-plate simulator this start did not make the first press better
-    (``benchmarks/results/2026-12-06-sectional-first-press.md``).
-
-    Raises
-    ------
-    InputError
-        Not a sectional job.
-    """
-    import dataclasses
-
-    from mppf.core.errors import InputError
-    from mppf.planning.sectional import apply_section_corrections
-
-    if job.sections is None:
-        raise InputError("only a plate planned in sections has later sections to start from the formed plate",
-                         hint="plan the plate with plan_plate; a plate that fits the bed is pressed in one piece")
-    marked = [s if s.transition is None or k == 0 else
-              dataclasses.replace(s, transition=dataclasses.replace(s.transition, start_share=1.0))
-              for k, s in enumerate(job.sections)]
-    zeros = [(np.zeros(job.press.shape), np.zeros(job.press.shape))] * len(marked)
-    started = apply_section_corrections(dataclasses.replace(job, sections=marked), zeros, blend=False)
-    total = int(sum(len(s.steps) for s in started.sections))
-    sectional = None if job.sectional is None else dataclasses.replace(job.sectional, n_steps_total=total)
-    return dataclasses.replace(started, sectional=sectional)

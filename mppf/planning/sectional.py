@@ -37,8 +37,8 @@ from mppf.planning.sections import (TRANSITION_PITCHES, earlier_weight, index_of
 from mppf.planning.steps import steps_needed
 from mppf.planning.validate import validate_steps
 
-__all__ = ["BORDER_STEP_LIMIT_MM", "apply_section_corrections", "border_warnings", "plan_plate", "plan_sectional",
-           "recovered_residual", "sections_summary"]
+__all__ = ["BORDER_STEP_LIMIT_MM", "apply_section_corrections", "border_warnings", "from_formed_plate", "plan_plate",
+           "plan_sectional", "recovered_residual", "sections_summary"]
 
 
 def plan_plate(design_points, flat_points, press: PressConfig, thickness_mm: float,
@@ -137,7 +137,7 @@ def _plan_section(index, cell, centre, earlier, zone, steps, placement, ctx) -> 
     zero = np.zeros(press.shape)
     weight, d_up, d_lo = _blend(press, centre, active, zero, zero, earlier, zone, placement.size_mm / 2.0)
     final_up, final_lo = np.where(active, upper + d_up, np.nan), np.where(active, lower + d_lo, np.nan)
-    # press steps from flat, validated (a later section's from the formed plate: section_start.from_formed_plate)
+    # press steps from flat, validated (from the formed plate: from_formed_plate)
     n_steps = steps if steps is not None else steps_needed(final_up, final_lo, active, press, t)
     step_list = steps_within_limit(final_up, final_lo, active, press, t, n_steps)
     validation = validate_steps(step_list, press, t)
@@ -331,6 +331,36 @@ def apply_section_corrections(job: Job, corrections, *, steps: int | None = None
             s.reports, validation=as_validation(validation), n_steps=int(n))))
     return dataclasses.replace(job, steps=sections[0].steps, sections=sections,
                                reports=dataclasses.replace(job.reports, validation=sections[0].reports.validation))
+
+
+def from_formed_plate(job):
+    """The sectional job with every later section's steps from the plate the sections before it formed.
+
+    Each section after the first that meets formed plate gets the start and steps of
+    :func:`mppf.planning.section_start.plan_section_steps` (its ``transition.start_share`` set; the loop's
+    corrections, :func:`apply_section_corrections`, keep starting there); the final strokes are
+    unchanged, every section validated from its start. The planner itself presses every section from flat:
+    measured on the steel-plate simulator this start did not make the first press better
+    (``benchmarks/results/2026-12-06-sectional-first-press.md``).
+
+    Raises
+    ------
+    InputError
+        Not a sectional job.
+    """
+    from mppf.core.errors import InputError
+
+    if job.sections is None:
+        raise InputError("only a plate planned in sections has later sections to start from the formed plate",
+                         hint="plan the plate with plan_plate; a plate that fits the bed is pressed in one piece")
+    marked = [s if s.transition is None or k == 0 else
+              dataclasses.replace(s, transition=dataclasses.replace(s.transition, start_share=1.0))
+              for k, s in enumerate(job.sections)]
+    zeros = [(np.zeros(job.press.shape), np.zeros(job.press.shape))] * len(marked)
+    started = apply_section_corrections(dataclasses.replace(job, sections=marked), zeros, blend=False)
+    total = int(sum(len(s.steps) for s in started.sections))
+    sectional = None if job.sectional is None else dataclasses.replace(job.sectional, n_steps_total=total)
+    return dataclasses.replace(started, sectional=sectional)
 
 
 def sections_summary(job: Job) -> list[dict]:

@@ -17,11 +17,10 @@ from mppf.planning.section_start import (
     LAWFUL_FROM_FLAT,
     continue_heights,
     formed_punches,
-    from_formed_plate,
     section_start,
     steps_from,
 )
-from mppf.planning.sectional import plan_plate
+from mppf.planning.sectional import from_formed_plate, plan_plate
 from mppf.planning.validate import validate_job, validate_steps
 
 THICKNESS_MM = 20.0
