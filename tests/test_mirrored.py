@@ -46,3 +46,13 @@ def test_a_module_without_a_test_is_found(tmp_path, monkeypatch):
         (tmp_path / path).write_text("")
     monkeypatch.setitem(globals(), "ROOT", tmp_path)
     assert unmirrored("cli") == ["mppf/cli/probe.py"]
+
+
+def test_test_module_names_are_unique_across_tests():
+    # the test folders are not packages: two test modules of one name stop pytest's collection
+    by_name: dict[str, list[str]] = {}
+    for path in sorted((ROOT / "tests").rglob("test_*.py")):
+        by_name.setdefault(path.name, []).append(str(path.relative_to(ROOT)))
+    twice = {name: paths for name, paths in by_name.items() if len(paths) > 1}
+    assert not twice, ("rename one of each pair to tests/<stage>/test_<stage>_<module>.py:\n"
+                       + "\n".join(" and ".join(paths) for paths in twice.values()))
