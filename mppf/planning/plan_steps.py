@@ -8,6 +8,8 @@ the reports a job keeps (:class:`~mppf.model.job_reports.PlanReports`). Lengths 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from mppf.core.errors import GeometryError, InputError, LimitError
@@ -178,17 +180,70 @@ def steps_within_limit(upper, lower, active, press: PressConfig, t: float, n_ste
     return split_steps(upper, lower, active, t, int(n_steps))
 
 
-def planner_reports(fitted, registration, belongs, pose, upper, lower, active, t, validation, placement, n_steps,
-                    inputs, springback_report) -> PlanReports:
+@dataclass(frozen=True, eq=False)
+class PlannedPiece:
+    """What the planner found for one piece, from which :func:`planner_reports` writes its reports.
+
+    Attributes
+    ----------
+    fitted : FittedPlate
+        The fitted design surface (``kind``, ``degree``, ``rms_mm``, ``max_abs_mm``).
+    registration : Registration
+        The design registered onto the flat (``to_dict()``, ``tf`` (4, 4)).
+    belongs : dict
+        The checks that the flat is the design's unfolding (added to the registration report).
+    placement : FlatPlacement
+        The flat plate on the bed (``corners_mm`` (4, 3), ``size_mm`` (2,), mm).
+    pose : Pose
+        The pose of least travel (``tilt_x_deg``, ``tilt_y_deg``, ``offset_mm``).
+    upper_mm, lower_mm : (rows, cols) float, mm
+        Final tip heights of both matrices (NaN at inactive punches).
+    active : (rows, cols) bool
+    thickness_mm : float
+        Plate thickness, mm.
+    validation : dict or ValidationReport
+        The validation of the steps.
+    n_steps : int
+    springback : dict or SpringbackReport
+        The springback planning's report.
+    inputs : PlanInputs, dict or None
+        The files planned from.
+    """
+
+    fitted: object
+    registration: object
+    belongs: dict
+    placement: object
+    pose: object
+    upper_mm: np.ndarray
+    lower_mm: np.ndarray
+    active: np.ndarray
+    thickness_mm: float
+    validation: object
+    n_steps: int
+    springback: object
+    inputs: object = None
+
+
+def planner_reports(piece: PlannedPiece) -> PlanReports:
     """The planner's reports stored in the job (:class:`~mppf.model.job_reports.PlanReports`).
 
-    ``upper``, ``lower`` are (rows, cols) tip heights in mm, ``active`` (rows, cols) bool, ``t`` the
-    plate thickness in mm; ``validation`` and ``springback_report`` the dicts of the validation and
-    the springback planning; ``inputs`` a :class:`~mppf.model.job_reports.PlanInputs` or its dict;
-    the rest are the planner's intermediate results, each kept as its report.
+    Parameters
+    ----------
+    piece : PlannedPiece
+        The planner's intermediate results of the piece, each kept as its report.
+
+    Returns
+    -------
+    PlanReports
+        The pose's ``max_travel_mm`` is the largest ``|tip height - flat-plate tip height|`` over the
+        active punches of both matrices (upper t, lower 0), mm.
     """
-    registration_doc = {**registration.to_dict(), **belongs, "rotation_deg": rotation_angle_deg(registration.tf)}
-    travel = float(max(np.abs(upper[active] - t).max(), np.abs(lower[active]).max()))
+    registration_doc = {**piece.registration.to_dict(), **piece.belongs,
+                        "rotation_deg": rotation_angle_deg(piece.registration.tf)}
+    active, t = piece.active, piece.thickness_mm
+    travel = float(max(np.abs(piece.upper_mm[active] - t).max(), np.abs(piece.lower_mm[active]).max()))
+    fitted, pose = piece.fitted, piece.pose
     return PlanReports(
         surface_fit=SurfaceFitReport(surface_kind=fitted.kind, surface_degree=fitted.degree,
                                      surface_fit_rms_mm=fitted.rms_mm, surface_fit_max_mm=fitted.max_abs_mm),
@@ -196,9 +251,11 @@ def planner_reports(fitted, registration, belongs, pose, upper, lower, active, t
         pose=PoseReport(tilt_x_deg=pose.tilt_x_deg, tilt_y_deg=pose.tilt_y_deg, offset_mm=pose.offset_mm,
                         max_travel_mm=travel,
                         travel_definition="largest |tip height - flat-plate tip height| (upper t, lower 0)"),
-        validation=as_validation(validation), plate_corners_mm=np.asarray(placement.corners_mm, dtype=float),
-        plate_size_mm=np.asarray(placement.size_mm, dtype=float), n_active=int(active.sum()), n_steps=int(n_steps),
-        inputs=PlanInputs.of(inputs or {}), springback=as_springback(springback_report),
+        validation=as_validation(piece.validation),
+        plate_corners_mm=np.asarray(piece.placement.corners_mm, dtype=float),
+        plate_size_mm=np.asarray(piece.placement.size_mm, dtype=float), n_active=int(active.sum()),
+        n_steps=int(piece.n_steps), inputs=PlanInputs.of(piece.inputs or {}),
+        springback=as_springback(piece.springback),
     )
 
 

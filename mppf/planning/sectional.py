@@ -28,7 +28,8 @@ from mppf.planning.contact import PlacedSurface, tip_heights
 from mppf.planning.placement import FlatPlacement, fits_bed, lay_flat, register_design
 from mppf.planning.plan import SURFACE_DEGREE, SURFACE_KIND, first_press_material, first_press_report, plan_job
 from mppf.planning.plan_steps import (active_punches, check_plan_inputs, check_trim, least_travel_pose, on_grid,
-                                      as_validation, planner_reports, section_reports, steps_within_limit)
+                                      as_validation, PlannedPiece, planner_reports, section_reports,
+                                      steps_within_limit)
 from mppf.planning.sectional_borders import BORDER_STEP_LIMIT_MM, border_steps, border_warnings, recovered_residual
 from mppf.planning.section_start import formed_punches, plan_section_steps
 from mppf.planning.sectional_overbend import closer_fit, whole_target
@@ -263,9 +264,10 @@ def _assemble(planned, border, split, zone, fitted, registration, belongs, place
     placed1 = FlatPlacement(s1.tf_press_flat, placement.flat_press_mm + shift, placement.size_mm,
                             placement.corners_mm + shift)
     final = s1.steps[-1]
-    reports = planner_reports(fitted, registration, belongs, first["pose"], final.upper_mm, final.lower_mm,
-                              first["active"], t, s1.reports.validation, placed1, len(s1.steps), inputs,
-                              springback_report)
+    reports = planner_reports(PlannedPiece(
+        fitted=fitted, registration=registration, belongs=belongs, placement=placed1, pose=first["pose"],
+        upper_mm=final.upper_mm, lower_mm=final.lower_mm, active=first["active"], thickness_mm=t,
+        validation=s1.reports.validation, n_steps=len(s1.steps), springback=springback_report, inputs=inputs))
     pose = dataclasses.replace(reports.pose, max_travel_mm=s1.reports.max_travel_mm)  # section 1's own travel
     reports = dataclasses.replace(reports, pose=pose)
     sectional = SectionalSummary(
