@@ -339,23 +339,52 @@ def validate_job(job: Job, *, press_file: PressConfig | None = None, plc_shape: 
                           f"{plc_shape[0]} x {plc_shape[1]}", hint="use the job planned for this press")
     check_plan(job)  # placements, marks, sections and step counts re-derived from the plan
     if plc_limits is not None:
-        problems = _Problems()
-        for side in SIDES:
-            axis, (lo, hi) = getattr(press, side), plc_limits[side]
-            for key, value, limit, beyond in (("min_mm", axis.min_mm, lo, axis.min_mm < lo - 0.005),
-                                              ("max_mm", axis.max_mm, hi, axis.max_mm > hi + 0.005)):
-                if beyond:
-                    problems.add([f"[{side}] {key} {value:g} mm of the job's press is beyond the PLC's limit "
-                                  f"{limit:g} mm"])
-        problems.raise_if_any("the job's press reaches beyond the PLC's stroke limits",
-                              "plan the plate with the press description of this press (its limits are the PLC's)")
+        _check_plc_limits(press, plc_limits)
     report = validate_steps(job.steps, press, job.thickness_mm, plc_limits)
+    report.update(_validate_sections(job, plc_limits))
+    return report
+
+
+def _check_plc_limits(press: PressConfig, plc_limits: dict) -> None:
+    """Refuse a press whose stroke limits reach beyond the PLC's.
+
+    Parameters
+    ----------
+    press : PressConfig
+        The job's press.
+    plc_limits : dict
+        ``{"upper": (min, max), "lower": (min, max)}`` mm, the PLC's stroke limits.
+
+    Raises
+    ------
+    LimitError
+        Every limit of the press beyond the PLC's by more than 0.005 mm, listed.
+    """
+    problems = _Problems()
+    for side in SIDES:
+        axis, (lo, hi) = getattr(press, side), plc_limits[side]
+        for key, value, limit, beyond in (("min_mm", axis.min_mm, lo, axis.min_mm < lo - 0.005),
+                                          ("max_mm", axis.max_mm, hi, axis.max_mm > hi + 0.005)):
+            if beyond:
+                problems.add([f"[{side}] {key} {value:g} mm of the job's press is beyond the PLC's limit {limit:g} mm"])
+    problems.raise_if_any("the job's press reaches beyond the PLC's stroke limits",
+                          "plan the plate with the press description of this press (its limits are the PLC's)")
+
+
+def _validate_sections(job: Job, plc_limits: dict | None) -> dict:
+    """``{"section k": report of validate_steps}`` of every section in pressing order (``{}``: one piece).
+
+    ``plc_limits`` as :func:`validate_job`. Raises LimitError when a section's steps fail, the
+    message prefixed with ``section k:``.
+    """
     from mppf.planning.section_start import section_start
 
-    for k, section in enumerate(job.sections or []):  # a plate in sections: every section's steps too
+    reports = {}
+    for k, section in enumerate(job.sections or []):
         try:
-            report[f"section {section.index}"] = validate_steps(section.steps, press, job.thickness_mm, plc_limits,
-                                                                section_start(job.sections, k, press, job.thickness_mm))
+            reports[f"section {section.index}"] = validate_steps(
+                section.steps, job.press, job.thickness_mm, plc_limits,
+                section_start(job.sections, k, job.press, job.thickness_mm))
         except LimitError as exc:
             raise LimitError(f"section {section.index}: {exc.message}", hint=exc.hint) from None
-    return report
+    return reports
