@@ -33,9 +33,9 @@ The loop takes the press (:class:`mppf.core.presslink.PressLink`) and the scanne
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 from mppf.core.presslink import PressLink
 from mppf.core.progress import NULL_REPORTER, Reporter
@@ -46,17 +46,28 @@ from mppf.loop.decide import decide
 from mppf.loop.endings import Ending, ending
 from mppf.loop.history import History
 from mppf.loop.marks import MarkedScanner, MarkNeed, needs_mark, plausible_scan
-from mppf.loop.measuring import acquire_scan, compare_cycle, comparison_summary, read_checked
+from mppf.loop.measuring import (
+    acquire_scan,
+    compare_cycle,
+    comparison_summary,
+    read_checked,
+)
 from mppf.loop.pressing import press_cycle
 from mppf.loop.records import CycleRecord, PlateRecord, load_cycle_job
 from mppf.loop.rescanning import rescan_uncovered
 from mppf.loop.scan_request import PostedRequest, post_request
 from mppf.loop.section_steps import is_sectional
-from mppf.loop.sectional import PlaceCallback, plan_next_sections, press_sections, report_placement, section_deviations
+from mppf.loop.sectional import (
+    PlaceCallback,
+    plan_next_sections,
+    press_sections,
+    report_placement,
+    section_deviations,
+)
 from mppf.loop.settings import LoopSettings
 from mppf.loop.states import CycleState, Decision
-from mppf.planning.job import load_job
 from mppf.model.press import PressConfig, press_from_dict
+from mppf.planning.job import load_job
 
 #: Called with each cycle record once compared (and again when corrected or done),
 #: plus the comparison when it was computed in this run (else None).
@@ -196,14 +207,27 @@ def run_loop(
         pressed again, on resume.
     """
     run = _start_run(history, plate_id, link, scanner, reporter, on_cycle, place or report_placement(reporter))
-    last = history.cycles(plate_id)[-1]
-    ran_before = any(e.state != CycleState.PLANNED for e in history.events(plate_id) if e.cycle is not None)
-    resumed, number = (last.state if ran_before else None), last.cycle
+    resumed, number = _resume_point(history, plate_id)
     while True:
         record = history.cycle(plate_id, number)
         if record.state == CycleState.DONE:
             return _result(run, record, resumed)
         number = _HANDLERS[record.state](run, record)
+
+
+def _resume_point(history: History, plate_id: str) -> tuple:
+    """Where the loop starts: the state it resumes from (None on a first run) and the cycle number.
+
+    Returns
+    -------
+    resumed : CycleState or None
+        The last cycle's state when any cycle got past "planned" before, else None.
+    number : int
+        The last cycle recorded.
+    """
+    last = history.cycles(plate_id)[-1]
+    ran_before = any(e.state != CycleState.PLANNED for e in history.events(plate_id) if e.cycle is not None)
+    return (last.state if ran_before else None), last.cycle
 
 
 def _result(run: _Run, record: CycleRecord, resumed) -> LoopResult:
