@@ -50,6 +50,32 @@ def _yield_uncertainty(pct, springback: bool) -> float:
     return float(pct)
 
 
+def _check_plan_options(thickness_mm, transition_mm, output, plot) -> None:
+    """Refuse a thickness over :data:`THICKNESS_MAX_MM` (mm), a transition width (mm) that is not positive,
+    and output paths that cannot be written, before any file is read."""
+    if thickness_mm > THICKNESS_MAX_MM:  # 0, negative and NaN: the planner's own message
+        raise InputError(f"--thickness {thickness_mm:g} mm is not a plate thickness (at most {THICKNESS_MAX_MM:g} mm)",
+                         hint="give the plate thickness in mm, e.g. 20")
+    if transition_mm is not None:
+        from mppf.core.validate import check_positive
+
+        check_positive("--transition", transition_mm, unit="mm", hint="give the shared width in mm, e.g. 300")
+    if output:
+        check_output_path(output, "the job file")
+    if plot:
+        check_output_path(plot, "the stroke map", PICTURE_SUFFIXES, kind="picture")
+
+
+def _inputs_record(design_cloud, flat_cloud, press_file: Path, units: str) -> dict:
+    """The files planned from as the job records them: path and SHA-256 of design, flat and press, and the units."""
+    return {
+        "design": {"path": str(design_cloud.path), "sha256": design_cloud.sha256},
+        "flat": {"path": str(flat_cloud.path), "sha256": flat_cloud.sha256},
+        "press": {"path": str(press_file), "sha256": hashlib.sha256(press_file.read_bytes()).hexdigest()},
+        "units": units,
+    }
+
+
 def _fmt(value, digits=1):
     return "-" if value is None else f"{value:.{digits}f}"
 
@@ -77,21 +103,37 @@ def _print_summary(summary: dict, output) -> None:
                   f"{summary['max_neighbour_step_mm']:.1f} mm")
     table.add_row("smallest tip gap", f"{_fmt(summary['min_gap_mm'], 2)} mm")
     if summary["springback"].get("enabled"):
-        radii = summary["springback"]
-        for what in ("target", "loaded"):
-            if radii.get(f"{what}_radii_mm") is None:  # the arcs did not fit: refined from the design
-                continue
-            text = ", ".join(_fmt(r and r / 1000, 2) + " m" for r in radii[f"{what}_radii_mm"])
-            table.add_row(f"springback: {what} radii", text)
-        first = radii.get("first_press")
-        if first:
-            table.add_row("springback: planned yield stress", f"{first['planned_yield_mpa']:.0f} MPa (nominal "
-                          f"{first['nominal_yield_mpa']:.0f} - {first['yield_uncertainty_pct']:g} %: under-bent)")
-        refinement = radii.get("refinement")
-        if refinement:
-            table.add_row("springback: virtual cycles", f"{refinement['virtual_cycles']}, predicted largest "
-                          f"deviation {refinement['history_mm'][0]:.1f} -> {refinement['predicted_max_mm']:.2f} mm")
+        _add_springback_rows(table, summary["springback"])
     console.print(table)
+    _print_strokes_and_corners(summary)
+    if summary.get("sections"):
+        _print_sections(summary["sections"])
+    for warning in summary.get("warnings", []):
+        console.print(f"warning: {warning}", style="yellow", markup=False, soft_wrap=True)
+    if output:
+        console.print(f"job written to {output}", markup=False, soft_wrap=True)
+
+
+def _add_springback_rows(table, springback: dict) -> None:
+    """The springback rows of the plan table: the radii (m), the planned yield stress, the virtual cycles."""
+    for what in ("target", "loaded"):
+        if springback.get(f"{what}_radii_mm") is None:  # the arcs did not fit: refined from the design
+            continue
+        text = ", ".join(_fmt(r and r / 1000, 2) + " m" for r in springback[f"{what}_radii_mm"])
+        table.add_row(f"springback: {what} radii", text)
+    first = springback.get("first_press")
+    if first:
+        table.add_row("springback: planned yield stress", f"{first['planned_yield_mpa']:.0f} MPa (nominal "
+                      f"{first['nominal_yield_mpa']:.0f} - {first['yield_uncertainty_pct']:g} %: under-bent)")
+    refinement = springback.get("refinement")
+    if refinement:
+        table.add_row("springback: virtual cycles", f"{refinement['virtual_cycles']}, predicted largest "
+                      f"deviation {refinement['history_mm'][0]:.1f} -> {refinement['predicted_max_mm']:.2f} mm")
+
+
+def _print_strokes_and_corners(summary: dict) -> None:
+    """The final strokes of both matrices (mm) and the plate corners on the bed (mm), as two tables."""
+    from rich.table import Table
 
     strokes = Table(title="final strokes (tip heights, mm)")
     for col in ("matrix", "active", "parked", "min", "max", "limits", "largest travel"):
@@ -109,12 +151,6 @@ def _print_summary(summary: dict, output) -> None:
     for name, (x, y, _) in zip(("-x -y", "+x -y", "+x +y", "-x +y"), summary["plate_corners_mm"]):
         corners.add_row(name, f"{x:.1f}", f"{y:.1f}")
     console.print(corners)
-    if summary.get("sections"):
-        _print_sections(summary["sections"])
-    for warning in summary.get("warnings", []):
-        console.print(f"warning: {warning}", style="yellow", markup=False, soft_wrap=True)
-    if output:
-        console.print(f"job written to {output}", markup=False, soft_wrap=True)
 
 
 def _print_sections(sections: list[dict]) -> None:
@@ -177,17 +213,7 @@ def plan_command(design, flat, press_path, thickness_mm, steps, springback, marg
     from mppf.planning.sectional import plan_plate, sections_summary
     from mppf.model.press import example_press_path, load_press
 
-    if thickness_mm > THICKNESS_MAX_MM:  # 0, negative and NaN: the planner's own message
-        raise InputError(f"--thickness {thickness_mm:g} mm is not a plate thickness (at most {THICKNESS_MAX_MM:g} mm)",
-                         hint="give the plate thickness in mm, e.g. 20")
-    if transition_mm is not None:
-        from mppf.core.validate import check_positive
-
-        check_positive("--transition", transition_mm, unit="mm", hint="give the shared width in mm, e.g. 300")
-    if output:
-        check_output_path(output, "the job file")
-    if plot:
-        check_output_path(plot, "the stroke map", PICTURE_SUFFIXES, kind="picture")
+    _check_plan_options(thickness_mm, transition_mm, output, plot)
     press_file = Path(press_path) if press_path else example_press_path()
     press = load_press(press_file)
     mat = _material(material, youngs, poisson, yield_mpa)
@@ -199,12 +225,7 @@ def plan_command(design, flat, press_path, thickness_mm, steps, springback, marg
     flat_cloud = read_input(flat, units=units)
     for path, cloud in ((design, design_cloud), (flat, flat_cloud)):
         check_design_size(path, cloud.n_points)
-    inputs = {
-        "design": {"path": str(design_cloud.path), "sha256": design_cloud.sha256},
-        "flat": {"path": str(flat_cloud.path), "sha256": flat_cloud.sha256},
-        "press": {"path": str(press_file), "sha256": hashlib.sha256(press_file.read_bytes()).hexdigest()},
-        "units": units,
-    }
+    inputs = _inputs_record(design_cloud, flat_cloud, press_file, units)
     reporter = RichReporter(enabled=not as_json)
     options = PlanOptions(steps=steps, material=mat, springback=springback, yield_uncertainty_pct=uncertainty_pct,
                           margin_mm=margin_mm, transition_mm=transition_mm)
