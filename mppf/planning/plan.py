@@ -107,10 +107,8 @@ def plan_job(design_points, flat_points, press: PressConfig, thickness_mm: float
     n_steps = options.steps if options.steps is not None else steps_needed(upper, lower, strokes.active, press, t)
     step_list = steps_within_limit(upper, lower, strokes.active, press, t, n_steps)
     validation = _validation(step_list, press, t, strokes)
-    reports = planner_reports(PlannedPiece(
-        fitted=laid.fitted, registration=laid.registration, belongs=laid.belongs, placement=laid.placement,
-        pose=strokes.pose, upper_mm=upper, lower_mm=lower, active=strokes.active, thickness_mm=t,
-        validation=validation, n_steps=int(n_steps), springback=springback_report, inputs=inputs))
+    reports = planner_reports(PlannedPiece(laid.fitted, laid.registration, laid.belongs, laid.placement, strokes.pose,
+                              upper, lower, strokes.active, t, validation, n_steps, springback_report, inputs))
     layout = PlateLayout(outline_mm=strokes.outline_mm, net_outline_mm=strokes.net_outline_mm, margin_mm=margin,
                          design_mid_mm=target, material=options.material)
     return Job(press=press, thickness_mm=t, steps=step_list, tf_press_design=strokes.tf_press_design,
