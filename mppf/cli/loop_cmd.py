@@ -14,6 +14,8 @@ the planning to the end: one loop per plate.
 
 from __future__ import annotations
 
+import dataclasses
+from dataclasses import dataclass
 from pathlib import Path
 
 import click
@@ -124,8 +126,8 @@ def _resumed_plate(history, design, flat, plate_id, press_path):
 
 def _record(history, draft: Draft, settings, work_dir, setup):
     """Record the drafted plate with its first cycle (one transaction)."""
-    from mppf.loop.plate import record_plate
     from mppf.loop.options import LoopOptions, PlateInputs
+    from mppf.loop.plate import record_plate
 
     work = work_dir or history.path.parent / "plates" / draft.plate_id
     return record_plate(history, PlateInputs(draft.design, draft.flat, draft.press, draft.job.thickness_mm), draft.job,
@@ -223,8 +225,6 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
     cycles, badly formed), 6 needs review; the verdict (why, where, what to do) is printed,
     and with --json is "verdict" and "ending".
     """
-    from mppf.drivers.audit import AuditLog
-
     # every option and file checked before anything is read, planned or recorded
     _check_options(thickness, scan_timeout, seed, audit_path)
     if physics == "fe":
@@ -240,50 +240,133 @@ def loop(design, flat, press_path, thickness, plc_url, scanner_spec, tolerance, 
                                                        hint="give the wait in s, 0 or more"),
                             rescans=check_number("--rescans", rescans, low=0, high=MAX_RESCANS, integer=True),
                             rescan_timeout_s=_positive("--rescan-timeout", rescan_timeout))
+    call = _PlateCall(design=design, flat=flat, press_path=press_path, thickness_mm=thickness, plate_id=plate_id,
+                      resume=resume, work_dir=work_dir, seed=seed, physics=physics, audit_path=audit_path,
+                      write_report=write_report_, operator=operator)
+    run = RunOptions(plc_url=plc_url, scanner_spec=scanner_spec, time_scale=time_scale, scan_timeout_s=scan_timeout,
+                     yes=yes, material=material, units=units)
     reporter = RichReporter(enabled=not as_json)
     # SIGTERM ends the command like Ctrl-C: the press is stopped, the lease given back
     with sigterm_as_ctrl_c(), open_history(history_path) as history:
-        if resume:
-            plate = _resumed_plate(history, design, flat, plate_id, press_path)
-            plate_id = plate.plate_id
-            plc_url = plc_url or plate.settings.get("plc")
-            scanner_spec = scanner_spec or plate.settings.get("scanner", SCAN_SIM)
-            _check_link_and_scanner(plc_url, scanner_spec)
-        else:
-            scanner_spec = scanner_spec or SCAN_SIM
-            plate_id = _new_plate_id(history, design, flat, press_path, thickness, plate_id)
-        run = RunOptions(plc_url=plc_url, scanner_spec=scanner_spec, time_scale=time_scale,
-                         scan_timeout_s=scan_timeout, yes=yes, material=material, units=units)
-        # one loop per plate: the lease is held from here to the end
-        with history.lease(plate_id) as taken_over:
-            if taken_over:
-                reporter.info(f"plate {plate_id}: took over the stale lease of {taken_over}")
-            draft = None
-            if not resume:
-                _check_link_and_scanner(plc_url, scanner_spec)  # before planning and recording anything
-                draft = draft_plate(plate_id, design, flat, press_path, thickness, settings, run, reporter)
-            setup = {"plc": plc_url, "scanner": scanner_spec, "seed": seed, "units": units, "material": material,
-                     "physics": physics,
-                     "reach": None if draft is None else draft.reach}
-            audit = AuditLog(audit_path or history.path.parent / "audit.sqlite")
-            comparisons = {}
-
-            def on_cycle(record, comparison):
-                print_cycle(record, comparison)
-                if comparison is not None:
-                    comparisons[record.cycle] = comparison
-
-            try:
-                result = run_plate(history, plate_id, draft, run, audit=audit, reporter=reporter,
-                                   record=lambda h, d: _record(h, d, settings, work_dir, setup), on_cycle=on_cycle)
-                # the plate's report, into its work folder
-                if write_report_:
-                    path = write_report(history, plate_id, comparisons, operator=operator, reporter=reporter)
-                    reporter.info(f"report of plate {plate_id}: {path}")
-            finally:
-                reporter.finish()
-                audit.close()
+        result = _run_plate_call(history, call, run, settings, reporter)
     _print_result(result, as_json)
+
+
+@dataclass(frozen=True)
+class _PlateCall:
+    """The plate ``mppf loop`` was asked to run and what is recorded with it (its click options).
+
+    Attributes
+    ----------
+    design, flat : Path or None
+        The point files of a new plate (None with ``resume``).
+    press_path : Path or None
+        The press description (TOML).
+    thickness_mm : float or None
+        Plate thickness, mm.
+    plate_id : str or None
+        The new plate's id, or the plate to resume; None: made from the design's name, or the one
+        unfinished plate.
+    resume : bool
+        Continue a recorded plate.
+    work_dir : Path or None
+        The plate's folder; None: ``plates/ID`` next to the history.
+    seed : int
+        Seed of the simulated plate and scans.
+    physics : str
+        ``fd`` or ``fe``: the simulated plate of a dry run.
+    audit_path : Path or None
+        The audit log; None: next to the history.
+    write_report : bool
+        Write the plate's pictures and report at the end.
+    operator : str or None
+        Who runs the plate.
+    """
+
+    design: Path | None
+    flat: Path | None
+    press_path: Path | None
+    thickness_mm: float | None
+    plate_id: str | None
+    resume: bool
+    work_dir: Path | None
+    seed: int
+    physics: str
+    audit_path: Path | None
+    write_report: bool
+    operator: str | None
+
+
+def _resolve_plate(history, call: _PlateCall, run: RunOptions) -> tuple[str, RunOptions]:
+    """The plate to run (new: its id checked; resumed: the recorded plate) and the run with its PLC and scanner.
+
+    A resumed plate takes the PLC URL and scanner recorded with it unless given, both checked here;
+    a new plate's are checked once its lease is held (:func:`_run_plate_call`). ``run.scanner_spec``
+    None: not given (a new plate: the simulated scanner).
+    """
+    if call.resume:
+        plate = _resumed_plate(history, call.design, call.flat, call.plate_id, call.press_path)
+        run = dataclasses.replace(run, plc_url=run.plc_url or plate.settings.get("plc"),
+                                  scanner_spec=run.scanner_spec or plate.settings.get("scanner", SCAN_SIM))
+        _check_link_and_scanner(run.plc_url, run.scanner_spec)
+        return plate.plate_id, run
+    run = dataclasses.replace(run, scanner_spec=run.scanner_spec or SCAN_SIM)
+    return _new_plate_id(history, call.design, call.flat, call.press_path, call.thickness_mm, call.plate_id), run
+
+
+def _run_plate_call(history, call: _PlateCall, run: RunOptions, settings: LoopSettings, reporter):
+    """Run the plate under its lease (one loop per plate): a new one is checked, planned and drafted first.
+
+    Returns
+    -------
+    LoopResult
+        As :func:`mppf.cli._loop_run.run_plate`.
+    """
+    plate_id, run = _resolve_plate(history, call, run)
+    # one loop per plate: the lease is held from here to the end
+    with history.lease(plate_id) as taken_over:
+        if taken_over:
+            reporter.info(f"plate {plate_id}: took over the stale lease of {taken_over}")
+        draft = None
+        if not call.resume:
+            _check_link_and_scanner(run.plc_url, run.scanner_spec)  # before planning and recording anything
+            draft = draft_plate(plate_id, call.design, call.flat, call.press_path, call.thickness_mm, settings, run,
+                                reporter)
+        return _drive(history, plate_id, draft, call, run, settings, reporter)
+
+
+def _drive(history, plate_id: str, draft: Draft | None, call: _PlateCall, run: RunOptions, settings: LoopSettings,
+           reporter):
+    """Record a drafted plate once the press took its job, run its cycles, then write its report.
+
+    Returns
+    -------
+    LoopResult
+        As :func:`mppf.cli._loop_run.run_plate`.
+    """
+    from mppf.drivers.audit import AuditLog
+
+    setup = {"plc": run.plc_url, "scanner": run.scanner_spec, "seed": call.seed, "units": run.units,
+             "material": run.material, "physics": call.physics, "reach": None if draft is None else draft.reach}
+    audit = AuditLog(call.audit_path or history.path.parent / "audit.sqlite")
+    comparisons = {}
+
+    def on_cycle(record, comparison):
+        print_cycle(record, comparison)
+        if comparison is not None:
+            comparisons[record.cycle] = comparison
+
+    try:
+        result = run_plate(history, plate_id, draft, run, audit=audit, reporter=reporter,
+                           record=lambda h, d: _record(h, d, settings, call.work_dir, setup), on_cycle=on_cycle)
+        # the plate's report, into its work folder
+        if call.write_report:
+            path = write_report(history, plate_id, comparisons, operator=call.operator, reporter=reporter)
+            reporter.info(f"report of plate {plate_id}: {path}")
+    finally:
+        reporter.finish()
+        audit.close()
+    return result
 
 
 def _print_result(result, as_json: bool) -> None:
