@@ -164,7 +164,6 @@ def sim_command(
     dry run: each scan request the loop writes into DIR is answered with a scan of a simulated
     plate pressed with every motion this PLC made since that plate's last scan.
     """
-    from mppf.cli._common import console
     from mppf.model.press import example_press_path, load_press
     from mppf.sim.faults import parse_fault_spec
     from mppf.sim.plc.host import start_simulated_plc
@@ -195,6 +194,30 @@ def sim_command(
         limits={"tip_gap_min_mm": tip_gap_min, "positioning_timeout_s": positioning_timeout},
     )
 
+    banner = (f"{press.name}: {press.rows} x {press.cols} punches, word order {word_order}, scan {scan_ms:g} ms, "
+              f"time scale {time_scale:g}, watchdog {watchdog:g} s, key switch {key}"
+              + (f", quirks {', '.join(quirks)}" if quirks else "") + f"; Ctrl-C to stop; {STDIN_HELP}")
+    _serve(sim, station, banner, status_every, duration)
+
+
+def _serve(sim, station, banner: str, status_every_s: float, duration_s: float | None) -> None:
+    """Serve the started simulator until Ctrl-C, 'quit' on standard input or ``duration_s``; then stop it.
+
+    Parameters
+    ----------
+    sim : SimulatedPlc
+        The running simulator (:func:`mppf.sim.plc.host.start_simulated_plc`).
+    station : ScanStation or None
+        The scanner station of ``--station``, started here in its own thread.
+    banner : str
+        The line describing the press and the simulator, printed after its URL.
+    status_every_s : float
+        Seconds between status lines.
+    duration_s : float or None
+        Stop after this many seconds; None: until Ctrl-C or 'quit'.
+    """
+    from mppf.cli._common import console
+
     def echo(text: str) -> None:
         console.print(text, soft_wrap=True, markup=False)
 
@@ -207,28 +230,32 @@ def sim_command(
             threading.Thread(target=station.run, args=(stop_station,), daemon=True, name="sim-station").start()
             echo(f"scanner station on {station.folder}: the {station.physics} plate, seed {station.seed}; "
                  f"run mppf loop ... --plc {sim.url} --scanner {station.folder}")
-        echo(f"{press.name}: {press.rows} x {press.cols} punches, word order {word_order}, scan {scan_ms:g} ms, "
-             f"time scale {time_scale:g}, watchdog {watchdog:g} s, key switch {key}"
-             + (f", quirks {', '.join(quirks)}" if quirks else "") + f"; Ctrl-C to stop; {STDIN_HELP}")
-        lines: queue.Queue = queue.Queue()
-        threading.Thread(target=_read_stdin, args=(lines,), daemon=True, name="sim-stdin").start()
-        started = time.monotonic()
-        next_status = started
-        running = True
-        while running and (duration is None or time.monotonic() - started < duration):
-            if time.monotonic() >= next_status:
-                echo(_status_line(sim))
-                next_status += status_every
-            try:
-                running = _command(sim, lines.get(timeout=0.05), echo)
-            except queue.Empty:
-                pass
+        echo(banner)
+        _operate(sim, echo, status_every_s, duration_s)
     except KeyboardInterrupt:
         pass
     finally:
         stop_station.set()
         sim.stop()
     echo("simulated PLC stopped")
+
+
+def _operate(sim, echo, status_every_s: float, duration_s: float | None) -> None:
+    """Act on the operator's commands from standard input and print a status line every ``status_every_s``
+    seconds, until 'quit' or ``duration_s`` seconds (None: no end)."""
+    lines: queue.Queue = queue.Queue()
+    threading.Thread(target=_read_stdin, args=(lines,), daemon=True, name="sim-stdin").start()
+    started = time.monotonic()
+    next_status = started
+    running = True
+    while running and (duration_s is None or time.monotonic() - started < duration_s):
+        if time.monotonic() >= next_status:
+            echo(_status_line(sim))
+            next_status += status_every_s
+        try:
+            running = _command(sim, lines.get(timeout=0.05), echo)
+        except queue.Empty:
+            pass
 
 
 def _station(station_dir, physics, plate_seed, press):
