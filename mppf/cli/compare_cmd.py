@@ -135,32 +135,12 @@ def compare_command(design: str, measured: str, tolerance: float, rms_tolerance:
     from mppf.measure.options import CompareOptions
 
     # 1. options and output paths checked before the work
-    check_positive("--tolerance", tolerance, unit="mm")
-    check_positive("--rms-tolerance", rms_tolerance, unit="mm")
-    if scale_mm is not None:
-        check_positive("--scale", scale_mm, unit="mm")
-    mark_mm = parse_mark(mark)
-    if margin is not None:
-        from mppf.planning.plan_steps import MAX_MARGIN_MM
-
-        check_number("--margin", margin, low=0.0, high=MAX_MARGIN_MM, unit="mm",
-                     hint="the trim margin the scanned plate still carries, e.g. --margin 100 (0: trimmed)")
+    mark_mm = _check_numbers(tolerance, rms_tolerance, scale_mm, mark, margin)
     gaps = check_gaps(GAP_MM if gap_mm is None else gap_mm, MAX_GAP_MM if max_gap_mm is None else max_gap_mm)
-    for path, what, suffixes, kind in ((plot, "the deviation map (--plot)", PICTURE_SUFFIXES, "picture"),
-                                       (report, "the report (--report)", None, "file"),
-                                       (export_path, "the export (--export)", (".ply", ".csv"), "point file")):
-        if path:
-            check_output_path(path, what, suffixes, kind=kind)
+    _check_outputs(plot, report, export_path)
     # 2. the files: design, scan (its own units), job
     design_cloud = read_input(design, units=units)  # a plate smaller than 50 mm across: a unit mistake, refused
-    measured_cloud = read_input(measured, units=scan_units or units, units_option="--scan-units")
-    from mppf.measure.checks import MIN_POINTS
-
-    if measured_cloud.n_points < MIN_POINTS:
-        from mppf.core.errors import GeometryError
-
-        raise GeometryError(f"the scan {measured} has {measured_cloud.n_points} point(s), a comparison needs at least "
-                            f"{MIN_POINTS}", hint="check the scan export (the whole plate, not a selection)")
+    measured_cloud = _read_scan(measured, scan_units or units)
     base = CompareOptions(tolerance_mm=tolerance, rms_tolerance_mm=rms_tolerance, design_faces=design_cloud.faces,
                           gap_mm=gaps[0], max_gap_mm=gaps[1])
     options = _options(job_path, design_cloud.points, measured, skin, thickness, margin, mark_mm, base)
@@ -185,6 +165,45 @@ def compare_command(design: str, measured: str, tolerance: float, rms_tolerance:
                 err_console.print(f"{name} written to {path}")
     if result.verdict is not None and result.verdict.exit_code:  # 5 out of tolerance, 6 needs review (README)
         raise click.exceptions.Exit(result.verdict.exit_code)
+
+
+def _check_numbers(tolerance_mm, rms_tolerance_mm, scale_mm, mark, margin_mm):
+    """Refuse tolerances (mm) and a --scale (mm) that are not positive, a malformed --mark and a --margin (mm)
+    out of range, in that order; return the mark's point (:func:`parse_mark`, None without --mark)."""
+    check_positive("--tolerance", tolerance_mm, unit="mm")
+    check_positive("--rms-tolerance", rms_tolerance_mm, unit="mm")
+    if scale_mm is not None:
+        check_positive("--scale", scale_mm, unit="mm")
+    mark_mm = parse_mark(mark)
+    if margin_mm is not None:
+        from mppf.planning.plan_steps import MAX_MARGIN_MM
+
+        check_number("--margin", margin_mm, low=0.0, high=MAX_MARGIN_MM, unit="mm",
+                     hint="the trim margin the scanned plate still carries, e.g. --margin 100 (0: trimmed)")
+    return mark_mm
+
+
+def _check_outputs(plot, report, export_path) -> None:
+    """Refuse output paths that cannot be written (or of the wrong kind) before any work."""
+    for path, what, suffixes, kind in ((plot, "the deviation map (--plot)", PICTURE_SUFFIXES, "picture"),
+                                       (report, "the report (--report)", None, "file"),
+                                       (export_path, "the export (--export)", (".ply", ".csv"), "point file")):
+        if path:
+            check_output_path(path, what, suffixes, kind=kind)
+
+
+def _read_scan(measured: str, units: str):
+    """The scan read in its units (``--scan-units``); refused with fewer points than a comparison needs."""
+    from mppf.cli._common import read_input
+    from mppf.measure.checks import MIN_POINTS
+
+    measured_cloud = read_input(measured, units=units, units_option="--scan-units")
+    if measured_cloud.n_points < MIN_POINTS:
+        from mppf.core.errors import GeometryError
+
+        raise GeometryError(f"the scan {measured} has {measured_cloud.n_points} point(s), a comparison needs at least "
+                            f"{MIN_POINTS}", hint="check the scan export (the whole plate, not a selection)")
+    return measured_cloud
 
 
 def _options(job_path, design_points, scan_path, skin, thickness, margin, mark_mm, base):
