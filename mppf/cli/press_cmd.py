@@ -187,26 +187,52 @@ def press_command(job_path, plc_url, step, section, yes, press_path, audit_path,
             console.print(f"{'dry run: ' if dry_run else ''}{n} step(s) pressed, all punches in position "
                           f"within {job.press.position_tolerance_mm} mm")
             return
-        setpoints = {k: job.steps[k - 1].setpoints_mm(press) for k in steps}
-        for k in steps:
-            plc.check_setpoints(*setpoints[k], active=job.steps[k - 1].active)
-        # where to lay the plate; at --plc the operator confirms it lies there and the press is clear
-        for line in placement_lines(job):
-            console.print(line, markup=False, highlight=False)
-        if not dry_run:
-            confirm_motion(plc, f"job {job_path.name}, step(s) {', '.join(map(str, steps))}, on "
-                                f"{press_description(plc)}, with the plate laid as printed above", yes)
-        # press, step by step
-        for k in steps:
-            reporter = RichReporter(enabled=True)
-            reporter.info(f"step {k} of {len(job.steps)}")
-            try:
-                result = plc.run_step(*setpoints[k], reporter=reporter, timeout_s=timeout_s)
-            finally:
-                reporter.close()
-            console.print(_result_table(k, result, job.press.position_tolerance_mm))
-        console.print(f"{'dry run: ' if dry_run else ''}{len(steps)} step(s) pressed, all punches in position "
-                      f"within {job.press.position_tolerance_mm} mm")
+        _press_steps(plc, job, job_path, steps, dry_run, yes, timeout_s)
+
+
+def _press_steps(plc, job, job_path: Path, steps: list[int], dry_run: bool, yes: bool, timeout_s) -> None:
+    """Press the chosen steps of a single-piece job: setpoints checked, the placement printed, confirmed, pressed.
+
+    Parameters
+    ----------
+    plc : the connected press link (:func:`mppf.cli.press_policy.press_link`)
+    job : Job
+        Checked against the PLC; ``job.press`` the machine's press.
+    job_path : Path
+        The job file (named in the confirmation).
+    steps : list of int
+        The 1-based steps to press, in order.
+    dry_run : bool
+        The simulated PLC in this process: nothing is asked.
+    yes : bool
+        Do not ask before driving a real press.
+    timeout_s : float or None
+        Longest wait for one step, s; None: from the longest move.
+    """
+    from mppf.cli._common import RichReporter, console
+    from mppf.cli._placement import placement_lines
+
+    press = job.press
+    setpoints = {k: job.steps[k - 1].setpoints_mm(press) for k in steps}
+    for k in steps:
+        plc.check_setpoints(*setpoints[k], active=job.steps[k - 1].active)
+    # where to lay the plate; at --plc the operator confirms it lies there and the press is clear
+    for line in placement_lines(job):
+        console.print(line, markup=False, highlight=False)
+    if not dry_run:
+        confirm_motion(plc, f"job {job_path.name}, step(s) {', '.join(map(str, steps))}, on "
+                            f"{press_description(plc)}, with the plate laid as printed above", yes)
+    # press, step by step
+    for k in steps:
+        reporter = RichReporter(enabled=True)
+        reporter.info(f"step {k} of {len(job.steps)}")
+        try:
+            result = plc.run_step(*setpoints[k], reporter=reporter, timeout_s=timeout_s)
+        finally:
+            reporter.close()
+        console.print(_result_table(k, result, job.press.position_tolerance_mm))
+    console.print(f"{'dry run: ' if dry_run else ''}{len(steps)} step(s) pressed, all punches in position "
+                  f"within {job.press.position_tolerance_mm} mm")
 
 
 def _status_rows(report: dict) -> list[tuple[str, str]]:
