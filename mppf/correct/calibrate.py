@@ -43,6 +43,14 @@ HARDENING_PRIOR_MPA = (1000.0, 3000.0)
 
 HARDENING_BOUNDS_MPA = (0.0, 20000.0)
 
+FIT = "changes"
+"""What the yield stress is fitted to (issue 40 study switch): ``"changes"`` the shapes at
+:data:`ABSOLUTE_WEIGHT` and the changes fully; ``"shapes"`` the shapes alone (the response is left
+to the learned gain); ``"first"`` the first measured shape alone; ``"bounded"`` the shapes and changes
+with the yield stress held within the band the first shape supports (see :func:`_shape_band`); ``"bounded2"`` the same
+with the hardening held likewise; ``"misfit"`` the
+shapes and changes, each weighed by the inverse of its own RMS misfit at the first shape's fit."""
+
 
 @dataclass(frozen=True, eq=False)
 class Calibration:
@@ -81,8 +89,6 @@ def calibrate(grid: PunchGrid, nominal: BendingLaw, cycles, measured_kappa) -> C
     -------
     Calibration
     """
-    from scipy.optimize import least_squares
-
     loaded = loaded_curvatures(grid, cycles)
     sy0 = nominal.yield_stress_mpa
     h0, h_sd = HARDENING_PRIOR_MPA
@@ -102,12 +108,57 @@ def calibrate(grid: PunchGrid, nominal: BendingLaw, cycles, measured_kappa) -> C
 
     lo = [YIELD_BOUNDS[0], (HARDENING_BOUNDS_MPA[0] - h0) / h_sd]
     hi = [YIELD_BOUNDS[1], (HARDENING_BOUNDS_MPA[1] - h0) / h_sd]
-    fit = least_squares(residuals, x0=[1.0, 0.0], bounds=(lo, hi), diff_step=1e-3, x_scale=[0.05, 0.3],
-                        max_nfev=60)
+    if FIT != "changes":
+        first = int(grid.active.sum()) if FIT != "shapes" else None  # the first measured shape's residuals
+
+        def shape_residuals(p):
+            absolute = parts(p)[0][:first]
+            return np.concatenate([ABSOLUTE_WEIGHT * absolute / MISFIT_SCALE_MM,
+                                   np.sqrt(max(len(absolute), 1) / 20.0) * np.array([(p[0] - 1.0) / YIELD_PRIOR, p[1]])])
+
+        shape_fit = _least_squares(shape_residuals, [1.0, 0.0], lo, hi)
+        if FIT in ("shapes", "first") or not parts(shape_fit.x)[1].size:
+            fit = shape_fit
+        elif FIT == "misfit":
+            sigma = [max(_rms(r), MISFIT_SCALE_MM) for r in parts(shape_fit.x)]
+
+            def weighted(p):
+                absolute, secant = parts(p)
+                prior = [(p[0] - 1.0) / YIELD_PRIOR, p[1]]
+                return np.concatenate([absolute / sigma[0], secant / sigma[1],
+                                       np.sqrt(max(len(absolute), 1) / 20.0) * np.array(prior)])
+
+            fit = _least_squares(weighted, shape_fit.x, lo, hi)
+        else:
+            n_shape = len(parts(shape_fit.x)[0][:first])
+            for i in range(2 if FIT == "bounded2" else 1):
+                lo[i], hi[i] = _shape_band(shape_fit, n_shape, lo[i], hi[i], i)
+            fit = _least_squares(residuals, np.clip(shape_fit.x, lo, hi), lo, hi)
+    else:
+        fit = _least_squares(residuals, [1.0, 0.0], lo, hi)
     absolute, secant = parts(fit.x)
     change = _changes(grid, measured_kappa)
     return Calibration(law(fit.x), _rms(absolute), _rms(secant) if secant.size else float("nan"),
                        _rms(change) if change.size else float("nan"))
+
+
+def _least_squares(residuals, x0, lo, hi):
+    from scipy.optimize import least_squares
+
+    return least_squares(residuals, x0=x0, bounds=(lo, hi), diff_step=1e-3, x_scale=[0.05, 0.3], max_nfev=60)
+
+
+def _shape_band(fit, n_shape: int, lo: float, hi: float, i: int = 0) -> tuple[float, float]:
+    """The yield factors the shapes support: the shape fit's, plus or minus the change that moves the shapes by their misfit.
+
+    ``fit.jac[:n, 0]`` is the shapes' height change per unit yield factor (mm) at the n shape
+    residuals; the band's half width is the shapes' RMS misfit over the RMS of that sensitivity.
+    """
+    sens = float(np.sqrt(np.mean(fit.jac[:n_shape, i] ** 2))) if n_shape else 0.0
+    misfit = float(np.sqrt(np.mean(fit.fun[:n_shape] ** 2))) if n_shape else 0.0
+    half = misfit / sens if sens > 0 else hi - lo
+    centre = float(fit.x[i])
+    return max(lo, centre - half), min(hi, centre + half)
 
 
 def _misfits(grid: PunchGrid, model, measured) -> tuple[np.ndarray, np.ndarray]:
