@@ -4,13 +4,21 @@ Two numbers of the bending law (:class:`mppf.correct.through_thickness.BendingLa
 plate in the press and are fitted to what the scanner measured: the effective yield stress
 (it carries the scatter of the yield stress and of the thickness, which act alike on
 springback) and the linear hardening (it sets how much of a small re-press stays). The fit
-(:func:`calibrate`, bounded least squares) weighs
+(:func:`calibrate`, bounded least squares) is made in two stages:
 
-- the change of the plate from each measured cycle to the next against the model's change
-  for the same strokes (the secants: what decides the next correction's gain), fully;
-- each cycle's shape against the model's (absolute: springback magnitude, mixed with what
-  the model does not describe, the edges, the press), at :data:`ABSOLUTE_WEIGHT`;
-- a prior that keeps both near the nominal values when the data say little.
+1. **The first measured shape** against the model's (absolute: springback magnitude, mixed with
+   what the model does not describe, the edges, the press), at :data:`ABSOLUTE_WEIGHT`, with a
+   prior that keeps both numbers near the nominal values when the data say little. The first
+   press is the one the plate's material explains best: no correction has yet moved it by more
+   or less than the model predicts.
+2. **Every shape and every change** from one measured cycle to the next against the model's
+   change for the same strokes (the secants: what decides the next correction's gain), fully,
+   with each number held within the band the first shape supports (:func:`_shape_band`: the
+   first fit, plus or minus the change of the number that moves the first shape by as much as
+   its own misfit). Inside that band the changes refine the material; a plate that answers
+   a correction several times more or less than the model cannot pull the yield stress (and with
+   it the elastic-limit curvature a reverse bend must cross) or the hardening out of it: that
+   mismatch is left to the learned response (:mod:`mppf.correct.secant`).
 
 Misfits are compared as heights at the punches (curvature differences integrated back, plane
 removed), where the measurement is.
@@ -42,14 +50,6 @@ HARDENING_PRIOR_MPA = (1000.0, 3000.0)
 """Linear hardening modulus assumed before any data (MPa) and its standard deviation."""
 
 HARDENING_BOUNDS_MPA = (0.0, 20000.0)
-
-FIT = "changes"
-"""What the yield stress is fitted to (issue 40 study switch): ``"changes"`` the shapes at
-:data:`ABSOLUTE_WEIGHT` and the changes fully; ``"shapes"`` the shapes alone (the response is left
-to the learned gain); ``"first"`` the first measured shape alone; ``"bounded"`` the shapes and changes
-with the yield stress held within the band the first shape supports (see :func:`_shape_band`); ``"bounded2"`` the same
-with the hardening held likewise; ``"misfit"`` the
-shapes and changes, each weighed by the inverse of its own RMS misfit at the first shape's fit."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,34 +108,21 @@ def calibrate(grid: PunchGrid, nominal: BendingLaw, cycles, measured_kappa) -> C
 
     lo = [YIELD_BOUNDS[0], (HARDENING_BOUNDS_MPA[0] - h0) / h_sd]
     hi = [YIELD_BOUNDS[1], (HARDENING_BOUNDS_MPA[1] - h0) / h_sd]
-    if FIT != "changes":
-        first = int(grid.active.sum()) if FIT != "shapes" else None  # the first measured shape's residuals
+    first = int(grid.active.sum())  # the residuals of the first measured shape
 
-        def shape_residuals(p):
-            absolute = parts(p)[0][:first]
-            return np.concatenate([ABSOLUTE_WEIGHT * absolute / MISFIT_SCALE_MM,
-                                   np.sqrt(max(len(absolute), 1) / 20.0) * np.array([(p[0] - 1.0) / YIELD_PRIOR, p[1]])])
+    def first_residuals(p):
+        absolute = parts(p)[0][:first]
+        prior = [(p[0] - 1.0) / YIELD_PRIOR, p[1]]
+        return np.concatenate([ABSOLUTE_WEIGHT * absolute / MISFIT_SCALE_MM,
+                               np.sqrt(max(len(absolute), 1) / 20.0) * np.array(prior)])
 
-        shape_fit = _least_squares(shape_residuals, [1.0, 0.0], lo, hi)
-        if FIT in ("shapes", "first") or not parts(shape_fit.x)[1].size:
-            fit = shape_fit
-        elif FIT == "misfit":
-            sigma = [max(_rms(r), MISFIT_SCALE_MM) for r in parts(shape_fit.x)]
-
-            def weighted(p):
-                absolute, secant = parts(p)
-                prior = [(p[0] - 1.0) / YIELD_PRIOR, p[1]]
-                return np.concatenate([absolute / sigma[0], secant / sigma[1],
-                                       np.sqrt(max(len(absolute), 1) / 20.0) * np.array(prior)])
-
-            fit = _least_squares(weighted, shape_fit.x, lo, hi)
-        else:
-            n_shape = len(parts(shape_fit.x)[0][:first])
-            for i in range(2 if FIT == "bounded2" else 1):
-                lo[i], hi[i] = _shape_band(shape_fit, n_shape, lo[i], hi[i], i)
-            fit = _least_squares(residuals, np.clip(shape_fit.x, lo, hi), lo, hi)
-    else:
-        fit = _least_squares(residuals, [1.0, 0.0], lo, hi)
+    # 1. the first shape alone; 2. every shape and change, each number held to the band the first shape supports
+    fit = _least_squares(first_residuals, [1.0, 0.0], lo, hi)
+    shapes, secants = parts(fit.x)
+    if secants.size:
+        for i in range(2):
+            lo[i], hi[i] = _shape_band(fit, len(shapes[:first]), lo[i], hi[i], i)
+        fit = _least_squares(residuals, np.clip(fit.x, lo, hi), lo, hi)
     absolute, secant = parts(fit.x)
     change = _changes(grid, measured_kappa)
     return Calibration(law(fit.x), _rms(absolute), _rms(secant) if secant.size else float("nan"),
@@ -143,16 +130,32 @@ def calibrate(grid: PunchGrid, nominal: BendingLaw, cycles, measured_kappa) -> C
 
 
 def _least_squares(residuals, x0, lo, hi):
+    """Bounded least squares of ``residuals`` from ``x0`` (the yield factor, the hardening in prior deviations)."""
     from scipy.optimize import least_squares
 
     return least_squares(residuals, x0=x0, bounds=(lo, hi), diff_step=1e-3, x_scale=[0.05, 0.3], max_nfev=60)
 
 
-def _shape_band(fit, n_shape: int, lo: float, hi: float, i: int = 0) -> tuple[float, float]:
-    """The yield factors the shapes support: the shape fit's, plus or minus the change that moves the shapes by their misfit.
+def _shape_band(fit, n_shape: int, lo: float, hi: float, i: int) -> tuple[float, float]:
+    """The range of parameter ``i`` the first shape supports: its fit, plus or minus what moves the shape by its misfit.
 
-    ``fit.jac[:n, 0]`` is the shapes' height change per unit yield factor (mm) at the n shape
-    residuals; the band's half width is the shapes' RMS misfit over the RMS of that sensitivity.
+    Parameters
+    ----------
+    fit : scipy.optimize.OptimizeResult
+        The fit to the first shape: ``fit.fun[:n_shape]`` its weighted height misfits (mm),
+        ``fit.jac[:n_shape, i]`` their change per unit of parameter ``i`` (mm).
+    n_shape : int
+        Number of shape residuals (the active punches).
+    lo, hi : float
+        The parameter's own bounds.
+    i : int
+        0 the yield factor, 1 the hardening in prior standard deviations.
+
+    Returns
+    -------
+    lo, hi : float
+        Half width: the shape's RMS misfit over the RMS of its sensitivity (the whole range
+        when the shape does not depend on the parameter).
     """
     sens = float(np.sqrt(np.mean(fit.jac[:n_shape, i] ** 2))) if n_shape else 0.0
     misfit = float(np.sqrt(np.mean(fit.fun[:n_shape] ** 2))) if n_shape else 0.0

@@ -5,8 +5,9 @@
 1. the model plate (:mod:`mppf.correct.through_thickness`, one per punch) is pressed through every step
    the press did, in order (:func:`mppf.correct.memory.replay`), with the share of an
    interrupted step fitted to its scan;
-2. its yield stress and hardening are fitted to the measured cycles, above all to the
-   changes from cycle to cycle (:func:`mppf.correct.calibrate.calibrate`);
+2. its yield stress and hardening are fitted to the first measured shape, then to every
+   measured cycle, above all to the changes from cycle to cycle, within the band the first
+   shape supports (:func:`mppf.correct.calibrate.calibrate`);
 3. the plate's response is compared with the model's on every measured secant and the
    difference learned in smooth modes (:class:`mppf.correct.secant.ModeGain`, Broyden);
 4. the plate is aimed at ``aim`` of the way to the design (short of it: an over-bent plate
@@ -31,12 +32,11 @@ only the change, so what it gets wrong about the plate's shape does not enter th
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from itertools import pairwise
 from typing import NamedTuple
 
 import numpy as np
 
-from mppf.core.grid import largest_neighbour_difference, neighbour_mean
+from mppf.core.grid import largest_neighbour_difference
 from mppf.correct.calibrate import Calibration, calibrate
 from mppf.correct.edge import balanced_error
 from mppf.correct.inputs import CorrectedPlate
@@ -59,16 +59,6 @@ DIRECT_GAIN = 0.7
 REACH_ELASTIC_LIMITS = 4.0
 """Trust region of one correction: the loaded curvature may change by at most this many
 elastic-limit curvatures at any punch (the model is trusted that far from what was pressed)."""
-
-LEARN_STRETCH = False
-"""Issue 40 study switch: the reverse bend's elastic stretch learned punch by punch from the reverse steps already
-pressed (:func:`_reverse_stretch`) and used where it is longer than the model's ``2 k_e`` (:func:`_stretch_part`)."""
-
-STRETCH_MOVED = 0.25
-"""A reverse step changed nothing at a punch where the plate moved less than this share of the model's change."""
-
-STRETCH_NOISE_MM = 0.3
-"""Model changes within this (the scan's noise at a punch, mm) say nothing about the stretch."""
 
 MIN_REACH_ELASTIC_LIMITS = 2.5
 """The smallest reach, however small the trust region: a reverse bend must cross the elastic
@@ -161,9 +151,8 @@ def learned_correction(plate: CorrectedPlate, cycles, base_upper_mm, base_lower_
                                              reach, largest)
     # 6. what the model cannot make (a local error it does not describe): the displacement adjustment
     direct = trust * _direct_part(grid, law, model, base_mid, change, request, misfit)
-    stretch = _stretch_part(grid, law, model, cycles, base_mid + change) if LEARN_STRETCH else np.zeros(grid.shape)
     # 7. the strokes, held to the limits, and the steps they need
-    found = _Found(change + direct + stretch, error, gain, law, model, calibration, unreached, aim, direct, stretch)
+    found = _Found(change + direct, error, gain, law, model, calibration, unreached, aim, direct)
     return _strokes(press, grid, base_upper_mm, base_lower_mm, found)
 
 
@@ -199,7 +188,6 @@ class _Found(NamedTuple):
     unreached: np.ndarray  # bool: the wanted change lies beyond the trust region
     aim: float
     direct: np.ndarray  # the displacement adjustment's part of ``change``
-    stretch: np.ndarray  # the part of ``change`` that crosses the plate's longer reverse stretch (not in the model)
 
 
 def _direct_part(grid: PunchGrid, law: BendingLaw, model, base_mid, change, request, misfit: float) -> np.ndarray:
@@ -217,50 +205,6 @@ def _direct_part(grid: PunchGrid, law: BendingLaw, model, base_mid, change, requ
     kappa = grid.curvature(np.where(act, base_mid + change, np.nan))
     made = grid.heights(law.press(kappa, model.states[-1])[0] - model.unloaded[-1])
     return np.where(act, DIRECT_GAIN * (wanted - np.where(act, made, 0.0)), 0.0)
-
-
-def _bend_direction(model, k: int) -> np.ndarray:
-    """Unit vector (m, 3) of the springback of cycle ``k`` at each punch (last loaded less unloaded curvature)."""
-    bend = model.loaded[k] - model.unloaded[k]
-    return bend / np.maximum(np.linalg.norm(bend, axis=1), 1e-30)[:, None]
-
-
-def _reverse_stretch(grid: PunchGrid, model, cycles) -> np.ndarray:
-    """Lower bound (m,) of the reverse bend's elastic stretch at each punch (1/mm; 0 where unknown).
-
-    A correction that took a punch's loaded curvature back from the cycle before's last loaded one
-    by ``r`` (along that cycle's springback), where the model promised a change larger than the
-    scan's noise and the plate moved less than :data:`STRETCH_MOVED` of it, stayed inside the plate's
-    elastic stretch: the stretch there is longer than ``r``. Spread to the 4-neighbours (a smooth field).
-    """
-    act = grid.active
-    known = [k for k, c in enumerate(cycles) if c.measured]
-    bound = np.zeros(int(act.sum()))
-    for j, k in pairwise(known):
-        travel = np.einsum("pc,pc->p", model.loaded[j] - model.loaded[k], _bend_direction(model, j))
-        promised = grid.heights(model.unloaded[k] - model.unloaded[j])[act]
-        moved = (cycles[k].error_mm - cycles[j].error_mm)[act]
-        still = (travel > 0.0) & (np.abs(promised) > STRETCH_NOISE_MM) & (moved * promised < STRETCH_MOVED * promised**2)
-        bound = np.where(still, np.maximum(bound, travel), bound)
-    field = grid.to_field(bound)
-    return np.maximum(bound, neighbour_mean(field, act)[act])
-
-
-def _stretch_part(grid: PunchGrid, law: BendingLaw, model, cycles, new_mid) -> np.ndarray:
-    """Stroke change (rows, cols) that carries a reverse bend across the plate's stretch where it is longer than the model's.
-
-    Where the model asks a reverse bend past its own stretch ``2 k_e``, and the plate has shown a
-    longer one (:func:`_reverse_stretch`), the loaded curvature goes back by the difference more.
-    """
-    act = grid.active
-    stretch = _reverse_stretch(grid, model, cycles)
-    own = 2.0 * law.elastic_limit_per_mm
-    unit = _bend_direction(model, -1)
-    travel = np.einsum("pc,pc->p", model.loaded[-1] - grid.curvature(np.where(act, new_mid, np.nan)), unit)
-    extra = np.where((travel > own) & (stretch > own), stretch - own, 0.0)
-    if not np.any(extra > 0.0):
-        return np.zeros(grid.shape)
-    return np.where(act, grid.heights(-extra[:, None] * unit), 0.0)
 
 
 def _stroke_room(press: PressConfig) -> float:
@@ -290,7 +234,7 @@ def _learn_response(grid: PunchGrid, model, cycles) -> ModeGain:
 
 def _strokes(press: PressConfig, grid: PunchGrid, base_upper, base_lower, found: _Found) -> LearnedCorrection:
     """The corrected strokes within the stroke limits, their steps and the expected deviation."""
-    change, error, gain, law, model, calibration, unreached, aim, direct, stretch = found
+    change, error, gain, law, model, calibration, unreached, aim, direct = found
     act = grid.active
     upper = np.where(act, np.asarray(base_upper, dtype=float) + change, np.nan)
     lower = np.where(act, np.asarray(base_lower, dtype=float) + change, np.nan)
@@ -300,7 +244,7 @@ def _strokes(press: PressConfig, grid: PunchGrid, base_upper, base_lower, found:
     shift = np.where(act, shift + np.clip(upper + shift, press.upper.min_mm, press.upper.max_mm) - (upper + shift), 0.0)
     upper, lower, change = upper + shift, lower + shift, np.where(act, change + shift, 0.0)
     n_steps = max(1, int(np.ceil(largest_neighbour_difference(change, act) / press.max_neighbour_diff_mm - 1e-9)))
-    kappa = grid.curvature(0.5 * (upper + lower) - stretch)
+    kappa = grid.curvature(0.5 * (upper + lower))
     made = grid.heights(law.press(kappa, model.states[-1])[0] - model.unloaded[-1])
     predicted = np.where(act, error + gain.plate_response(made) + direct, np.nan)
     notes = [f"plate model calibrated on {sum(1 for k in model.unloaded)} cycle(s): effective yield stress "

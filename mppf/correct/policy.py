@@ -32,14 +32,6 @@ RESPONSE_RANGE = (0.25, 4.0)
 MIN_SHARE = 0.125
 """Smallest share of the way: three halvings (a step that small no longer crosses a plate's elastic stretch)."""
 
-DELIVERED_CONTINUES = False
-"""Issue 40 study switch: a correction that made the plate better than the cycle before and delivered
-about its promise (``rho`` within :data:`DELIVERED`) is not a failure even when the plate is still worse
-than the best cycle (the way back after an overshoot): the next one starts from its strokes."""
-
-DELIVERED = (0.5, 1.5)
-"""Measured over promised change of a correction that delivered about what it promised."""
-
 DEFAULT_NOISE_MM = 0.3
 """Noise of a punch deviation (mm) when the scan gives none (the simulated scanner's point noise)."""
 
@@ -161,8 +153,6 @@ def step_plan(outcomes, ring, tolerance_mm: float, rms_tolerance_mm: float,
         rho_edge = response_ratio(promised[ring], measured[ring], noise_mm)
         ratios.append(rho), edge_ratios.append(rho_edge)
         worse = sizes[k] > min(sizes[:k])
-        if DELIVERED_CONTINUES and worse and sizes[k] < sizes[k - 1] and DELIVERED[0] <= rho <= DELIVERED[1]:
-            worse = False
         backtrack = worse or rho <= 0.0
         share = max(MIN_SHARE, 0.5 * share) if backtrack else min(1.0, 2.0 * share)
         notes.append(f"correction {k}: the plate moved {rho:.2f} x what was promised inside the outer punches, "

@@ -24,14 +24,6 @@ from mppf.correct.policy import (
 )
 from mppf.correct.verdict import Verdict, convergence_verdict
 
-BOUND_OVERSHOOT = False
-"""Issue 40 study switch: after a correction the plate answered with ``rho`` > :data:`OVERSHOOT_RESPONSE`
-(inside the outer punches or at them), the next one asks ``1 / rho`` of its share at the punches it
-carried past the design (:func:`_overshoot_scale`)."""
-
-OVERSHOOT_RESPONSE = 1.5
-"""Measured over promised change above which a correction counts as having overshot."""
-
 
 @dataclass(frozen=True, eq=False)
 class CorrectionStep:
@@ -85,11 +77,9 @@ def correct_step(plate: CorrectedPlate, history: CorrectionHistory, tolerances: 
             if policy else StepPlan())
     upper, lower = history.strokes[plan.base]
 
-    bound = _overshoot_scale(plan, outcomes, ring) if BOUND_OVERSHOOT else np.ones(ring.shape)
-
     def correct(share):
         return learned_correction(plate, history.cycles, upper, lower, edge_mm=history.edge_mm,
-                                  scale=share * bound)
+                                  scale=np.full(ring.shape, share))
 
     learned = correct(plan.share)
     if len(outcomes) > 1:
@@ -100,24 +90,6 @@ def correct_step(plate: CorrectedPlate, history: CorrectionHistory, tolerances: 
                                   unreached=int(learned.unreached.sum()), max_mm=[o.form_max_mm for o in outcomes],
                                   tolerance_mm=tolerances.tolerance_mm, share=plan.share)
     return CorrectionStep(learned, plan, verdict)
-
-
-def _overshoot_scale(plan: StepPlan, outcomes, ring) -> np.ndarray:
-    """Per punch, the share of the request the evidence supports after an overshoot (rows, cols; 1 elsewhere).
-
-    Where the last correction carried the plate past the design (the deviation changed sign)
-    and the plate moved ``rho`` > :data:`OVERSHOOT_RESPONSE` times the promise (measured inside
-    the outer punches and at them apart), the next request there is ``1 / rho`` of the model's.
-    """
-    out = np.ones(ring.shape)
-    if not plan.ratios or len(outcomes) < 2:
-        return out
-    rho = np.where(ring, plan.edge_ratios[-1], plan.ratios[-1])
-    before, now = (np.asarray(o.error_mm, dtype=float) for o in outcomes[-2:])
-    crossed = np.isfinite(before) & np.isfinite(now) & (before * now < 0.0)
-    hot = crossed & (rho > OVERSHOOT_RESPONSE)
-    out[hot] = 1.0 / rho[hot]
-    return out
 
 
 def _safer_near_tolerance(plan: StepPlan, learned: LearnedCorrection, now: Outcome, tolerances: Tolerances, correct):
