@@ -9,14 +9,15 @@ See ``docs/sections.md``.
 from __future__ import annotations
 
 import dataclasses
+from dataclasses import dataclass
 
 import numpy as np
 
 from mppf.core.polygon import convex_outline, offset_convex
 from mppf.core.progress import NULL_REPORTER
 from mppf.core.rigid import fit_rigid
-from mppf.core.transform import apply_tf, invert_tf, make_tf
-from mppf.geometry.surface import fit_plate
+from mppf.core.transform import apply_tf, make_tf
+from mppf.geometry.surface import FittedPlate, fit_plate
 from mppf.model.job import Job
 from mppf.model.job_parts import PlateLayout, StepStrokes
 from mppf.model.job_provenance import SectionalSummary, TransitionReport
@@ -27,16 +28,18 @@ from mppf.planning.belongs import check_flat_belongs, design_area_mm2
 from mppf.planning.contact import PlacedSurface, tip_heights
 from mppf.planning.placement import FlatPlacement, fits_bed, lay_flat, register_design
 from mppf.planning.plan import SURFACE_DEGREE, SURFACE_KIND, first_press_material, first_press_report, plan_job
-from mppf.planning.plan_steps import (active_punches, check_plan_inputs, check_trim, least_travel_pose, on_grid,
-                                      as_validation, PlannedPiece, planner_reports, section_reports,
+from mppf.planning.plan_steps import (PlannedPiece, active_punches, as_validation, check_plan_inputs, check_trim,
+                                      least_travel_pose, on_grid, planner_reports, section_reports,
                                       steps_within_limit)
-from mppf.planning.sectional_borders import BORDER_STEP_LIMIT_MM, border_steps, border_warnings, recovered_residual
 from mppf.planning.section_start import formed_punches, plan_section_steps
+from mppf.planning.sectional_borders import BORDER_STEP_LIMIT_MM, border_steps, border_warnings, recovered_residual
+from mppf.planning.sectional_marks import section_marks, sections_summary
 from mppf.planning.sectional_overbend import closer_fit, whole_target
-from mppf.planning.sections import (TRANSITION_PITCHES, earlier_weight, index_offset, mark_punches, shifted,
-                                    split_plate)
+from mppf.planning.sectional_refine import refinement_summary, section_refinement
+from mppf.planning.sections import TRANSITION_PITCHES, earlier_weight, index_offset, shifted, split_plate
 from mppf.planning.steps import steps_needed
 from mppf.planning.validate import validate_steps
+from mppf.registration.register import Registration
 
 __all__ = ["BORDER_STEP_LIMIT_MM", "apply_section_corrections", "border_warnings", "from_formed_plate", "plan_plate",
            "plan_sectional", "recovered_residual", "sections_summary"]
@@ -54,20 +57,41 @@ def plan_plate(design_points, flat_points, press: PressConfig, thickness_mm: flo
                                            options.material, options.springback, options.margin_mm)
     if fits_bed(lay_flat(flat, press, t), press):
         return plan_job(design, flat, press, t, options, design_faces=design_faces, inputs=inputs, reporter=reporter)
-    return plan_sectional(design, flat, press, t, design_faces=design_faces, inputs=inputs, reporter=reporter,
-                          **options.as_keywords())
+    return plan_sectional(design, flat, press, t, options, design_faces=design_faces, inputs=inputs,
+                          reporter=reporter)
 
 
-def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm: float, *, steps: int | None = None,
-                   material=None, springback: bool = False, design_faces=None, reporter=NULL_REPORTER,
-                   inputs: dict | None = None, margin_mm: float | None = None,
-                   transition_mm: float | None = None, yield_uncertainty_pct: float = 0.0) -> Job:
+REFINE_SECTIONS = False
+"""With springback, refine each section's strokes on the plate model (:mod:`mppf.planning.sectional_refine`).
+
+Off: measured on the steel-plate simulator it brings the first press closer (cylinder 7.5 m 95.9 -> 80.4 mm form
+max) but the loop no longer converges on the plate it brought into tolerance, and the sections' strokes step at
+their borders by up to 12 mm (``benchmarks/results/2026-12-06-sectional-refined.md``). For study only."""
+
+
+@dataclass(frozen=True)
+class _WholePlate:
+    """What the sections of one plate share: the flat laid, the design's fit and registration, the split."""
+
+    placement: FlatPlacement  # the flat on an unlimited bed: the plate coordinates
+    fitted: FittedPlate  # the design's own fit (the reports)
+    registration: Registration
+    belongs: dict
+    split: object  # mppf.planning.sections.split_plate's split
+    zone_mm: float  # the transition zone's width
+    springback_report: dict
+
+
+def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm: float,
+                   options: PlanOptions = PlanOptions(), *, design_faces=None, inputs: dict | None = None,
+                   reporter=NULL_REPORTER) -> Job:
     """Plan the strokes of a plate larger than the bed, section by section.
 
     Each section is the plate shifted on the bed (by whole punch pitches) with its own pose
     (offset and tilt of least travel); its strokes are the exact ball contact of the design so
-    placed, or with ``springback`` of the whole plate's one over-bent target
-    (:mod:`mppf.planning.sectional_overbend`), the same surface for every section. Parameters as
+    placed, or with ``options.springback`` of the whole plate's one over-bent target
+    (:mod:`mppf.planning.sectional_overbend`), the same surface for every section (refined on the plate
+    model per section only with :data:`REFINE_SECTIONS`, a study switch). Parameters as
     :func:`mppf.planning.plan.plan_job`.
 
     Returns
@@ -77,9 +101,10 @@ def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm:
         section 1's; ``sectional`` the split and the largest step between sections of the
         design recovered from the strokes.
     """
-    design, flat, t, margin = check_plan_inputs(design_points, flat_points, press, thickness_mm, steps, material,
-                                                springback, margin_mm)
-    planned_material = first_press_material(material, springback, yield_uncertainty_pct)
+    design, flat, t, margin = check_plan_inputs(design_points, flat_points, press, thickness_mm, options.steps,
+                                                options.material, options.springback, options.margin_mm)
+    material, springback = options.material, options.springback
+    planned_material = first_press_material(material, springback, options.yield_uncertainty_pct)
     # 1. lay the flat on an unlimited bed: the plate coordinates
     placement = lay_flat(flat, press, t)
     # 2. fit the design, register it onto the flat, check the flat is its unfolding
@@ -89,27 +114,31 @@ def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm:
     belongs = check_flat_belongs(design, placement.flat_press_mm, registration.method == "paired",
                                  design_area_mm2(fitted, design, design_faces))
     # 3. split the plate into sections covering the bed, in pressing order
-    split = split_plate(placement.size_mm, press, transition_mm=transition_mm)
-    zone = TRANSITION_PITCHES * max(press.pitch_x_mm, press.pitch_y_mm) if transition_mm is None else transition_mm
+    split = split_plate(placement.size_mm, press, transition_mm=options.transition_mm)
+    zone = TRANSITION_PITCHES * max(press.pitch_x_mm, press.pitch_y_mm) if options.transition_mm is None \
+        else options.transition_mm
     reporter.info(f"the plate needs {split.n_sections} sections ({split.counts[0]} along x {split.counts[1]} across)")
-    # 4. each section: contact in its pose, its own correction blended with the formed plate, steps, marks
+    # 4. each section: contact in its pose, refined on the plate model (springback), blended, steps, marks
     # one surface for every section: the sections then press the same shape where they meet; with springback
     # one over-bent target of that surface for the whole plate, the material's points moved onto it
     whole = _whole_surface(fitted, design, design_faces)
     target = whole_target(whole, design, press, t, planned_material, margin) if springback else None
-    springback_report = {**target.report, "first_press": first_press_report(material, yield_uncertainty_pct)} \
+    springback_report = {**target.report, "first_press": first_press_report(material, options.yield_uncertainty_pct)} \
         if springback else {"enabled": False}
     ctx = {"press": press, "fitted": whole, "design": design, "flat_file": flat, "registration": registration,
-           "t": t, "margin": margin, "material": material, "target": target,
+           "t": t, "margin": margin, "material": material, "target": target, "planned_material": planned_material,
+           "refine": springback and REFINE_SECTIONS, "reporter": reporter, "n": split.n_sections, "zone": float(zone),
            "points": design if target is None else target.material_points(design)}
     planned = []
     for k, (cell, centre) in enumerate(zip(split.cells, split.bed_centres_mm), start=1):
         reporter.info(f"planning section {k} of {split.n_sections}")
-        planned.append(_plan_section(k, cell, centre, planned, zone, steps, placement, ctx))
+        planned.append(_plan_section(k, cell, centre, planned, zone, options.steps, placement, ctx))
+    if ctx["refine"]:
+        springback_report["refinement"] = refinement_summary([p["refinement"] for p in planned])
     # 5. the design recovered from the strokes must not step where sections meet
     border = border_steps(press, planned, t)
-    return _assemble(planned, border, split, zone, fitted, registration, belongs, placement, inputs,
-                     springback_report, press, t, margin, material)
+    whole_plate = _WholePlate(placement, fitted, registration, belongs, split, float(zone), springback_report)
+    return _assemble(planned, border, whole_plate, inputs, press, t)
 
 
 def _plan_section(index, cell, centre, earlier, zone, steps, placement, ctx) -> dict:
@@ -135,8 +164,8 @@ def _plan_section(index, cell, centre, earlier, zone, steps, placement, ctx) -> 
                                                                                 tf_press_design, active, t)
     target = 0.5 * (design_up + design_lo)
     trim = check_trim(pose.contact_xy_mm, outline_xy, press)
-    zero = np.zeros(press.shape)
-    weight, d_up, d_lo = _blend(press, centre, active, zero, zero, earlier, zone, placement.size_mm / 2.0)
+    own_up, own_lo, refinement = section_refinement(index, StepStrokes(upper, lower, active), target, outline, ctx)
+    weight, d_up, d_lo = _blend(press, centre, active, own_up, own_lo, earlier, zone, placement.size_mm / 2.0)
     final_up, final_lo = np.where(active, upper + d_up, np.nan), np.where(active, lower + d_lo, np.nan)
     # press steps from flat, validated (from the formed plate: from_formed_plate)
     n_steps = steps if steps is not None else steps_needed(final_up, final_lo, active, press, t)
@@ -145,7 +174,7 @@ def _plan_section(index, cell, centre, earlier, zone, steps, placement, ctx) -> 
     validation["contact_beyond_edge_mm"] = trim
     tf_press_flat = tf_press_plate @ placement.tf_press_flat
     placed = PlacedSurface(surface, tf_press_design @ fitted.frame.tf_world_local)
-    marks = _marks(press, active & active_punches(press, net), centre, tf_press_flat, placed, fitted, ctx, on_bed)
+    marks = section_marks(press, active & active_punches(press, net), centre, tf_press_flat, placed, fitted, ctx, on_bed)
     travel = float(max(np.abs(final_up[active] - t).max(), np.abs(final_lo[active]).max()))
     reports = section_reports(pose, travel, validation, int(n_steps), active,
                               placement.corners_mm + [-centre[0], -centre[1], 0.0])
@@ -158,7 +187,7 @@ def _plan_section(index, cell, centre, earlier, zone, steps, placement, ctx) -> 
                                          design_mid_mm=target, material=ctx["material"]),
                       own_weight=np.where(active, weight, np.nan), reports=reports, transition=transition)
     return {"section": section, "centre": np.asarray(centre, dtype=float), "active": active, "pose": pose,
-            "delta": (d_up, d_lo), "contact": (upper, lower), "fitted": fitted}
+            "delta": (d_up, d_lo), "contact": (upper, lower), "fitted": fitted, "refinement": refinement}
 
 
 def _whole_surface(fitted, design, design_faces):
@@ -225,34 +254,9 @@ def _blend(press, centre, active, own_up, own_lo, earlier, zone, plate_half):
     return own, blended_up, np.where(active, own * own_lo + prev_w * prev_lo, 0.0)
 
 
-def _marks(press: PressConfig, active, centre, tf_press_flat, placed, fitted, ctx, on_bed):
-    """The section's two reference marks: plate x, y; flat-file x, y, z; press x, y; the punches under them.
-
-    ``active`` holds the punches under the net plate, so the marks lie inside the net outline. A mark
-    is the material point that lies over its punch **once the section is formed**: the point of the
-    pressed surface (``placed``: the design, or the over-bent target) under the punch axis, taken to
-    the flat by the paired points (linear interpolation over the pressed surface's own (u, v) of the
-    points where the material lies on it).
-    Unpaired flats: the flat point under the punch with the plate lying flat.
-    """
-    punches = mark_punches(active)
-    press_xy = np.column_stack([press.punch_x_mm[punches[:, 1]], press.punch_y_mm[punches[:, 0]]])
-    flat_file = ctx["flat_file"]
-    flat = apply_tf(invert_tf(tf_press_flat), np.column_stack([press_xy, np.full(2, ctx["t"] / 2.0)]))
-    if flat_file.shape == ctx["design"].shape:
-        from scipy.interpolate import LinearNDInterpolator
-
-        uv = np.column_stack(placed.axis_foot(press_xy[:, 0], press_xy[:, 1]))
-        local = fitted.frame.to_local(ctx["points"][on_bed])[:, :2]
-        formed = LinearNDInterpolator(local, flat_file[on_bed])(uv)
-        flat = np.where(np.isfinite(formed), formed, flat)
-    plate_xy = apply_tf(tf_press_flat, flat)[:, :2] + np.asarray(centre, dtype=float)
-    return plate_xy, flat, press_xy, punches
-
-
-def _assemble(planned, border, split, zone, fitted, registration, belongs, placement, inputs, springback_report,
-              press, t, margin, material) -> Job:
+def _assemble(planned, border, plate: _WholePlate, inputs, press: PressConfig, t: float) -> Job:
     """The sectional job: section 1 as the job's own steps and layout, every section in ``sections``."""
+    split, zone, placement, springback_report = plate.split, plate.zone_mm, plate.placement, plate.springback_report
     sections = []
     for p, step in zip(planned, border):
         section = p["section"]
@@ -265,7 +269,7 @@ def _assemble(planned, border, split, zone, fitted, registration, belongs, place
                             placement.corners_mm + shift)
     final = s1.steps[-1]
     reports = planner_reports(PlannedPiece(
-        fitted=fitted, registration=registration, belongs=belongs, placement=placed1, pose=first["pose"],
+        fitted=plate.fitted, registration=plate.registration, belongs=plate.belongs, placement=placed1, pose=first["pose"],
         upper_mm=final.upper_mm, lower_mm=final.lower_mm, active=first["active"], thickness_mm=t,
         validation=s1.reports.validation, n_steps=len(s1.steps), springback=springback_report, inputs=inputs))
     pose = dataclasses.replace(reports.pose, max_travel_mm=s1.reports.max_travel_mm)  # section 1's own travel
@@ -363,16 +367,3 @@ def from_formed_plate(job):
     total = int(sum(len(s.steps) for s in started.sections))
     sectional = None if job.sectional is None else dataclasses.replace(job.sectional, n_steps_total=total)
     return dataclasses.replace(started, sectional=sectional)
-
-
-def sections_summary(job: Job) -> list[dict]:
-    """Per section (empty for a single piece): placement, marks, steps, travel, blend and border step."""
-    out = []
-    for s in job.sections or []:
-        out.append({"index": s.index, "cell": list(s.cell), "plate_centre_mm": s.plate_centre_mm.tolist(),
-                    "marks_press_mm": s.marks_press_mm.tolist(), "marks_plate_mm": s.marks_plate_mm.tolist(),
-                    "mark_punches": (s.mark_punches + job.press.label_base).tolist(), "n_steps": len(s.steps),
-                    "max_travel_mm": s.reports.max_travel_mm,
-                    "border_step_mm": None if s.transition is None else s.transition.border_step_mm,
-                    "blended_punches": None if s.transition is None else s.transition.blended_punches})
-    return out

@@ -81,8 +81,9 @@ def _height_above(fitted, points):
 def border_steps(press, planned, thickness_mm: float) -> list[float]:
     """Per section: the largest step of the recovered design at its border with the plate formed before it.
 
-    At the section's outermost punches (first and last row and column of the bed) over plate an
-    earlier section pressed, the plate just beyond stays as that section left it: the points where the
+    At the section's outermost punches (first and last row and column of the bed) beyond which an
+    earlier section's bed reaches (:func:`_edge_beyond`), the plate just beyond stays as that section left
+    it: the points where the
     balls of both touch the plate (:func:`_touched_points`, in the design's frame) must lie on one
     surface there.
     Compared at the same place: in the frame of the surface the section presses, the earlier
@@ -94,27 +95,44 @@ def border_steps(press, planned, thickness_mm: float) -> list[float]:
     from scipy.interpolate import LinearNDInterpolator
 
     points = [_touched_points(press, p["section"], thickness_mm) for p in planned]
-    edge = np.zeros(press.shape, dtype=bool)
-    edge[[0, -1], :] = True
-    edge[:, [0, -1]] = True
     reach = 1.5 * max(press.pitch_x_mm, press.pitch_y_mm)
     steps = []
     for k, p in enumerate(planned):
         act = p["section"].steps[-1].active
         uv, height = _height_above(p["fitted"], points[k])
-        border = np.concatenate([edge[act], edge[act]])  # the upper balls' points, then the lower balls'
-        last = np.full(int(border.sum()), np.nan)
+        last = np.full(int(2 * act.sum()), np.nan)
         lo, hi = uv.min(axis=0) - reach, uv.max(axis=0) + reach
         for j in range(k):
+            edge = _edge_beyond(press, p["centre"], planned[j]["centre"])
+            border = np.concatenate([edge[act], edge[act]])  # the upper balls' points, then the lower balls'
             uv_j, height_j = _height_above(p["fitted"], points[j])
             near = np.all((uv_j >= lo) & (uv_j <= hi), axis=1)
-            if near.sum() < 3 or _collinear(uv_j[near]):
+            if not border.any() or near.sum() < 3 or _collinear(uv_j[near]):
                 continue  # no overlap area to interpolate over (e.g. one line of punches)
-            there = LinearNDInterpolator(uv_j[near], height_j[near])(uv[border])
+            there = np.full(len(last), np.nan)
+            there[border] = LinearNDInterpolator(uv_j[near], height_j[near])(uv[border])
             last = np.where(np.isfinite(there), there, last)
-        diff = np.abs(height[border] - last)
+        diff = np.abs(height - last)
         steps.append(float(np.nanmax(diff)) if np.isfinite(diff).any() else 0.0)
     return steps
+
+
+def _edge_beyond(press: PressConfig, centre_mm, earlier_centre_mm) -> np.ndarray:
+    """(rows, cols) bool: this section's outermost punch rows and columns beyond which the earlier section's bed
+    reaches (by a pitch or more): where the plate just beyond the border is plate the earlier section formed.
+
+    Where both beds end on the same line (two sections side by side across, at the same place along), the plate
+    beyond is formed by neither, and the two sections' strokes there are the transition between them, not a border.
+    """
+    shift = np.asarray(earlier_centre_mm, dtype=float) - np.asarray(centre_mm, dtype=float)
+    pitch = np.array([press.pitch_x_mm, press.pitch_y_mm])
+    edge = np.zeros(press.shape, dtype=bool)
+    ends = {(0, -1.0): (slice(None), 0), (0, 1.0): (slice(None), -1), (1, -1.0): (0, slice(None)),
+            (1, 1.0): (-1, slice(None))}
+    for (axis, side), where in ends.items():
+        if side * shift[axis] >= pitch[axis] - 1e-6:  # the earlier bed reaches a pitch or more past this border
+            edge[where] = True
+    return edge
 
 
 def _collinear(uv, tol_mm: float = 1e-6) -> bool:

@@ -159,7 +159,9 @@ def earlier_weight(press: PressConfig, bed_centre_mm, earlier_centre_mm, zone_mm
         for side in (-1.0, 1.0):
             border = earlier_centre_mm[axis] + side * half[axis]
             depth = side * (border - p)  # how far inside this border the punch lies (negative: beyond it)
-            if abs(border) < plate_half[axis] - 1e-6:  # a border between sections, not the plate's edge
+            # a border between sections (not the plate's edge) that this section's bed reaches past
+            crossed = side * (bed_centre_mm[axis] + side * half[axis] - border) > 1e-6
+            if abs(border) < plate_half[axis] - 1e-6 and crossed:
                 inside = np.minimum(inside, depth)
             else:
                 inside = np.where(depth < -1e-6, -1.0, inside)
