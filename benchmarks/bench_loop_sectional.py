@@ -31,15 +31,15 @@ the outer punches depend on its grid on long plates).
 
 Variants: ``--weightless`` takes the plate's own weight off, as if it were all carried beside the press;
 ``--start formed`` starts every later section's steps from the plate the sections before it formed
-(:func:`mppf.planning.sectional.from_formed_plate`) instead of from flat; ``--refine-sections`` refines each
-section's strokes on the plate model (:mod:`mppf.planning.sectional_refine`, off in the planner).
+(:func:`mppf.planning.sectional.from_formed_plate`) instead of from flat. (Each section
+refined on the plate model, measured and retired: ``benchmarks/results/2026-12-06-sectional-refined.md``.)
 
 Resumable: every finished run is written at once to ``--results`` (JSON keyed by physics, plate, seed,
 max cycles, grid and ``--label``); ``--budget-s`` (default 540) stops starting new runs after that long.
 ``--table`` prints the tables of the file only.
 
 Run:  python benchmarks/bench_loop_sectional.py [--plates cylinder twisted kcs_stern real0010 real0008]
-          [--physics steel] [--seeds 1] [--grid-mm 150] [--weightless] [--start flat|formed] [--refine-sections]
+          [--physics steel] [--seeds 1] [--grid-mm 150] [--weightless] [--start flat|formed]
           [--label before]
           [--results FILE.json] [--table]
 """
@@ -76,7 +76,6 @@ from mppf.geometry.unfold import unfold
 from mppf.geometry.write import write_points
 from mppf.loop.section_steps import placement_mm
 from mppf.model.press import example_press_path, load_press
-from mppf.planning import sectional
 
 ROOT = Path(__file__).resolve().parents[1]
 LONG = ROOT / "mppf" / "examples" / "long"
@@ -324,8 +323,7 @@ def run_part(args, results: dict) -> bool:
 
 
 def _key(physics: str, name: str, seed: int, args) -> str:
-    physics = physics + ("-weightless" if args.weightless else "") + ("-formed" if args.start == "formed" else "") \
-        + ("-refined" if args.refine_sections else "")
+    physics = physics + ("-weightless" if args.weightless else "") + ("-formed" if args.start == "formed" else "")
     return f"{physics}|{name}|{seed}|{args.max_cycles}|{args.grid_mm:g}|learned|{args.label}"
 
 
@@ -342,16 +340,12 @@ def main(argv=None) -> int:
                              "(mppf.planning.sectional.from_formed_plate)")
     parser.add_argument("--weightless", action="store_true",
                         help="take the plate's own weight off (as if all of it were carried beside the press)")
-    parser.add_argument("--refine-sections", action="store_true",
-                        help="refine each section's strokes on the plate model (mppf.planning.sectional."
-                             "REFINE_SECTIONS, a study switch)")
     parser.add_argument("--label", default="now", help="names the code measured (e.g. before, after)")
     parser.add_argument("--results", type=Path, default=Path("bench_loop_sectional.json"))
     parser.add_argument("--budget-s", type=float, default=540.0, help="start no new run after this long (s)")
     parser.add_argument("--table", action="store_true", help="only print the tables of --results")
     args = parser.parse_args(argv)
     threadpool_limits(1, "blas")
-    sectional.REFINE_SECTIONS = args.refine_sections
     results = load_results(args.results)
     done = True if args.table else run_part(args, results)
     report(results)

@@ -35,7 +35,6 @@ from mppf.planning.section_start import formed_punches, plan_section_steps
 from mppf.planning.sectional_borders import BORDER_STEP_LIMIT_MM, border_steps, border_warnings, recovered_residual
 from mppf.planning.sectional_marks import section_marks, sections_summary
 from mppf.planning.sectional_overbend import closer_fit, whole_target
-from mppf.planning.sectional_refine import refinement_summary, section_refinement
 from mppf.planning.sections import TRANSITION_PITCHES, earlier_weight, index_offset, shifted, split_plate
 from mppf.planning.steps import steps_needed
 from mppf.planning.validate import validate_steps
@@ -61,14 +60,6 @@ def plan_plate(design_points, flat_points, press: PressConfig, thickness_mm: flo
                           reporter=reporter)
 
 
-REFINE_SECTIONS = False
-"""With springback, refine each section's strokes on the plate model (:mod:`mppf.planning.sectional_refine`).
-
-Off: measured on the steel-plate simulator it brings the first press closer (cylinder 7.5 m 95.9 -> 80.4 mm form
-max) but the loop no longer converges on the plate it brought into tolerance, and the sections' strokes step at
-their borders by up to 12 mm (``benchmarks/results/2026-12-06-sectional-refined.md``). For study only."""
-
-
 @dataclass(frozen=True)
 class _WholePlate:
     """What the sections of one plate share: the flat laid, the design's fit and registration, the split."""
@@ -90,8 +81,7 @@ def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm:
     Each section is the plate shifted on the bed (by whole punch pitches) with its own pose
     (offset and tilt of least travel); its strokes are the exact ball contact of the design so
     placed, or with ``options.springback`` of the whole plate's one over-bent target
-    (:mod:`mppf.planning.sectional_overbend`), the same surface for every section (refined on the plate
-    model per section only with :data:`REFINE_SECTIONS`, a study switch). Parameters as
+    (:mod:`mppf.planning.sectional_overbend`), the same surface for every section. Parameters as
     :func:`mppf.planning.plan.plan_job`.
 
     Returns
@@ -118,7 +108,7 @@ def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm:
     zone = TRANSITION_PITCHES * max(press.pitch_x_mm, press.pitch_y_mm) if options.transition_mm is None \
         else options.transition_mm
     reporter.info(f"the plate needs {split.n_sections} sections ({split.counts[0]} along x {split.counts[1]} across)")
-    # 4. each section: contact in its pose, refined on the plate model (springback), blended, steps, marks
+    # 4. each section: contact in its pose, blended, steps, marks
     # one surface for every section: the sections then press the same shape where they meet; with springback
     # one over-bent target of that surface for the whole plate, the material's points moved onto it
     whole = _whole_surface(fitted, design, design_faces)
@@ -127,14 +117,12 @@ def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm:
         if springback else {"enabled": False}
     ctx = {"press": press, "fitted": whole, "design": design, "flat_file": flat, "registration": registration,
            "t": t, "margin": margin, "material": material, "target": target, "planned_material": planned_material,
-           "refine": springback and REFINE_SECTIONS, "reporter": reporter, "n": split.n_sections, "zone": float(zone),
+           "reporter": reporter, "n": split.n_sections, "zone": float(zone),
            "points": design if target is None else target.material_points(design)}
     planned = []
     for k, (cell, centre) in enumerate(zip(split.cells, split.bed_centres_mm), start=1):
         reporter.info(f"planning section {k} of {split.n_sections}")
         planned.append(_plan_section(k, cell, centre, planned, zone, options.steps, placement, ctx))
-    if ctx["refine"]:
-        springback_report["refinement"] = refinement_summary([p["refinement"] for p in planned])
     # 5. the design recovered from the strokes must not step where sections meet
     border = border_steps(press, planned, t)
     whole_plate = _WholePlate(placement, fitted, registration, belongs, split, float(zone), springback_report)
@@ -164,8 +152,8 @@ def _plan_section(index, cell, centre, earlier, zone, steps, placement, ctx) -> 
                                                                                 tf_press_design, active, t)
     target = 0.5 * (design_up + design_lo)
     trim = check_trim(pose.contact_xy_mm, outline_xy, press)
-    own_up, own_lo, refinement = section_refinement(index, StepStrokes(upper, lower, active), target, outline, ctx)
-    weight, d_up, d_lo = _blend(press, centre, active, own_up, own_lo, earlier, zone, placement.size_mm / 2.0)
+    no_change = np.zeros(press.shape)
+    weight, d_up, d_lo = _blend(press, centre, active, no_change, no_change, earlier, zone, placement.size_mm / 2.0)
     final_up, final_lo = np.where(active, upper + d_up, np.nan), np.where(active, lower + d_lo, np.nan)
     # press steps from flat, validated (from the formed plate: from_formed_plate)
     n_steps = steps if steps is not None else steps_needed(final_up, final_lo, active, press, t)
@@ -187,7 +175,7 @@ def _plan_section(index, cell, centre, earlier, zone, steps, placement, ctx) -> 
                                          design_mid_mm=target, material=ctx["material"]),
                       own_weight=np.where(active, weight, np.nan), reports=reports, transition=transition)
     return {"section": section, "centre": np.asarray(centre, dtype=float), "active": active, "pose": pose,
-            "delta": (d_up, d_lo), "contact": (upper, lower), "fitted": fitted, "refinement": refinement}
+            "delta": (d_up, d_lo), "contact": (upper, lower), "fitted": fitted}
 
 
 def _whole_surface(fitted, design, design_faces):

@@ -1,7 +1,6 @@
 """Sectional planning with springback: one over-bent target for the whole plate, pressed by every section.
 
-The target's contact is what the planner presses (the refinement on the plate model per section, off by
-default: ``tests/planning/test_sectional_refine.py``).
+The target's contact is what the planner presses.
 
 Cylinders of exact development (steel 20 mm) split in two directions. Their exact over-bent target is the
 cylinder of the loaded radius R' (:func:`mppf.forming.springback.loaded_curvature`), tangent to the design at
@@ -20,7 +19,6 @@ from mppf.model.material import MATERIALS
 from mppf.forming.springback import loaded_curvature
 from mppf.model.plan_options import PlanOptions
 from mppf.planning.contact import PlacedSurface, tip_heights
-from mppf.planning import sectional
 from mppf.planning.sectional import BORDER_STEP_LIMIT_MM, plan_plate
 from plan_helpers import CylinderSurface, press  # noqa: F401 (fixture)
 
@@ -42,7 +40,6 @@ def case(request, press):
     """The plans of one cylinder: with springback (the target's contact) and without springback."""
     length, width, radius, counts = CASES[request.param]
     design, flat = cylinder_plate(length, width, radius, spacing_mm=100.0)
-    assert not sectional.REFINE_SECTIONS  # the planner's default: the target's contact
     job = plan_plate(design, flat, press, T_MM, PlanOptions(springback=True, material=STEEL))
     plain = plan_plate(design, flat, press, T_MM)
     return {"job": job, "plain": plain, "radius": radius, "loaded": _loaded_radius(radius), "counts": counts,
