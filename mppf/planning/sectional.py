@@ -22,6 +22,7 @@ from mppf.model.job import Job
 from mppf.model.job_parts import PlateLayout, StepStrokes
 from mppf.model.job_provenance import SectionalSummary, TransitionReport
 from mppf.model.job_sections import Section
+from mppf.model.material import Material
 from mppf.model.plan_options import PlanOptions
 from mppf.model.press import PressConfig
 from mppf.planning.belongs import check_flat_belongs, design_area_mm2
@@ -34,7 +35,7 @@ from mppf.planning.plan_steps import (PlannedPiece, active_punches, as_validatio
 from mppf.planning.section_start import formed_punches, plan_section_steps
 from mppf.planning.sectional_borders import BORDER_STEP_LIMIT_MM, border_steps, border_warnings, recovered_residual
 from mppf.planning.sectional_marks import section_marks, sections_summary
-from mppf.planning.sectional_overbend import closer_fit, whole_target
+from mppf.planning.sectional_overbend import WholeTarget, closer_fit, whole_target
 from mppf.planning.sections import TRANSITION_PITCHES, earlier_weight, index_offset, shifted, split_plate
 from mppf.planning.steps import steps_needed
 from mppf.planning.validate import validate_steps
@@ -71,6 +72,46 @@ class _WholePlate:
     split: object  # mppf.planning.sections.split_plate's split
     zone_mm: float  # the transition zone's width
     springback_report: dict
+
+
+@dataclass(frozen=True)
+class _SectionContext:
+    """What every section of one plate is planned from (read by :func:`_plan_section` and its helpers).
+
+    Attributes
+    ----------
+    press : PressConfig
+        The press.
+    fitted : FittedPlate
+        The surface every section presses (:func:`_whole_surface`): the design's, in its own frame (mm).
+    design : (n, 3) float ndarray
+        The design's points, mm.
+    flat_file : (m, 3) float ndarray
+        The flat file's points as given, mm; paired with ``design`` when ``m == n`` (the unfolding's order).
+    registration : Registration
+        The design registered onto the flat laid on an unlimited bed (plate coordinates).
+    thickness_mm : float
+        Plate thickness, mm.
+    margin_mm : float
+        Trim margin around the net outline, mm.
+    material : Material or None
+        The nominal material (``options.material``), recorded in each section's layout.
+    target : WholeTarget or None
+        The whole plate's over-bent target with springback (:mod:`mppf.planning.sectional_overbend`), else None.
+    points : (n, 3) float ndarray
+        The design's points, or with springback where their material lies on ``target``, mm.
+    """
+
+    press: PressConfig
+    fitted: FittedPlate
+    design: np.ndarray
+    flat_file: np.ndarray
+    registration: Registration
+    thickness_mm: float
+    margin_mm: float
+    material: Material | None
+    target: WholeTarget | None
+    points: np.ndarray
 
 
 def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm: float,
@@ -115,10 +156,9 @@ def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm:
     target = whole_target(whole, design, press, t, planned_material, margin) if springback else None
     springback_report = {**target.report, "first_press": first_press_report(material, options.yield_uncertainty_pct)} \
         if springback else {"enabled": False}
-    ctx = {"press": press, "fitted": whole, "design": design, "flat_file": flat, "registration": registration,
-           "t": t, "margin": margin, "material": material, "target": target, "planned_material": planned_material,
-           "reporter": reporter, "n": split.n_sections, "zone": float(zone),
-           "points": design if target is None else target.material_points(design)}
+    ctx = _SectionContext(press=press, fitted=whole, design=design, flat_file=flat, registration=registration,
+                          thickness_mm=t, margin_mm=margin, material=material, target=target,
+                          points=design if target is None else target.material_points(design))
     planned = []
     for k, (cell, centre) in enumerate(zip(split.cells, split.bed_centres_mm), start=1):
         reporter.info(f"planning section {k} of {split.n_sections}")
@@ -129,15 +169,15 @@ def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm:
     return _assemble(planned, border, whole_plate, inputs, press, t)
 
 
-def _plan_section(index, cell, centre, earlier, zone, steps, placement, ctx) -> dict:
+def _plan_section(index, cell, centre, earlier, zone, steps, placement, ctx: _SectionContext) -> dict:
     """One section: pose, contact strokes, the blend weights, the steps and the marks."""
-    press, t, margin = ctx["press"], ctx["t"], ctx["margin"]
+    press, t, margin = ctx.press, ctx.thickness_mm, ctx.margin_mm
     tf_press_plate = make_tf(translation=[-centre[0], -centre[1], 0.0])
     # the plate's part on the bed (as pressed: on the over-bent target with springback) laid level onto its flat
     flat_press = apply_tf(tf_press_plate, placement.flat_press_mm)
-    fitted, tf_reg, on_bed = _section_fit(press, ctx, flat_press, tf_press_plate @ ctx["registration"].tf)
-    target_plate, surface = ctx["target"], fitted.surface
-    shape_press = apply_tf(tf_reg, ctx["points"])
+    fitted, tf_reg, on_bed = _section_fit(press, ctx, flat_press, tf_press_plate @ ctx.registration.tf)
+    target_plate, surface = ctx.target, fitted.surface
+    shape_press = apply_tf(tf_reg, ctx.points)
     outline_xy = offset_convex(convex_outline(shape_press[:, :2], "the placed design"), margin)
     active = active_punches(press, outline_xy)
     # the section's pose of least travel; the exact ball contact of the surface so placed (the design's or the
@@ -148,7 +188,7 @@ def _plan_section(index, cell, centre, earlier, zone, steps, placement, ctx) -> 
     net = convex_outline(apply_tf(pose.tf_adjust, shape_press)[:, :2], "the placed design")
     outline = offset_convex(net, margin)
     # the design's own mid heights in the section's pose (the loop's target)
-    design_up, design_lo = (upper, lower) if target_plate is None else _contact(press, ctx["fitted"],
+    design_up, design_lo = (upper, lower) if target_plate is None else _contact(press, ctx.fitted,
                                                                                 tf_press_design, active, t)
     target = 0.5 * (design_up + design_lo)
     trim = check_trim(pose.contact_xy_mm, outline_xy, press)
@@ -172,7 +212,7 @@ def _plan_section(index, cell, centre, earlier, zone, steps, placement, ctx) -> 
                       mark_punches=marks[3], steps=step_list, tf_press_design=tf_press_design,
                       tf_press_flat=tf_press_flat,
                       layout=PlateLayout(outline_mm=outline, net_outline_mm=net, margin_mm=margin,
-                                         design_mid_mm=target, material=ctx["material"]),
+                                         design_mid_mm=target, material=ctx.material),
                       own_weight=np.where(active, weight, np.nan), reports=reports, transition=transition)
     return {"section": section, "centre": np.asarray(centre, dtype=float), "active": active, "pose": pose,
             "delta": (d_up, d_lo), "contact": (upper, lower), "fitted": fitted}
@@ -187,7 +227,7 @@ def _whole_surface(fitted, design, design_faces):
     return closer_fit(fitted, lambda: fit_plate(design, kind="spline", faces=design_faces))
 
 
-def _section_fit(press: PressConfig, ctx: dict, flat_press, tf_whole):
+def _section_fit(press: PressConfig, ctx: _SectionContext, flat_press, tf_whole):
     """The surface every section presses, its ``tf_press_design`` before the pose, and the points on the bed.
 
     Paired points (the unfolding's order): the plate's points whose flat points lie over the bed (with
@@ -198,8 +238,8 @@ def _section_fit(press: PressConfig, ctx: dict, flat_press, tf_whole):
     same in every section: where sections meet they press the same shape, :func:`_whole_surface`).
     Unpaired: the whole plate's registration, shifted.
     """
-    points, target = ctx["points"], ctx["target"]
-    reach = ctx["margin"] + press.trim_allowance_mm
+    points, target = ctx.points, ctx.target
+    reach = ctx.margin_mm + press.trim_allowance_mm
     half = np.array(press.bed_size_mm) / 2.0 + reach
     paired = points.shape == flat_press.shape
     on_bed = np.all(np.abs((flat_press if paired else apply_tf(tf_whole, points))[:, :2]) <= half, axis=1)
@@ -207,7 +247,7 @@ def _section_fit(press: PressConfig, ctx: dict, flat_press, tf_whole):
     if few:
         on_bed = np.ones(len(points), dtype=bool)
     # the surface pressed: the whole plate's, or the whole plate's over-bent target over this section
-    fitted = ctx["fitted"] if target is None else target.section_fit(ctx["design"][on_bed], reach + press.pitch_x_mm)
+    fitted = ctx.fitted if target is None else target.section_fit(ctx.design[on_bed], reach + press.pitch_x_mm)
     if not paired or few:
         return fitted, tf_whole, on_bed
     return fitted, fit_rigid(points[on_bed], flat_press[on_bed]), on_bed
