@@ -141,10 +141,14 @@ class RegistrationTarget(Cloud):
     Attributes
     ----------
     tree : mppf.core.kdtree.KDTree of ``points``
+    sampling_mm : float or None
+        The target's sampling scatter, mm (:func:`mppf.registration.trust.sampling_scatter_mm` of its
+        seeded sample), set once by the first :func:`mppf.registration.trust.noise_floor_mm` that needs
+        it; None until then.
     """
 
     tree: object
-    cache: dict = field(default_factory=dict, repr=False)  # figures computed once (e.g. its sampling scatter)
+    sampling_mm: float | None = field(default=None, repr=False)
     _normals: np.ndarray | None = field(default=None, repr=False)
     _outline: tuple | None = field(default=None, repr=False)
 

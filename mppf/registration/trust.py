@@ -105,9 +105,9 @@ def noise_floor_mm(source: Cloud, target: RegistrationTarget) -> float:
     """
     points = source.points[sample_index(source.n_points, NOISE_TREE_POINTS)]
     s_source = quadric_scatter_mm(points, KDTree(points), sample_index(points.shape[0]))
-    if "sampling_mm" not in target.cache:
-        target.cache["sampling_mm"] = sampling_scatter_mm(target, sample_index(target.n_points))
-    return float(np.hypot(s_source, target.cache["sampling_mm"]))
+    if target.sampling_mm is None:
+        target.sampling_mm = sampling_scatter_mm(target, sample_index(target.n_points))
+    return float(np.hypot(s_source, target.sampling_mm))
 
 
 def plane_residuals(target: RegistrationTarget, points: np.ndarray, tf: np.ndarray) -> np.ndarray:

@@ -9,6 +9,8 @@ from mppf.core.transform import apply_tf
 from mppf.geometry.read import read_points
 from mppf.registration.register import register_icp
 from mppf.registration.settings import RegisterOptions
+from mppf.registration.target import build_target, prepare
+from mppf.registration.trust import noise_floor_mm, sample_index, sampling_scatter_mm
 from registration_helpers import motion_error, random_motion, sampled_scan
 
 
@@ -85,3 +87,17 @@ def test_other_shapes_fail_with_the_figures(hull_dir):
     assert "noise floor" in result.judgement and "mm" in result.judgement
     doc = result.to_dict()
     assert doc["judgement"] == result.judgement and doc["noise_mm"] > 0
+
+
+def test_target_sampling_scatter_is_computed_once_and_kept_on_the_target():
+    source, target_points, _ = moved_noisy_copy(7, n=2000)
+    target = build_target(target_points, name="trust sampling target")
+    assert target.sampling_mm is None
+    floor = noise_floor_mm(prepare(source), target)
+    expected = sampling_scatter_mm(target, sample_index(target.n_points))
+    assert target.sampling_mm == expected and 0.0 < expected < floor
+    try:
+        target.sampling_mm = 1000.0  # the kept figure is the one used: no second computation
+        assert noise_floor_mm(prepare(source), target) >= 1000.0
+    finally:
+        target.sampling_mm = expected  # build_target keeps the target for later callers
