@@ -29,6 +29,9 @@ SEED_DIVISIONS = 400
 """Seed points are laid about (model diagonal / this) apart, at most ``SEED_MAX`` per face side."""
 
 SEED_MIN, SEED_MAX = 6, 160
+FaceTrees = list[tuple[object, float]]
+"""Per face: the k-d tree (``scipy.spatial.cKDTree``, None for a face without seeds) of its seed points in
+some coordinates, and its largest seed gap (mm); built by :mod:`mppf.geometry.cad_query`."""
 CAD_BYTES_PER_FILE_BYTE = 40
 """Memory OpenCASCADE takes per byte of an IGES/STEP file, roughly."""
 
@@ -94,8 +97,10 @@ class CadModel:
         check_fits(self.path, CAD_BYTES_PER_FILE_BYTE * self.path.stat().st_size,
                    f"its {self.path.stat().st_size:,} bytes of CAD data")
         check_cad_file(self.path)
-        self.cache: dict = {}
-        """Look-up structures built by the queries (:mod:`mppf.geometry.cad_query`)."""
+        self.seed_trees_xyz: FaceTrees | None = None
+        """The faces' seed trees in 3-D (mm), built by the first query that needs them (:mod:`.cad_query`)."""
+        self.seed_trees_along: dict[tuple[float, float, float], FaceTrees] = {}
+        """The faces' seed trees in the plane normal to a line direction, by that unit direction (rounded to 1e-12)."""
         self._gmsh = GmshModel()
         try:
             tags = self._import()

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mppf.geometry.cad import CadModel
+from mppf.geometry.cad import CadModel, FaceTrees
 
 NEWTON_STEPS = 40
 CONVERGED_MM = 1e-7
@@ -88,7 +88,10 @@ def intersect_lines(model: CadModel, origins, direction, *, seen_from=None) -> S
     basis = _normal_basis(d)
     planar = pts @ basis.T
     hits = _Best(pts.shape[0])
-    trees = _trees(model, ("along", tuple(np.round(d, 12))), lambda face: face.seed_mm @ basis.T)
+    key = tuple(float(c) for c in np.round(d, 12))
+    if key not in model.seed_trees_along:
+        model.seed_trees_along[key] = _trees(model, lambda face: face.seed_mm @ basis.T)
+    trees = model.seed_trees_along[key]
     for index, face in enumerate(model.faces):
         tree, spacing = trees[index]
         if tree is None:
@@ -188,7 +191,9 @@ def _move(face, uv: np.ndarray, rows: np.ndarray, step: np.ndarray) -> np.ndarra
 
 def _near_faces(model: CadModel, pts: np.ndarray):
     """For each face near some of ``pts``: (index, face, rows, starting parameters of those rows)."""
-    trees = _trees(model, "xyz", lambda face: face.seed_mm)
+    if model.seed_trees_xyz is None:
+        model.seed_trees_xyz = _trees(model, lambda face: face.seed_mm)
+    trees = model.seed_trees_xyz
     reach = NEAR_SEEDS * max(spacing for _, spacing in trees)
     found = [(_query(tree, pts, reach), spacing) for tree, spacing in trees]
     nearest = np.min([dist for (dist, _), _ in found], axis=0)
@@ -212,22 +217,23 @@ def _query(tree, pts: np.ndarray, reach: float):
     return dist, np.minimum(seed, tree.n - 1)
 
 
-def _trees(model: CadModel, key, coordinates):
-    """k-d trees of each face's seeds (in ``coordinates``), with the face's largest seed gap; cached."""
+def _trees(model: CadModel, coordinates) -> FaceTrees:
+    """k-d trees of each face's seeds (in ``coordinates``), with the face's largest seed gap (mm).
+
+    The callers keep them on the model (``seed_trees_xyz``, ``seed_trees_along``): built once each.
+    """
     from scipy.spatial import cKDTree
 
-    if key not in model.cache:
-        trees = []
-        for face in model.faces:
-            if face.seed_mm.shape[0] == 0:
-                trees.append((None, 0.0))
-                continue
-            seeds = coordinates(face)
-            tree = cKDTree(seeds)
-            gap = tree.query(seeds, k=2)[0][:, 1].max() if seeds.shape[0] > 1 else model.seed_spacing_mm
-            trees.append((tree, float(max(gap, model.seed_spacing_mm))))
-        model.cache[key] = trees
-    return model.cache[key]
+    trees = []
+    for face in model.faces:
+        if face.seed_mm.shape[0] == 0:
+            trees.append((None, 0.0))
+            continue
+        seeds = coordinates(face)
+        tree = cKDTree(seeds)
+        gap = tree.query(seeds, k=2)[0][:, 1].max() if seeds.shape[0] > 1 else model.seed_spacing_mm
+        trees.append((tree, float(max(gap, model.seed_spacing_mm))))
+    return trees
 
 
 # ---------------------------------------------------------------------- small helpers

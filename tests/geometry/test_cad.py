@@ -18,7 +18,7 @@ from mppf.core.errors import FileFormatError, InputError
 from mppf.geometry import files
 from mppf.geometry.cad import CadModel
 from mppf.geometry.cad_mesh import MAX_TRIANGLES, tessellate
-from mppf.geometry.cad_query import closest_points
+from mppf.geometry.cad_query import closest_points, intersect_lines
 from mppf.geometry.read import read_points
 
 
@@ -85,6 +85,26 @@ def test_closest_points_are_exact_on_the_trimmed_face(plate_file):
     np.testing.assert_allclose(hits.distance_mm, np.abs(offset), atol=1e-6)
     np.testing.assert_allclose(hits.points_mm, on, atol=1e-6)
     assert not beyond.found[0] and beyond.distance_mm[0] < 1e-6
+
+
+def test_seed_trees_are_built_once_per_model_and_direction(step_plate):
+    with CadModel(step_plate) as model:
+        assert model.seed_trees_xyz is None and model.seed_trees_along == {}
+        first = closest_points(model, [[1000.0, 600.0, plate_height(1000.0, 600.0) + 5.0]])
+        trees = model.seed_trees_xyz
+        assert len(trees) == len(model.faces) and all(gap >= model.seed_spacing_mm for _, gap in trees)
+        again = closest_points(model, [[1000.0, 600.0, plate_height(1000.0, 600.0) + 5.0]])
+        assert model.seed_trees_xyz is trees  # the same trees, not built again
+        origins = [[1000.0, 600.0, 500.0], [400.0, 300.0, 500.0]]
+        down = intersect_lines(model, origins, [0.0, 0.0, -1.0])
+        twice_as_long = intersect_lines(model, origins, [0.0, 0.0, -2.0])  # the same direction: one entry
+        assert list(model.seed_trees_along) == [(0.0, 0.0, -1.0)]
+        intersect_lines(model, origins, [0.0, 0.1, -1.0])
+        assert len(model.seed_trees_along) == 2
+    np.testing.assert_array_equal(first.points_mm, again.points_mm)
+    np.testing.assert_array_equal(down.points_mm, twice_as_long.points_mm)
+    np.testing.assert_allclose(down.points_mm[:, 2], plate_height(np.array([1000.0, 400.0]), np.array([600.0, 300.0])),
+                               atol=1e-6)
 
 
 @pytest.mark.parametrize("name", ["K1_midbody_bilge", "K2_fwd_bilge_convex", "K3_stern_saddle"])
