@@ -22,7 +22,6 @@ from mppf.model.job import Job
 from mppf.model.job_parts import PlateLayout, StepStrokes
 from mppf.model.job_provenance import SectionalSummary, TransitionReport
 from mppf.model.job_sections import Section
-from mppf.model.material import Material
 from mppf.model.plan_options import PlanOptions
 from mppf.model.press import PressConfig
 from mppf.planning.belongs import check_flat_belongs, design_area_mm2
@@ -34,8 +33,8 @@ from mppf.planning.plan_steps import (PlannedPiece, active_punches, as_validatio
                                       steps_within_limit)
 from mppf.planning.section_start import formed_punches, plan_section_steps
 from mppf.planning.sectional_borders import BORDER_STEP_LIMIT_MM, border_steps, border_warnings, recovered_residual
-from mppf.planning.sectional_marks import section_marks, sections_summary
-from mppf.planning.sectional_overbend import WholeTarget, closer_fit, whole_target
+from mppf.planning.sectional_marks import SectionContext, section_marks, sections_summary
+from mppf.planning.sectional_overbend import closer_fit, whole_target
 from mppf.planning.sections import TRANSITION_PITCHES, earlier_weight, index_offset, shifted, split_plate
 from mppf.planning.steps import steps_needed
 from mppf.planning.validate import validate_steps
@@ -72,46 +71,6 @@ class _WholePlate:
     split: object  # mppf.planning.sections.split_plate's split
     zone_mm: float  # the transition zone's width
     springback_report: dict
-
-
-@dataclass(frozen=True)
-class _SectionContext:
-    """What every section of one plate is planned from (read by :func:`_plan_section` and its helpers).
-
-    Attributes
-    ----------
-    press : PressConfig
-        The press.
-    fitted : FittedPlate
-        The surface every section presses (:func:`_whole_surface`): the design's, in its own frame (mm).
-    design : (n, 3) float ndarray
-        The design's points, mm.
-    flat_file : (m, 3) float ndarray
-        The flat file's points as given, mm; paired with ``design`` when ``m == n`` (the unfolding's order).
-    registration : Registration
-        The design registered onto the flat laid on an unlimited bed (plate coordinates).
-    thickness_mm : float
-        Plate thickness, mm.
-    margin_mm : float
-        Trim margin around the net outline, mm.
-    material : Material or None
-        The nominal material (``options.material``), recorded in each section's layout.
-    target : WholeTarget or None
-        The whole plate's over-bent target with springback (:mod:`mppf.planning.sectional_overbend`), else None.
-    points : (n, 3) float ndarray
-        The design's points, or with springback where their material lies on ``target``, mm.
-    """
-
-    press: PressConfig
-    fitted: FittedPlate
-    design: np.ndarray
-    flat_file: np.ndarray
-    registration: Registration
-    thickness_mm: float
-    margin_mm: float
-    material: Material | None
-    target: WholeTarget | None
-    points: np.ndarray
 
 
 def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm: float,
@@ -156,7 +115,7 @@ def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm:
     target = whole_target(whole, design, press, t, planned_material, margin) if springback else None
     springback_report = {**target.report, "first_press": first_press_report(material, options.yield_uncertainty_pct)} \
         if springback else {"enabled": False}
-    ctx = _SectionContext(press=press, fitted=whole, design=design, flat_file=flat, registration=registration,
+    ctx = SectionContext(press=press, fitted=whole, design=design, flat_file=flat, registration=registration,
                           thickness_mm=t, margin_mm=margin, material=material, target=target,
                           points=design if target is None else target.material_points(design))
     planned = []
@@ -169,7 +128,7 @@ def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm:
     return _assemble(planned, border, whole_plate, inputs, press, t)
 
 
-def _plan_section(index, cell, centre, earlier, zone, steps, placement, ctx: _SectionContext) -> dict:
+def _plan_section(index, cell, centre, earlier, zone, steps, placement, ctx: SectionContext) -> dict:
     """One section: pose, contact strokes, the blend weights, the steps and the marks."""
     press, t, margin = ctx.press, ctx.thickness_mm, ctx.margin_mm
     tf_press_plate = make_tf(translation=[-centre[0], -centre[1], 0.0])
@@ -227,7 +186,7 @@ def _whole_surface(fitted, design, design_faces):
     return closer_fit(fitted, lambda: fit_plate(design, kind="spline", faces=design_faces))
 
 
-def _section_fit(press: PressConfig, ctx: _SectionContext, flat_press, tf_whole):
+def _section_fit(press: PressConfig, ctx: SectionContext, flat_press, tf_whole):
     """The surface every section presses, its ``tf_press_design`` before the pose, and the points on the bed.
 
     Paired points (the unfolding's order): the plate's points whose flat points lie over the bed (with

@@ -1,24 +1,69 @@
-"""A section's reference marks, and the per-section summary of a sectional job (``docs/sections.md``, item 7).
+"""A section's reference marks, what every section is planned from, and the per-section summary of a sectional job.
+
+The marks are ``docs/sections.md``, item 7; :class:`SectionContext` is what
+:func:`mppf.planning.sectional.plan_sectional` hands each section.
 
 Split from :mod:`mppf.planning.sectional` (which re-exports :func:`sections_summary`).
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from dataclasses import dataclass
 
 import numpy as np
 
 from mppf.core.transform import apply_tf, invert_tf
+from mppf.geometry.surface import FittedPlate
 from mppf.model.job import Job
+from mppf.model.material import Material
 from mppf.model.press import PressConfig
+from mppf.planning.sectional_overbend import WholeTarget
 from mppf.planning.sections import mark_punches
-
-if TYPE_CHECKING:
-    from mppf.planning.sectional import _SectionContext
+from mppf.registration.register import Registration
 
 
-def section_marks(press: PressConfig, active, centre, tf_press_flat, placed, fitted, ctx: _SectionContext, on_bed):
+@dataclass(frozen=True)
+class SectionContext:
+    """What every section of one plate is planned from (:func:`mppf.planning.sectional.plan_sectional`).
+
+    Attributes
+    ----------
+    press : PressConfig
+        The press.
+    fitted : FittedPlate
+        The surface every section presses: the whole design's fit (the polynomial, or the B-spline where the
+        polynomial misses), in its own frame (mm).
+    design : (n, 3) float ndarray
+        The design's points, mm.
+    flat_file : (m, 3) float ndarray
+        The flat file's points as given, mm; paired with ``design`` when ``m == n`` (the unfolding's order).
+    registration : Registration
+        The design registered onto the flat laid on an unlimited bed (plate coordinates).
+    thickness_mm : float
+        Plate thickness, mm.
+    margin_mm : float
+        Trim margin around the net outline, mm.
+    material : Material or None
+        The nominal material (``options.material``), recorded in each section's layout.
+    target : WholeTarget or None
+        The whole plate's over-bent target with springback (:mod:`mppf.planning.sectional_overbend`), else None.
+    points : (n, 3) float ndarray
+        The design's points, or with springback where their material lies on ``target``, mm.
+    """
+
+    press: PressConfig
+    fitted: FittedPlate
+    design: np.ndarray
+    flat_file: np.ndarray
+    registration: Registration
+    thickness_mm: float
+    margin_mm: float
+    material: Material | None
+    target: WholeTarget | None
+    points: np.ndarray
+
+
+def section_marks(press: PressConfig, active, centre, tf_press_flat, placed, fitted, ctx: SectionContext, on_bed):
     """The section's two reference marks: plate x, y; flat-file x, y, z; press x, y; the punches under them.
 
     ``active`` holds the punches under the net plate, so the marks lie inside the net outline. A mark
@@ -27,7 +72,7 @@ def section_marks(press: PressConfig, active, centre, tf_press_flat, placed, fit
     the flat by the paired points (linear interpolation over the pressed surface's own (u, v) of the
     points where the material lies on it).
     Unpaired flats: the flat point under the punch with the plate lying flat. ``ctx`` gives the flat
-    file, the design, the points on the pressed surface and the thickness (``_SectionContext``).
+    file, the design, the points on the pressed surface and the thickness (``SectionContext``).
     """
     punches = mark_punches(active)
     press_xy = np.column_stack([press.punch_x_mm[punches[:, 1]], press.punch_y_mm[punches[:, 0]]])
