@@ -55,6 +55,17 @@ LATER_LOAD_INCREMENT = 0.02
 plate and contacts close at once; a quarter of the step was cut back three times to 1/256 before it converged
 (the P2 bow flare's second press step: 145 Newton iterations instead of 172, the same plate within 0.03 mm)."""
 
+MAX_CUTBACKS = 9
+"""Cutbacks ccx may make of one increment (its default is 5; ``*CONTROLS, PARAMETERS=TIME INCREMENTATION``).
+
+The release retracts the tips :data:`RETRACT_MM` over the step: after 5 cutbacks by 4 its first increment still
+moved them 0.29 mm, more than the compression of most gaps (their force over the punch stiffness: 29 kN at
+1e5 N/mm), so every gap opened in that increment whatever its size and the whole springback load of a plate
+pressed with a large stroke change came at once: "too many cutbacks" in the release of the P2, P3, K2 and K3
+hull plates' second cycle (benchmarks/results/2026-12-06-fe-release.md). 9 cutbacks reach 300 mm / 4^9 =
+1.1 um (the step's smallest increment, 1e-6, lies just below): the gaps open one by one again. An increment
+that converges within 5 cutbacks is computed exactly as before."""
+
 STEPS_PER_PRESS = 3
 """Steps of one press step after the first (approach, load, release); the first has two."""
 
@@ -226,7 +237,8 @@ def step_lines(mesh, name: str, tips_z_mm: np.ndarray, *, holds=None, initial_in
     out += ["*CONTROLS, RESET", "*CONTROLS, PARAMETERS=FIELD"]
     out += ["0.005,0.01,,1."] if name == "APPROACH" else ["0.005,0.01,1000.,,0.02,1e-5,1e-3,1e-8"]
     # more iterations before an increment is cut back: contacts opening and closing need a few
-    out += ["*CONTROLS, PARAMETERS=TIME INCREMENTATION", "8,10,9,200,10,4,0,5"]
+    # and more cutbacks than ccx's default (:data:`MAX_CUTBACKS`: the release's gaps must open one by one)
+    out += ["*CONTROLS, PARAMETERS=TIME INCREMENTATION", f"8,10,9,200,10,4,0,{MAX_CUTBACKS}"]
     out += ["*BOUNDARY, OP=NEW"] + planar_holds(mesh)
     out += [f"{int(node)},3,3,{dz:.6f}" for node, dz in zip(np.concatenate([lower, upper]), move)]
     if holds is not None:

@@ -5,8 +5,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from mppf.sim.fe import ccx
-from mppf.sim.fe.deck import (LATER_LOAD_INCREMENT, RELEASE_INCREMENT, RETRACT_MM, flow_curve, history_deck,
-                               hold_nodes, model_lines, step_count)
+from mppf.sim.fe.deck import (
+    LATER_LOAD_INCREMENT,
+    MAX_CUTBACKS,
+    RELEASE_INCREMENT,
+    RETRACT_MM,
+    flow_curve,
+    history_deck,
+    hold_nodes,
+    model_lines,
+    step_count,
+)
 from mppf.sim.fe.mesh import build_mesh
 from mppf.sim.fe.results import last_of_steps, read_dat_forces, read_frd
 from mppf.sim.plate.material import PlateSteel
@@ -100,6 +109,20 @@ def test_the_release_starts_with_the_whole_step_and_a_later_load_with_a_small_in
     assert first == ["0.25,1.,1e-6,0.5", f"{RELEASE_INCREMENT:g},1.,1e-6,1", "1,1.,1e-6,0.5",
                      f"{LATER_LOAD_INCREMENT:g},1.,1e-6,0.5", f"{RELEASE_INCREMENT:g},1.,1e-6,1"]
     assert RELEASE_INCREMENT == 1.0 and LATER_LOAD_INCREMENT < 0.25
+
+
+def test_every_step_may_cut_an_increment_back_until_the_tips_retract_microns(press):
+    # the release's gaps must open one by one: ccx's default of 5 cutbacks left a first increment that retracted
+    # the tips 0.29 mm, and every gap of a plate pressed with a large stroke change opened in it at once
+    mesh = build_mesh(press, OUTLINE, thickness, cells_per_pitch=1, layers=2)
+    m = len(mesh.bottom)
+    tips = np.concatenate([np.zeros(m), mesh.thickness_mm])
+    deck = history_deck(mesh, ["*NODE"], [(tips, None), (tips - 10.0, tips + 5.0)]).split("\n")
+    controls = [deck[i + 1] for i, line in enumerate(deck) if line == "*CONTROLS, PARAMETERS=TIME INCREMENTATION"]
+    assert controls == [f"8,10,9,200,10,4,0,{MAX_CUTBACKS}"] * step_count(2)
+    smallest = RELEASE_INCREMENT / 4.0 ** MAX_CUTBACKS  # ccx cuts back by 4 on divergence
+    assert RETRACT_MM * smallest < 0.002  # mm: 200 N of gap force at 1e5 N/mm
+    assert smallest > 1e-6 / 4.0  # the step's smallest increment is not reached before
 
 
 def test_status_summary_counts_increments_cutbacks_and_iterations(tmp_path):
