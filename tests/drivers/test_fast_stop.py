@@ -58,8 +58,8 @@ def test_a_device_that_is_not_an_mppf_plc_gets_no_fast_stop(tmp_path):
     press = small_press()
     with run_simulated_plc(press) as sim:
         address = load_register_map()["map_version"].address
-        sim._call(lambda: sim.plc.regs.__setitem__(address, 2))  # another map version
-        sim._call(lambda: sim.plc._shadow.__setitem__(address, 2))
+        # another map version, in the registers and the PLC's shadow at once (one call: no scan between them)
+        sim._call(lambda: (sim.plc.regs.__setitem__(address, 2), sim.plc._shadow.__setitem__(address, 2)))
         with pytest.raises(NotHere):
             stop_over_tcp(sim.url)
         assert sim._call(lambda: sim.plc.stop_count) == 0  # nothing written
