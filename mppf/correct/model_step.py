@@ -1,9 +1,9 @@
 """The springback-model step: the measured error undone through the slope of the springback law.
 
-With the plate's nominal material (the loop's default) the correction is computed through
-the springback law instead of ``-lambda e``: each curvature component of the error is
-divided by the slope of the springback map at the loaded curvature, so a twist error,
-which springs back much more than a bend, gets a larger step. See ``docs/compare.md``,
+The step of the planner's virtual press cycles (:func:`mppf.correct.compensate.compensate`): with the
+plate's nominal material the change is computed through the springback law instead of ``-lambda e``:
+each curvature component of the error is divided by the slope of the springback map at the loaded
+curvature, so a twist error, which springs back much more than a bend, gets a larger step. See ``docs/compare.md``,
 section "The springback-model step".
 """
 
