@@ -11,6 +11,7 @@ import pytest
 from mppf.cli._loop_run import SCAN_SIM, RunOptions, draft_plate, run_plate
 from mppf.cli._placement import placement_lines
 from mppf.core.errors import ConfigError, PressRefused
+from mppf.core.progress import NullReporter
 from mppf.loop.history import History
 from mppf.loop.settings import LoopSettings
 from mppf.model.press import example_press_path
@@ -19,23 +20,11 @@ PLATE_THICKNESS_MM = 20.0
 DRY_RUN = RunOptions(plc_url=None, scanner_spec=SCAN_SIM, time_scale=200.0, scan_timeout_s=60.0)
 
 
-class Lines:
+class Lines(NullReporter):
     """A reporter that keeps the lines it is told (the progress calls do nothing)."""
 
     def __init__(self):
         self.lines: list[str] = []
-
-    def start(self, task: str, total: float | None = None) -> None:
-        pass
-
-    def advance(self, amount: float = 1.0) -> None:
-        pass
-
-    def update(self, completed: float) -> None:
-        pass
-
-    def finish(self) -> None:
-        pass
 
     def info(self, message: str) -> None:
         self.lines.append(message)
