@@ -24,6 +24,7 @@ from typing import ClassVar
 import numpy as np
 
 from mppf.core.errors import ConfigError
+from mppf.model.job_parts import grid_from_json, grid_to_json
 
 HINT = "re-plan the plate with 'mppf plan' (a job is never edited by hand)"
 
@@ -73,7 +74,8 @@ def array(shape: tuple, key: str | None = None):
 
 
 def grid(key: str | None = None):
-    """A (rows, cols) float array with NaN where the file has ``null`` (a parked punch)."""
+    """A (rows, cols) float array with NaN where the file has ``null`` (a parked punch), written as
+    :func:`~mppf.model.job_parts.grid_to_json` writes every grid of a job (4 decimals)."""
     return _declare("grid", key)
 
 
@@ -149,7 +151,7 @@ def _encode(kind: str, value):
     if kind == "array":
         return np.asarray(value, dtype=float).tolist()
     if kind == "grid":
-        return _nested(np.asarray(value, dtype=float))
+        return grid_to_json(value)
     if kind == "record":
         return value.to_doc()
     return value  # text, free
@@ -183,7 +185,7 @@ def _decode(meta: dict, value, where: str):
         return _array(value, meta["spec"], where)
     if kind == "grid" and isinstance(value, list) and value and all(
             isinstance(row, list) and len(row) == len(value[0]) for row in value) and _all_numbers(value):
-        return np.array([[np.nan if v is None else v for v in row] for row in value], dtype=float)
+        return grid_from_json(value)
     if kind == "record":
         return meta["spec"].from_doc(value, where)
     if kind == "free":
