@@ -9,7 +9,7 @@ so a bad option gives the same message whichever caller built it.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 from mppf.model.material import Material
 
@@ -47,7 +47,3 @@ class PlanOptions:
     yield_uncertainty_pct: float = 0.0
     margin_mm: float | None = None
     transition_mm: float | None = None
-
-    def as_keywords(self) -> dict:
-        """The fields as keyword arguments (name -> value, the material kept as it is, not copied)."""
-        return {field.name: getattr(self, field.name) for field in fields(self)}
