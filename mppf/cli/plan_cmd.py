@@ -210,7 +210,8 @@ def plan_command(design, flat, press_path, thickness_mm, steps, springback, marg
     """
     from mppf.planning.job import save_job
     from mppf.planning.plan import plan_summary  # numpy/scipy work: imported when planning
-    from mppf.planning.sectional import plan_plate, sections_summary
+    from mppf.planning.sectional import plan_plate
+    from mppf.planning.sectional_marks import sections_summary
     from mppf.model.press import example_press_path, load_press
 
     _check_plan_options(thickness_mm, transition_mm, output, plot)

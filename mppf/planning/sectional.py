@@ -33,7 +33,7 @@ from mppf.planning.plan_steps import (PlannedPiece, active_punches, as_validatio
                                       steps_within_limit)
 from mppf.planning.section_start import formed_punches, plan_section_steps
 from mppf.planning.sectional_borders import BORDER_STEP_LIMIT_MM, border_steps, border_warnings, recovered_residual
-from mppf.planning.sectional_marks import SectionContext, section_marks, sections_summary
+from mppf.planning.sectional_marks import SectionContext, section_marks
 from mppf.planning.sectional_overbend import closer_fit, whole_target
 from mppf.planning.sections import TRANSITION_PITCHES, earlier_weight, index_offset, shifted, split_plate
 from mppf.planning.steps import steps_needed
@@ -41,7 +41,7 @@ from mppf.planning.validate import validate_steps
 from mppf.registration.register import Registration
 
 __all__ = ["BORDER_STEP_LIMIT_MM", "apply_section_corrections", "border_warnings", "from_formed_plate", "plan_plate",
-           "plan_sectional", "recovered_residual", "sections_summary"]
+           "plan_sectional", "recovered_residual"]
 
 
 def plan_plate(design_points, flat_points, press: PressConfig, thickness_mm: float,

@@ -19,7 +19,8 @@ from mppf.planning.contact import PlacedSurface, tip_heights
 from mppf.model.job import JOB_VERSION, SECTIONS_VERSION, job_from_dict
 from mppf.planning.placement import place_flat
 from mppf.planning.plan import plan_job
-from mppf.planning.sectional import plan_plate, plan_sectional, sections_summary
+from mppf.planning.sectional import plan_plate, plan_sectional
+from mppf.planning.sectional_marks import sections_summary
 from mppf.planning.sections import placement_text, press_sequence, split_plate
 from plan_helpers import CylinderSurface, press  # noqa: F401 (fixture)
 
