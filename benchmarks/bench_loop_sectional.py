@@ -131,6 +131,11 @@ def make_plate(press, planned: Planned, physics: str, seed: int, grid_mm: float,
                       grid_spacing_mm=grid_mm, **parts)
 
 
+MEASURE = "plane"
+"""How a cycle's deviation is measured (``--measure``): ``plane`` (:func:`true_deviation`) or ``compare``
+(:func:`compared_deviation`)."""
+
+
 def press_cycle(press, plate, job, weightless: bool = False) -> None:
     """Every section's steps in order, the plate shifted under the press for each.
 
@@ -151,6 +156,33 @@ def true_deviation(planned: Planned, formed) -> np.ndarray:
     p = planned.placed[0]
     dev = formed.height_mm(p[:, 0], p[:, 1]) - p[:, 2]
     return without_plane(p[:, 0], p[:, 1], dev)
+
+
+def compared_deviation(planned: Planned, formed) -> np.ndarray:
+    """(n,) mm at the design points: the formed plate compared with the design as the loop compares a scan
+    (:func:`mppf.measure.compare.compare`: rigid registration, deviation along the design's normal), the formed
+    mid-surface sampled at the design points' x, y in section 1's frame; interpolated onto the design points,
+    signed + above the design in section 1's frame."""
+    from mppf.core.kdtree import KDTree
+    from mppf.measure.compare import compare
+
+    p = planned.placed[0]
+    z = formed.height_mm(p[:, 0], p[:, 1])
+    ok = np.isfinite(z)
+    tf1 = planned.job.sections[0].tf_press_design
+    measured = apply_tf(np.linalg.inv(tf1), np.column_stack([p[ok, :2], z[ok]]))
+    from mppf.measure.options import CompareOptions
+
+    cmp = compare(planned.design.points, measured, CompareOptions(rotation_hint=np.eye(4)))
+    dev = np.where(cmp.is_outlier, np.nan, cmp.deviation_mm)
+    uv_d = cmp.design_uv_mm
+    dist, idx = KDTree(cmp.measured_uv_mm).query(uv_d, k=4)
+    w = 1.0 / np.maximum(dist, 1e-6)
+    vals = dev[idx]
+    w = np.where(np.isfinite(vals), w, 0.0)
+    out = np.sum(w * np.nan_to_num(vals), axis=1) / np.maximum(np.sum(w, axis=1), 1e-12)
+    normal_up = np.sign((tf1[:3, :3] @ cmp.design_frame.tf_world_local[:3, 2])[2])
+    return out * cmp.normal_sign * normal_up
 
 
 INNER_MM = 300.0
@@ -224,8 +256,8 @@ class LearnedSections:
     def correct(self, press, planned: Planned, job, dev, form: tuple[float, float]):
         """The next cycle's job from the deviation ``dev`` at the design points (mm) and (form max, RMS); None
         when a section cannot go on (as the loop, :func:`mppf.loop.sectional.plan_next_sections`)."""
-        from mppf.correct.memory import PressedCycle
         from mppf.correct.inputs import CorrectedPlate, CorrectionHistory
+        from mppf.correct.memory import PressedCycle
         from mppf.correct.step import Tolerances, correct_step, outcome
         from mppf.planning.sectional import apply_section_corrections
 
@@ -254,15 +286,70 @@ class LearnedSections:
         return apply_section_corrections(job, deltas, blend=False)
 
 
-def run_direct(press, planned: Planned, plate, max_cycles: int, weightless: bool = False) -> dict:
+class AimedTarget:
+    """The whole plate's over-bent target moved along its normal against the deviations measured so far.
+
+    One correction field for the whole plate (:func:`mppf.planning.sectional.plan_sectional`'s
+    ``target_offset_mm``): every cycle the plate is planned again with the target moved by
+    ``-gain x deviation`` more (the deviation at the design points along their normal), so every section presses
+    the same correction where sections meet. ``secant`` > 0: from the second correction on the step is
+    ``secant / rho`` of the deviation, ``rho`` the plate's measured response to the target's moves (least squares
+    of the deviation's changes on the offset's, one number, held to 0.2-5).
+    """
+
+    def __init__(self, planned: Planned, gain: float = 0.7, secant: float = 0.0):
+        from mppf.core.kdtree import KDTree
+        from mppf.geometry.surface import fit_plate
+
+        self.planned, self.gain, self.secant = planned, gain, secant
+        self.offset = np.zeros(len(planned.design.points))
+        self.history, self.rho, self.rhos = [], 1.0, []
+        self.verdicts: list[str] = []
+        # the design normal's z in section 1's frame (its sense: the design fit's +z), to take a vertical
+        # deviation along the normal
+        p = planned.placed[0]
+        nz = [abs(np.linalg.svd(p[nb] - p[nb].mean(axis=0), full_matrices=False)[2][-1][2])
+              for nb in KDTree(p).query(p, k=12)[1]]
+        up = fit_plate(planned.design.points, degree=4, kind="poly").frame.tf_world_local[:3, 2]
+        self.nz = np.asarray(nz) * np.sign((planned.job.sections[0].tf_press_design[:3, :3] @ up)[2])
+
+    def correct(self, press, planned: Planned, job, dev, form):
+        """The next cycle's job (None when it cannot be planned: the reason in ``verdicts``)."""
+        from mppf.loop.settings import LoopSettings
+        from mppf.model.plan_options import PlanOptions
+        from mppf.planning.sectional import plan_sectional
+
+        dev = np.nan_to_num(dev) * (self.nz if MEASURE == "plane" else np.sign(self.nz))  # along the normal
+        if self.history:
+            pairs = list(zip(self.history, self.history[1:] + [(self.offset, dev)]))
+            num = sum(float(np.dot(e1 - e0, a1 - a0)) for (a0, e0), (a1, e1) in pairs)
+            den = sum(float(np.dot(a1 - a0, a1 - a0)) for (a0, _), (a1, _) in pairs)
+            self.rho = float(np.clip(num / den, 0.2, 5.0)) if den > 0 else self.rho
+        self.rhos.append(round(self.rho, 3))
+        self.history.append((self.offset.copy(), dev.copy()))
+        step = self.gain if len(self.history) == 1 or self.secant == 0 else self.secant / self.rho
+        self.offset = self.offset - step * dev
+        settings = LoopSettings()
+        options = PlanOptions(material=NOMINAL, springback=True, yield_uncertainty_pct=settings.yield_uncertainty_pct,
+                              margin_mm=settings.margin_mm)
+        try:
+            return plan_sectional(planned.design.points, planned.flat.points, press, THICKNESS_MM, options,
+                                  target_offset_mm=self.offset)
+        except MppfError as exc:
+            self.verdicts.append(f"replan: {exc.message[:150]}")
+            return None
+
+
+def run_direct(press, planned: Planned, plate, max_cycles: int, weightless: bool = False,
+               correction: str = "learned", gain: tuple = (0.7, 0.0)) -> dict:
     """Press, measure the true deviation, correct every section; up to ``max_cycles`` cycles."""
     job = planned.job
     row = {"max": [], "rms": [], "kink": [], "decisions": [], "ok_at": None, "verdict": None,
            "steps": [], "sections": len(job.sections), "plan_cpu_s": round(planned.plan_cpu_s, 2)}
-    learned = LearnedSections(len(job.sections))
+    learned = LearnedSections(len(job.sections)) if correction == "learned" else AimedTarget(planned, *gain)
     for cycle in range(1, max_cycles + 1):
         press_cycle(press, plate, job, weightless)
-        dev = true_deviation(planned, plate.formed)
+        dev = (compared_deviation if MEASURE == "compare" else true_deviation)(planned, plate.formed)
         row["max"].append(float(np.nanmax(np.abs(dev)))), row["rms"].append(float(np.sqrt(np.nanmean(dev ** 2))))
         row["kink"].append(border_kink(press, planned, dev))
         row.setdefault("inner_max", []).append(inner_max(planned, dev))
@@ -271,6 +358,8 @@ def run_direct(press, planned: Planned, plate, max_cycles: int, weightless: bool
             break
         job = learned.correct(press, planned, job, dev, (row["max"][-1], row["rms"][-1]))
         row["verdict"] = "; ".join(learned.verdicts) or None
+        if hasattr(learned, "rhos"):
+            row["rho"] = learned.rhos
         row["decisions"].append("continue" if job is not None else "cannot_converge")
         if job is None:
             break
@@ -309,7 +398,8 @@ def run_part(args, results: dict) -> bool:
             try:
                 planned.setdefault(name, Planned(press, name, Path(tmp), args.start))
                 plate = make_plate(press, planned[name], physics, seed, args.grid_mm, args.true_yield)
-                row = run_direct(press, planned[name], plate, args.max_cycles, args.weightless)
+                row = run_direct(press, planned[name], plate, args.max_cycles, args.weightless, args.correction,
+                                 (args.gain, args.secant))
             except MppfError as exc:  # a failed run counts as not in tolerance
                 row = {"max": [], "rms": [], "kink": [], "decisions": ["error"], "ok_at": None,
                        "verdict": f"{type(exc).__name__}: {exc.message[:200]}"}
@@ -323,8 +413,9 @@ def run_part(args, results: dict) -> bool:
 
 
 def _key(physics: str, name: str, seed: int, args) -> str:
-    physics = physics + ("-weightless" if args.weightless else "") + ("-formed" if args.start == "formed" else "")
-    return f"{physics}|{name}|{seed}|{args.max_cycles}|{args.grid_mm:g}|learned|{args.label}"
+    physics = physics + ("-weightless" if args.weightless else "") + ("-formed" if args.start == "formed" else "") \
+        + ("-compare" if args.measure == "compare" else "")
+    return f"{physics}|{name}|{seed}|{args.max_cycles}|{args.grid_mm:g}|{args.correction}|{args.label}"
 
 
 def main(argv=None) -> int:
@@ -338,13 +429,24 @@ def main(argv=None) -> int:
     parser.add_argument("--start", choices=("flat", "formed"), default="flat",
                         help="where later sections' steps start: flat (as planned) or the formed plate "
                              "(mppf.planning.sectional.from_formed_plate)")
+    parser.add_argument("--correction", choices=("learned", "aim"), default="learned",
+                        help="learned: the loop's, per section; aim: the whole plate's target moved (AimedTarget)")
+    parser.add_argument("--gain", type=float, default=0.7, help="aim: the share of the deviation corrected")
+    parser.add_argument("--secant", type=float, default=0.0,
+                        help="aim: from the second correction on, this share of the deviation over the plate's "
+                             "measured response (0: --gain every cycle)")
     parser.add_argument("--weightless", action="store_true",
                         help="take the plate's own weight off (as if all of it were carried beside the press)")
     parser.add_argument("--label", default="now", help="names the code measured (e.g. before, after)")
     parser.add_argument("--results", type=Path, default=Path("bench_loop_sectional.json"))
     parser.add_argument("--budget-s", type=float, default=540.0, help="start no new run after this long (s)")
     parser.add_argument("--table", action="store_true", help="only print the tables of --results")
+    parser.add_argument("--measure", choices=("plane", "compare"), default="plane",
+                        help="the deviation: plane (formed minus design, best plane removed) or compare (as the loop "
+                             "compares a scan: rigid registration, along the normal)")
     args = parser.parse_args(argv)
+    global MEASURE
+    MEASURE = args.measure
     threadpool_limits(1, "blas")
     results = load_results(args.results)
     done = True if args.table else run_part(args, results)

@@ -46,18 +46,24 @@ __all__ = ["BORDER_STEP_LIMIT_MM", "apply_section_corrections", "border_warnings
 
 def plan_plate(design_points, flat_points, press: PressConfig, thickness_mm: float,
                options: PlanOptions = PlanOptions(), *, design_faces=None, inputs: dict | None = None,
-               reporter=NULL_REPORTER) -> Job:
+               reporter=NULL_REPORTER, target_offset_mm=None) -> Job:
     """Plan a plate in one piece when its net flat fits the bed, in sections otherwise.
 
     Parameters are those of :func:`mppf.planning.plan.plan_job`; ``options.transition_mm`` is the least
-    width two neighbouring sections share (:func:`split_plate`).
+    width two neighbouring sections share (:func:`split_plate`); ``target_offset_mm`` as
+    :func:`plan_sectional` (only for a plate in sections).
     """
     design, flat, t, _ = check_plan_inputs(design_points, flat_points, press, thickness_mm, options.steps,
                                            options.material, options.springback, options.margin_mm)
     if fits_bed(lay_flat(flat, press, t), press):
+        if target_offset_mm is not None:
+            from mppf.core.errors import InputError
+
+            raise InputError("a correction of the whole plate's target is for a plate planned in sections",
+                             hint="this plate fits the bed: correct its strokes with the loop's correction")
         return plan_job(design, flat, press, t, options, design_faces=design_faces, inputs=inputs, reporter=reporter)
     return plan_sectional(design, flat, press, t, options, design_faces=design_faces, inputs=inputs,
-                          reporter=reporter)
+                          reporter=reporter, target_offset_mm=target_offset_mm)
 
 
 @dataclass(frozen=True)
@@ -75,14 +81,19 @@ class _WholePlate:
 
 def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm: float,
                    options: PlanOptions = PlanOptions(), *, design_faces=None, inputs: dict | None = None,
-                   reporter=NULL_REPORTER) -> Job:
+                   reporter=NULL_REPORTER, target_offset_mm=None) -> Job:
     """Plan the strokes of a plate larger than the bed, section by section.
 
     Each section is the plate shifted on the bed (by whole punch pitches) with its own pose
     (offset and tilt of least travel); its strokes are the exact ball contact of the design so
     placed, or with ``options.springback`` of the whole plate's one over-bent target
     (:mod:`mppf.planning.sectional_overbend`), the same surface for every section. Parameters as
-    :func:`mppf.planning.plan.plan_job`.
+    :func:`mppf.planning.plan.plan_job`, and
+
+    target_offset_mm : (n,) float, optional
+        A correction of the whole plate: the over-bent target moved along its normal by this much (mm) at
+        each design point (:meth:`mppf.planning.sectional_overbend.WholeTarget.corrected`); needs
+        ``options.springback``.
 
     Returns
     -------
@@ -113,6 +124,8 @@ def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm:
     # one over-bent target of that surface for the whole plate, the material's points moved onto it
     whole = _whole_surface(fitted, design, design_faces)
     target = whole_target(whole, design, press, t, planned_material, margin) if springback else None
+    if target_offset_mm is not None:
+        target = _corrected_target(target, design, target_offset_mm)
     springback_report = {**target.report, "first_press": first_press_report(material, options.yield_uncertainty_pct)} \
         if springback else {"enabled": False}
     ctx = SectionContext(press=press, fitted=whole, design=design, flat_file=flat, registration=registration,
@@ -126,6 +139,21 @@ def plan_sectional(design_points, flat_points, press: PressConfig, thickness_mm:
     border = border_steps(press, planned, t)
     whole_plate = _WholePlate(placement, fitted, registration, belongs, split, float(zone), springback_report)
     return _assemble(planned, border, whole_plate, inputs, press, t)
+
+
+def _corrected_target(target, design, offset_mm):
+    """The target moved by the correction field ``offset_mm`` at the design points, checked."""
+    from mppf.core.errors import InputError
+
+    offset = np.asarray(offset_mm, dtype=float)
+    if target is None:
+        raise InputError("a correction of the whole plate's target needs the springback target",
+                         hint="plan with springback on (the loop's default)")
+    if offset.shape != (len(design),) or not np.isfinite(offset).all():
+        raise InputError(f"the target's correction must be one finite value (mm) per design point "
+                         f"({len(design)}); got shape {offset.shape}",
+                         hint="give the correction at every design point, 0 where none")
+    return target.corrected(design, offset)
 
 
 def _plan_section(index, cell, centre, earlier, zone, steps, placement, ctx: SectionContext) -> dict:

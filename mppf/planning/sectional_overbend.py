@@ -23,6 +23,7 @@ along the normal too; on plates over-bent beyond that the principal arcs alone a
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -74,6 +75,8 @@ class WholeTarget:
         The point-by-point over-bend (a spline over the whole fit's (u, v), mm along the normal), or None.
     report : dict
         The job's springback report.
+    correction : PointField or None
+        A correction of the whole plate, mm along the normal at any world point (:meth:`corrected`), or None.
     """
 
     fitted: object
@@ -83,6 +86,16 @@ class WholeTarget:
     loaded_k: np.ndarray
     field: object
     report: dict
+    correction: object = None
+
+    def corrected(self, design, offset_mm) -> WholeTarget:
+        """The target moved along its normal by ``offset_mm`` (n,) at the design points ``design`` (n, 3, world mm).
+
+        A correction of the whole plate (``plan_sectional``'s ``target_offset_mm``): every section presses the
+        moved target, so where sections meet they press the same correction. Between the design points the
+        offset is interpolated linearly over the fit's (u, v); beyond them the nearest point's is taken.
+        """
+        return dataclasses.replace(self, correction=PointField(self.fitted.frame, design, offset_mm))
 
     def material_points(self, points, departure_mm=None) -> np.ndarray:
         """(n, 3) world mm: where the material of the design points ``points`` (n, 3, world mm) lies on the target.
@@ -128,6 +141,8 @@ class WholeTarget:
         if self.field is not None:
             uv = self.fitted.frame.to_local(pts)[:, :2]
             offset = offset + self.field.ev(uv[:, 0], uv[:, 1])
+        if self.correction is not None:
+            offset = offset + self.correction(pts)
         return offset
 
     def section_fit(self, design_on_bed, reach_mm: float):
@@ -166,6 +181,26 @@ class WholeTarget:
                                                                        grid[beyond]))])
         poly = fit_plate(points, degree=SURFACE_DEGREE, kind=SURFACE_KIND)
         return closer_fit(poly, lambda: fit_plate(points, kind="spline"))
+
+
+class PointField:
+    """A value at each of n points, interpolated linearly over a frame's (u, v); the nearest point's beyond them."""
+
+    def __init__(self, frame, points, values_mm):
+        from scipy.interpolate import LinearNDInterpolator
+
+        self.frame = frame
+        uv = frame.to_local(np.asarray(points, dtype=float))[:, :2]
+        self.values = np.asarray(values_mm, dtype=float).reshape(len(uv))
+        self.linear, self.tree = LinearNDInterpolator(uv, self.values), KDTree(uv)
+
+    def __call__(self, pts) -> np.ndarray:
+        uv = self.frame.to_local(np.asarray(pts, dtype=float))[:, :2]
+        out = self.linear(uv)
+        missing = ~np.isfinite(out)
+        if missing.any():
+            out[missing] = self.values[self.tree.query(uv[missing])[1]]
+        return out
 
 
 def _linear_at(xy, values, at) -> np.ndarray:
