@@ -110,10 +110,12 @@ def optimise_pose(placed: PlacedSurface, x_mm, y_mm, labels, press: PressConfig,
         tf, dev, contact = _tilted(travels, tilted, centre_mm, max_slope)
     # 3. the final offset, exact: a vertical shift moves every tip alike
     final = travels.best(dev, max_slope=0.0)
-    if final is None:  # cannot happen unless the tilt iteration went astray: fall back to level
+    if final is None:  # the tilt iteration went astray: fall back to level, if the level pose is within limits
         tf = np.eye(4)
         dev, contact = travels.at(tf)
         final = level
+        if final is None:
+            raise _beyond_limits(dev, travels.low_mm, travels.high_mm, travels.flat_mm, labels)
     return _pose(tf, dev, contact, final[2], travels.flat_mm)
 
 

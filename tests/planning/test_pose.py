@@ -7,6 +7,7 @@ import pytest
 
 from mppf.core.transform import apply_tf
 from mppf.planning.pose import minimax_offset, tilt_tf
+from plan_helpers import press  # noqa: F401 (fixture)
 
 
 def test_minimax_offset_closed_form_and_linear_programme_agree():
@@ -35,3 +36,21 @@ def test_tilt_adds_the_plane_of_its_slopes_to_a_horizontal_surface():
     expected = centre[2] + 0.01 * (flat[:, 0] - centre[0]) - 0.02 * (flat[:, 1] - centre[1])
     np.testing.assert_allclose(moved[:, 2], expected, atol=0.5)
     assert np.abs(moved[:, 2] - expected).max() < 0.05 * np.abs(expected - centre[2]).max()
+
+
+def test_a_pose_whose_tilt_goes_astray_and_has_no_level_pose_is_refused_with_the_limits(press, monkeypatch):
+    """When the tilted pose re-solved leaves no offset within the strokes and the level pose has none either,
+    the planner says which strokes are beyond the limits (it fell back to a level pose that did not exist)."""
+    from mppf.core.errors import LimitError
+    from mppf.core.transform import make_tf
+    from mppf.planning import pose
+    from mppf.planning.contact import PlacedSurface
+    from plan_helpers import CylinderSurface
+
+    best = pose._Travels.best
+    monkeypatch.setattr(pose._Travels, "best",
+                        lambda self, dev, max_slope: None if max_slope == 0.0 else best(self, dev, max_slope=max_slope))
+    placed = PlacedSurface(CylinderSurface(20000.0), make_tf(translation=[0.0, 0.0, 10.0]))
+    x, y = (g.ravel() for g in np.meshgrid(press.punch_x_mm[2:-2], press.punch_y_mm[2:-2]))
+    with pytest.raises(LimitError, match="beyond the press limits"):
+        pose.optimise_pose(placed, x, y, [f"[{i}]" for i in range(x.size)], press, 20.0, np.zeros(3))
