@@ -29,6 +29,14 @@ where a section ended shows here), largest over the borders of all sections; and
 more than 300 mm inside the plate's edges (``inner_max``: the simulated plate's free corners and ends beyond
 the outer punches depend on its grid on long plates).
 
+Corrections (``--correction``): ``learned`` (default) as above; ``aim``: one correction field of the whole
+plate (:class:`AimedTarget`): the plate planned again every cycle with its over-bent target moved along its
+normal against the deviation (``--gain``, or from the second correction ``--secant`` over the plate's measured
+response). Measures (``--measure``): ``plane`` as above; ``compare``: the formed plate compared with the design
+as the loop compares a scan (:func:`compared_deviation`: rigid registration, along the normal; a plate the
+comparison refuses ends the run with its error, as it ends the loop). ``cylinder39`` (``--plates``): the slow
+loop test's 3.9 x 1.5 m cylinder of R 10 m in two sections.
+
 Variants: ``--weightless`` takes the plate's own weight off, as if it were all carried beside the press;
 ``--start formed`` starts every later section's steps from the plate the sections before it formed
 (:func:`mppf.planning.sectional.from_formed_plate`) instead of from flat. (Each section
@@ -88,10 +96,19 @@ PLATES = {
     "real0008": (REAL / "real0008.csv", None),
 }
 """name: (design, flat or None: unfolded here)."""
+GENERATED = {"cylinder39": (3900.0, 1500.0, 10000.0)}
+"""name: an analytic cylinder (length, width, radius mm; :func:`mppf.examples.analytic.cylinder_plate`) with its
+exact flat: the slow loop test's plate (``tests/loop/test_sectional_loop.py``)."""
 
 
 def plate_files(name: str, work: Path):
     """(design, flat) point clouds of a bundled plate; the real ones written by ``real_plates`` when missing."""
+    if name in GENERATED:
+        from mppf.examples.analytic import cylinder_plate
+
+        design, flat = cylinder_plate(*GENERATED[name], spacing_mm=100.0)
+        return (read_points(write_points(work / f"{name}.csv", design)),
+                read_points(write_points(work / f"{name}.flat.csv", flat)))
     design_path, flat_path = PLATES[name]
     if not design_path.exists() and design_path.parent == REAL:
         from real_plates import write_real_batch
@@ -346,7 +363,8 @@ def run_direct(press, planned: Planned, plate, max_cycles: int, weightless: bool
     job = planned.job
     row = {"max": [], "rms": [], "kink": [], "decisions": [], "ok_at": None, "verdict": None,
            "steps": [], "sections": len(job.sections), "plan_cpu_s": round(planned.plan_cpu_s, 2)}
-    learned = LearnedSections(len(job.sections)) if correction == "learned" else AimedTarget(planned, *gain)
+    learned = {"learned": lambda: LearnedSections(len(job.sections)),
+               "aim": lambda: AimedTarget(planned, *gain)}[correction]()
     for cycle in range(1, max_cycles + 1):
         press_cycle(press, plate, job, weightless)
         dev = (compared_deviation if MEASURE == "compare" else true_deviation)(planned, plate.formed)
@@ -420,7 +438,7 @@ def _key(physics: str, name: str, seed: int, args) -> str:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--plates", nargs="+", default=list(PLATES), choices=list(PLATES))
+    parser.add_argument("--plates", nargs="+", default=list(PLATES), choices=list(PLATES) + list(GENERATED))
     parser.add_argument("--physics", nargs="+", default=["steel"])
     parser.add_argument("--seeds", nargs="+", type=int, default=[1])
     parser.add_argument("--max-cycles", type=int, default=5)

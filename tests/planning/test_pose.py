@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from plan_helpers import press  # noqa: F401 (fixture)
 
 from mppf.core.transform import apply_tf
 from mppf.planning.pose import minimax_offset, tilt_tf
-from plan_helpers import press  # noqa: F401 (fixture)
 
 
 def test_minimax_offset_closed_form_and_linear_programme_agree():
@@ -41,11 +41,12 @@ def test_tilt_adds_the_plane_of_its_slopes_to_a_horizontal_surface():
 def test_a_pose_whose_tilt_goes_astray_and_has_no_level_pose_is_refused_with_the_limits(press, monkeypatch):
     """When the tilted pose re-solved leaves no offset within the strokes and the level pose has none either,
     the planner says which strokes are beyond the limits (it fell back to a level pose that did not exist)."""
+    from plan_helpers import CylinderSurface
+
     from mppf.core.errors import LimitError
     from mppf.core.transform import make_tf
     from mppf.planning import pose
     from mppf.planning.contact import PlacedSurface
-    from plan_helpers import CylinderSurface
 
     best = pose._Travels.best
     monkeypatch.setattr(pose._Travels, "best",
