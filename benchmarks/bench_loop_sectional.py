@@ -35,7 +35,9 @@ normal against the deviation (``--gain``, or from the second correction ``--seca
 response). Measures (``--measure``): ``plane`` as above; ``compare``: the formed plate compared with the design
 as the loop compares a scan (:func:`compared_deviation`: rigid registration, along the normal; a plate the
 comparison refuses ends the run with its error, as it ends the loop). ``cylinder39`` (``--plates``): the slow
-loop test's 3.9 x 1.5 m cylinder of R 10 m in two sections.
+loop test's 3.9 x 1.5 m cylinder of R 10 m in two sections. ``--yield-uncertainty PCT`` plans the first press
+(and the aim's replans) for a plate PCT % weaker (``LoopSettings.yield_uncertainty_pct``: under-bent);
+``--blend`` blends the learned sections' corrections where they overlap (``apply_section_corrections(blend=True)``).
 
 Variants: ``--weightless`` takes the plate's own weight off, as if it were all carried beside the press;
 ``--start formed`` starts every later section's steps from the plate the sections before it formed
@@ -125,12 +127,14 @@ class Planned:
 
     def __init__(self, press, name: str, work: Path, start: str = "flat"):
         from mppf.loop.plate import plan_first_cycle
+        from mppf.loop.settings import LoopSettings
         from mppf.planning.sectional import from_formed_plate
 
         self.name = name
         self.design, self.flat = plate_files(name, work)
         t0 = time.process_time()
-        self.job = plan_first_cycle(self.design, self.flat, press, THICKNESS_MM, material=NOMINAL)
+        self.job = plan_first_cycle(self.design, self.flat, press, THICKNESS_MM, material=NOMINAL,
+                                    settings=LoopSettings(yield_uncertainty_pct=YIELD_UNCERTAINTY_PCT))
         if start == "formed" and self.job.sections is not None:  # later sections from the formed plate
             self.job = from_formed_plate(self.job)
         self.plan_cpu_s = time.process_time() - t0
@@ -149,6 +153,8 @@ def make_plate(press, planned: Planned, physics: str, seed: int, grid_mm: float,
 
 
 MEASURE = "plane"
+BLEND = False
+YIELD_UNCERTAINTY_PCT = 0.0
 """How a cycle's deviation is measured (``--measure``): ``plane`` (:func:`true_deviation`) or ``compare``
 (:func:`compared_deviation`)."""
 
@@ -300,7 +306,7 @@ class LearnedSections:
                            np.where(act, step.learned.lower_mm - final.lower_mm, 0.0)))
         if len(self.verdicts) > before:
             return None  # a section cannot go on: the loop stops with its verdict
-        return apply_section_corrections(job, deltas, blend=False)
+        return apply_section_corrections(job, deltas, blend=BLEND)
 
 
 class AimedTarget:
@@ -346,7 +352,7 @@ class AimedTarget:
         self.history.append((self.offset.copy(), dev.copy()))
         step = self.gain if len(self.history) == 1 or self.secant == 0 else self.secant / self.rho
         self.offset = self.offset - step * dev
-        settings = LoopSettings()
+        settings = LoopSettings(yield_uncertainty_pct=YIELD_UNCERTAINTY_PCT)
         options = PlanOptions(material=NOMINAL, springback=True, yield_uncertainty_pct=settings.yield_uncertainty_pct,
                               margin_mm=settings.margin_mm)
         try:
@@ -432,7 +438,8 @@ def run_part(args, results: dict) -> bool:
 
 def _key(physics: str, name: str, seed: int, args) -> str:
     physics = physics + ("-weightless" if args.weightless else "") + ("-formed" if args.start == "formed" else "") \
-        + ("-compare" if args.measure == "compare" else "")
+        + ("-compare" if args.measure == "compare" else "") + ("-blend" if args.blend else "") \
+        + (f"-yu{args.yield_uncertainty:g}" if args.yield_uncertainty else "")
     return f"{physics}|{name}|{seed}|{args.max_cycles}|{args.grid_mm:g}|{args.correction}|{args.label}"
 
 
@@ -450,6 +457,10 @@ def main(argv=None) -> int:
     parser.add_argument("--correction", choices=("learned", "aim"), default="learned",
                         help="learned: the loop's, per section; aim: the whole plate's target moved (AimedTarget)")
     parser.add_argument("--gain", type=float, default=0.7, help="aim: the share of the deviation corrected")
+    parser.add_argument("--yield-uncertainty", type=float, default=0.0,
+                        help="the first press planned for a plate this many %% weaker (under-bent): LoopSettings'")
+    parser.add_argument("--blend", action="store_true", help="learned: blend the sections' corrections where they "
+                        "overlap (apply_section_corrections(blend=True))")
     parser.add_argument("--secant", type=float, default=0.0,
                         help="aim: from the second correction on, this share of the deviation over the plate's "
                              "measured response (0: --gain every cycle)")
@@ -463,8 +474,8 @@ def main(argv=None) -> int:
                         help="the deviation: plane (formed minus design, best plane removed) or compare (as the loop "
                              "compares a scan: rigid registration, along the normal)")
     args = parser.parse_args(argv)
-    global MEASURE
-    MEASURE = args.measure
+    global MEASURE, BLEND, YIELD_UNCERTAINTY_PCT
+    MEASURE, BLEND, YIELD_UNCERTAINTY_PCT = args.measure, args.blend, args.yield_uncertainty
     threadpool_limits(1, "blas")
     results = load_results(args.results)
     done = True if args.table else run_part(args, results)
