@@ -149,9 +149,13 @@ def _corrected_target(target, design, offset_mm):
     if target is None:
         raise InputError("a correction of the whole plate's target needs the springback target",
                          hint="plan with springback on (the loop's default)")
-    if offset.shape != (len(design),) or not np.isfinite(offset).all():
+    if offset.shape != (len(design),):
         raise InputError(f"the target's correction must be one finite value (mm) per design point "
                          f"({len(design)}); got shape {offset.shape}",
+                         hint="give the correction at every design point, 0 where none")
+    if not np.isfinite(offset).all():
+        raise InputError(f"the target's correction must be one finite value (mm) per design point; "
+                         f"{int(np.sum(~np.isfinite(offset)))} of {len(offset)} are not finite",
                          hint="give the correction at every design point, 0 where none")
     return target.corrected(design, offset)
 

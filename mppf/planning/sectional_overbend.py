@@ -184,7 +184,17 @@ class WholeTarget:
 
 
 class PointField:
-    """A value at each of n points, interpolated linearly over a frame's (u, v); the nearest point's beyond them."""
+    """A value at each of n points, interpolated linearly over a frame's (u, v); the nearest point's beyond them.
+
+    Parameters
+    ----------
+    frame : LocalFrame
+        The frame whose (u, v) the values are interpolated over (the whole plate's fit).
+    points : (n, 3) float, world mm
+    values_mm : (n,) float, mm
+
+    Calling it with ``pts`` (m, 3, world mm) gives the values (m,) mm there.
+    """
 
     def __init__(self, frame, points, values_mm):
         from scipy.interpolate import LinearNDInterpolator

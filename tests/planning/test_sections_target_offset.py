@@ -74,6 +74,9 @@ def test_a_correction_of_the_wrong_length_or_without_springback_is_refused(press
     with pytest.raises(InputError, match="one finite value"):
         plan_plate(design, flat, press, T_MM, PlanOptions(springback=True, material=STEEL),
                    target_offset_mm=np.zeros(len(design) - 1))
+    with pytest.raises(InputError, match="1 of .* are not finite"):
+        plan_plate(design, flat, press, T_MM, PlanOptions(springback=True, material=STEEL),
+                   target_offset_mm=np.r_[np.nan, np.zeros(len(design) - 1)])
     with pytest.raises(InputError, match="needs the springback target"):
         plan_plate(design, flat, press, T_MM, PlanOptions(springback=False, material=STEEL),
                    target_offset_mm=np.zeros(len(design)))
