@@ -37,7 +37,8 @@ as the loop compares a scan (:func:`compared_deviation`: rigid registration, alo
 comparison refuses ends the run with its error, as it ends the loop). ``cylinder39`` (``--plates``): the slow
 loop test's 3.9 x 1.5 m cylinder of R 10 m in two sections. ``--yield-uncertainty PCT`` plans the first press
 (and the aim's replans) for a plate PCT % weaker (``LoopSettings.yield_uncertainty_pct``: under-bent);
-``--blend`` blends the learned sections' corrections where they overlap (``apply_section_corrections(blend=True)``).
+``--biaxial`` over-bends the two principal directions together
+(``mppf.planning.sectional_overbend.biaxial_loaded``); ``--blend`` blends the learned sections' corrections where they overlap (``apply_section_corrections(blend=True)``).
 
 Variants: ``--weightless`` takes the plate's own weight off, as if it were all carried beside the press;
 ``--start formed`` starts every later section's steps from the plate the sections before it formed
@@ -439,7 +440,7 @@ def run_part(args, results: dict) -> bool:
 def _key(physics: str, name: str, seed: int, args) -> str:
     physics = physics + ("-weightless" if args.weightless else "") + ("-formed" if args.start == "formed" else "") \
         + ("-compare" if args.measure == "compare" else "") + ("-blend" if args.blend else "") \
-        + (f"-yu{args.yield_uncertainty:g}" if args.yield_uncertainty else "")
+        + (f"-yu{args.yield_uncertainty:g}" if args.yield_uncertainty else "") + ("-biaxial" if args.biaxial else "")
     return f"{physics}|{name}|{seed}|{args.max_cycles}|{args.grid_mm:g}|{args.correction}|{args.label}"
 
 
@@ -459,6 +460,8 @@ def main(argv=None) -> int:
     parser.add_argument("--gain", type=float, default=0.7, help="aim: the share of the deviation corrected")
     parser.add_argument("--yield-uncertainty", type=float, default=0.0,
                         help="the first press planned for a plate this many %% weaker (under-bent): LoopSettings'")
+    parser.add_argument("--biaxial", action="store_true",
+                        help="over-bend the two principal directions together (mppf.planning.sectional_overbend.BIAXIAL)")
     parser.add_argument("--blend", action="store_true", help="learned: blend the sections' corrections where they "
                         "overlap (apply_section_corrections(blend=True))")
     parser.add_argument("--secant", type=float, default=0.0,
@@ -476,6 +479,10 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     global MEASURE, BLEND, YIELD_UNCERTAINTY_PCT
     MEASURE, BLEND, YIELD_UNCERTAINTY_PCT = args.measure, args.blend, args.yield_uncertainty
+    if args.biaxial:
+        import mppf.planning.sectional_overbend as overbend
+
+        overbend.BIAXIAL = True
     threadpool_limits(1, "blas")
     results = load_results(args.results)
     done = True if args.table else run_part(args, results)

@@ -253,6 +253,8 @@ def whole_target(whole, design, press, thickness_mm: float, material, margin_mm:
     directions = dirs3[:, :2] / np.linalg.norm(dirs3[:, :2], axis=1, keepdims=True)
     flat = np.abs(target) < 1.0 / FLAT_RADIUS_MM
     loaded = np.where(flat, target, loaded_curvature(np.where(flat, 0.0, target), thickness_mm, material))
+    if BIAXIAL:
+        loaded = biaxial_loaded(target, loaded, thickness_mm, material)
     reach = float(np.linalg.norm(local[:, :2], axis=1).max()) + margin_mm \
         + press.trim_allowance_mm
     try:  # where the over-bent arcs are a graph over the whole plate: the point-by-point field as well
@@ -264,6 +266,47 @@ def whole_target(whole, design, press, thickness_mm: float, material, margin_mm:
                         "pose (docs/sections.md)"}
     return WholeTarget(fitted=whole, tf_world_centre=tf_world_centre, directions=directions, target_k=target,
                        loaded_k=loaded, field=field, report=report)
+
+
+BIAXIAL = False
+"""Over-bend the two principal directions together (:func:`biaxial_loaded`), not each on its own: a study switch
+(``benchmarks/bench_loop_sectional.py --biaxial``), off: measured on the steel-plate simulator it brings the
+first press of three of five long plates closer and two further (``benchmarks/results/2026-12-06-sectional-aim.md``)."""
+
+
+def biaxial_loaded(target_k, uniaxial_k, thickness_mm: float, material) -> np.ndarray:
+    """(2,) 1/mm: the loaded principal curvatures whose release leaves ``target_k`` (2,) in both directions.
+
+    The plate's biaxial elastic-plastic bending law (:class:`mppf.correct.through_thickness.BendingLaw`, the
+    nominal material, no hardening) from a virgin plate: bent along one direction and held flat across, a
+    plate springs back with an anticlastic curvature across (a cylinder of R 20 m in 20 mm steel bows by
+    6 mm over 2.4 m); the over-bend across cancels it. Newton from the directions' own over-bends
+    (``uniaxial_k``, :func:`mppf.forming.springback.loaded_curvature`); if it does not converge, those.
+    """
+    from mppf.correct.through_thickness import BendingLaw, BendingState
+
+    law = BendingLaw(thickness_mm, material.youngs_modulus_mpa, material.poisson, material.yield_stress_mpa)
+    target = np.asarray(target_k, dtype=float)
+    if not np.any(target):
+        return np.zeros(2)
+
+    def released(k):
+        return law.press(np.array([[k[0], k[1], 0.0]]), BendingState.virgin(1))[0][0, :2]
+
+    k = np.asarray(uniaxial_k, dtype=float).copy()
+    scale = float(np.max(np.abs(target)))
+    for _ in range(30):
+        r = released(k) - target
+        if np.max(np.abs(r)) < 1e-6 * scale:
+            return k
+        h = 1e-4 * max(float(np.max(np.abs(k))), scale)
+        jac = np.column_stack([(released(k + h * e) - released(k - h * e)) / (2 * h) for e in np.eye(2)])
+        try:
+            step = np.linalg.solve(jac, -r)
+        except np.linalg.LinAlgError:
+            break
+        k = k + step
+    return np.asarray(uniaxial_k, dtype=float)
 
 
 def _arc_curvature(surface, direction_uv, along_mm, at_centre: float) -> float:
