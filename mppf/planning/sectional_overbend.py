@@ -278,35 +278,24 @@ def biaxial_loaded(target_k, uniaxial_k, thickness_mm: float, material) -> np.nd
     """(2,) 1/mm: the loaded principal curvatures whose release leaves ``target_k`` (2,) in both directions.
 
     The plate's biaxial elastic-plastic bending law (:class:`mppf.correct.through_thickness.BendingLaw`, the
-    nominal material, no hardening) from a virgin plate: bent along one direction and held flat across, a
-    plate springs back with an anticlastic curvature across (a cylinder of R 20 m in 20 mm steel bows by
-    6 mm over 2.4 m); the over-bend across cancels it. Newton from the directions' own over-bends
-    (``uniaxial_k``, :func:`mppf.forming.springback.loaded_curvature`); if it does not converge, those.
+    nominal material, no hardening) inverted from a virgin, flat plate by the correction's own inversion
+    (:func:`mppf.correct.invert.invert`): bent along one direction and held flat across, a plate springs back
+    with an anticlastic curvature across (a cylinder of R 20 m in 20 mm steel bows by 6 mm over 2.4 m); the
+    over-bend across cancels it. Where the inversion does not reach the target within four elastic-limit
+    curvatures and four targets, the directions' own over-bends ``uniaxial_k``
+    (:func:`mppf.forming.springback.loaded_curvature`).
     """
+    from mppf.correct.invert import invert
     from mppf.correct.through_thickness import BendingLaw, BendingState
 
     law = BendingLaw(thickness_mm, material.youngs_modulus_mpa, material.poisson, material.yield_stress_mpa)
     target = np.asarray(target_k, dtype=float)
     if not np.any(target):
         return np.zeros(2)
-
-    def released(k):
-        return law.press(np.array([[k[0], k[1], 0.0]]), BendingState.virgin(1))[0][0, :2]
-
-    k = np.asarray(uniaxial_k, dtype=float).copy()
-    scale = float(np.max(np.abs(target)))
-    for _ in range(30):
-        r = released(k) - target
-        if np.max(np.abs(r)) < 1e-6 * scale:
-            return k
-        h = 1e-4 * max(float(np.max(np.abs(k))), scale)
-        jac = np.column_stack([(released(k + h * e) - released(k - h * e)) / (2 * h) for e in np.eye(2)])
-        try:
-            step = np.linalg.solve(jac, -r)
-        except np.linalg.LinAlgError:
-            break
-        k = k + step
-    return np.asarray(uniaxial_k, dtype=float)
+    flat = np.zeros((1, 3))
+    reach = 4.0 * law.elastic_limit_per_mm + 4.0 * float(np.max(np.abs(target)))
+    loaded, reached = invert(law, BendingState.virgin(1), flat, flat, np.array([[target[0], target[1], 0.0]]), reach)
+    return loaded[0, :2] if reached[0] else np.asarray(uniaxial_k, dtype=float)
 
 
 def _arc_curvature(surface, direction_uv, along_mm, at_centre: float) -> float:
