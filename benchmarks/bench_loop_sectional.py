@@ -322,20 +322,18 @@ class AimedTarget:
     """
 
     def __init__(self, planned: Planned, gain: float = 0.7, secant: float = 0.0):
-        from mppf.core.kdtree import KDTree
         from mppf.geometry.surface import fit_plate
 
-        self.planned, self.gain, self.secant = planned, gain, secant
+        self.gain, self.secant = gain, secant
         self.offset = np.zeros(len(planned.design.points))
         self.history, self.rho, self.rhos = [], 1.0, []
         self.verdicts: list[str] = []
         # the design normal's z in section 1's frame (its sense: the design fit's +z), to take a vertical
         # deviation along the normal
-        p = planned.placed[0]
-        nz = [abs(np.linalg.svd(p[nb] - p[nb].mean(axis=0), full_matrices=False)[2][-1][2])
-              for nb in KDTree(p).query(p, k=12)[1]]
-        up = fit_plate(planned.design.points, degree=4, kind="poly").frame.tf_world_local[:3, 2]
-        self.nz = np.asarray(nz) * np.sign((planned.job.sections[0].tf_press_design[:3, :3] @ up)[2])
+        fitted = fit_plate(planned.design.points, degree=4, kind="poly")
+        uv = fitted.frame.to_local(planned.design.points)[:, :2]
+        rot = planned.job.sections[0].tf_press_design[:3, :3] @ fitted.frame.tf_world_local[:3, :3]
+        self.nz = (fitted.surface.normals(uv[:, 0], uv[:, 1]) @ rot.T)[:, 2]
 
     def correct(self, press, planned: Planned, job, dev, form):
         """The next cycle's job (None when it cannot be planned: the reason in ``verdicts``)."""
