@@ -6,9 +6,9 @@ from __future__ import annotations
 import re
 
 import pytest
+from mppf.sim.faults import GRAMMAR, KINDS, parse_fault_spec
 
 from mppf.core.errors import InputError
-from mppf.sim.faults import GRAMMAR, KINDS, parse_fault_spec
 
 
 @pytest.mark.parametrize(
@@ -32,17 +32,18 @@ def test_fault_spec_grammar(spec, kind, params):
     assert (parsed.kind, parsed.params) == (kind, params)
 
 
-@pytest.mark.parametrize(
-    "spec, message",
-    [
-        ("stuck:side:1:2", "matrix must be 'upper' or 'lower'"),
-        ("stuck:upper:1", "wrong number of ':' fields"),
-        ("stuck:upper:1:2@120", "PERCENT must be 0..100"),
-        ("slow:fast", "MS must be a number"),
-        ("estop@-1", "T must be >= 0"),
-        ("meteor", "unknown fault 'meteor'"),
-    ],
-)
+BAD_SPECS = [
+    ("stuck:side:1:2", "matrix must be 'upper' or 'lower'"),
+    ("stuck:upper:1", "wrong number of ':' fields"),
+    ("stuck:upper:1:2@120", "PERCENT must be 0..100"),
+    ("slow:fast", "MS must be a number"),
+    ("estop@-1", "T must be >= 0"),
+    ("meteor", "unknown fault 'meteor'"),
+]
+"""Fault specs that are refused, and words of the message (also what ``mppf sim --fault`` prints: test_sim_plc)."""
+
+
+@pytest.mark.parametrize("spec, message", BAD_SPECS)
 def test_a_bad_spec_is_refused_naming_what_is_wrong(spec, message):
     with pytest.raises(InputError) as caught:
         parse_fault_spec(spec)

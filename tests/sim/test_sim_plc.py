@@ -13,16 +13,18 @@ import time
 
 import numpy as np
 import pytest
+from driver_helpers import RawMaster
+from mppf.drivers import codec
+from mppf.drivers import regmap as rm
+from mppf.drivers.url import parse_plc_url
+from mppf.sim.plc.host import run_simulated_plc
 from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 from pymodbus.exceptions import ConnectionException, ModbusIOException
-from driver_helpers import RawMaster
+from test_faults import BAD_SPECS
 
 from mppf.cli import main
-from mppf.drivers import codec, regmap as rm
-from mppf.drivers.url import parse_plc_url
 from mppf.core.errors import InputError
 from mppf.model.press import example_press_path, load_press
-from mppf.sim.plc.host import run_simulated_plc
 
 MAP = rm.load_register_map()
 PRESS = dataclasses.replace(load_press(example_press_path()), rows=4, cols=6)
@@ -453,17 +455,7 @@ def test_rtu_on_a_serial_device_made_by_socat(tmp_path):
 # ----------------------------------------------------------------------- CLI ------
 
 
-@pytest.mark.parametrize(
-    "spec, message",
-    [
-        ("stuck:side:1:2", "matrix must be 'upper' or 'lower'"),
-        ("stuck:upper:1", "wrong number of ':' fields"),
-        ("stuck:upper:1:2@120", "PERCENT must be 0..100"),
-        ("slow:fast", "MS must be a number"),
-        ("estop@-1", "T must be >= 0"),
-        ("meteor", "unknown fault 'meteor'"),
-    ],
-)
+@pytest.mark.parametrize("spec, message", BAD_SPECS)
 def test_bad_fault_spec_exits_2_with_one_message(capsys, spec, message):
     assert main(["sim", "--port", "0", "--fault", spec]) == 2
     err = capsys.readouterr().err
