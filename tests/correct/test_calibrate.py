@@ -10,30 +10,19 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_learned import NOMINAL, TRUE, T, bowl
 
 from mppf.correct.calibrate import calibrate
 from mppf.correct.memory import PressedCycle, loaded_curvatures, replay
-from mppf.correct.punch_grid import PunchGrid
 from mppf.correct.through_thickness import BendingLaw
-from mppf.model.material import Material
-from mppf.model.press import example_press_path, load_press
 
-T = 20.0
-NOMINAL = Material()  # 235 MPa, what the calibration starts from
 NOMINAL_LAW = BendingLaw(T, NOMINAL.youngs_modulus_mpa, NOMINAL.poisson, NOMINAL.yield_stress_mpa)
-TRUE = BendingLaw(T, NOMINAL.youngs_modulus_mpa, NOMINAL.poisson, 275.0, 2500.0)  # what the plate is
 
 
 @pytest.fixture(scope="module")
 def pressed():
     """A doubly curved bowl pressed twice (the second press further): the grid, cycles, the true curvatures."""
-    press = load_press(example_press_path())
-    active = np.zeros(press.shape, dtype=bool)
-    active[3:11, 5:17] = True
-    x, y = np.meshgrid(press.punch_x_mm, press.punch_y_mm)
-    cx, cy = x[active].mean(), y[active].mean()
-    design = (x - cx) ** 2 / (2 * 5000.0) + (y - cy) ** 2 / (2 * 9000.0)
-    grid = PunchGrid(press, active)
+    press, active, design, grid = bowl()
     cycles = [PressedCycle([np.where(active, factor * design, np.nan)], np.zeros(press.shape))
               for factor in (1.5, 1.8)]
     true = replay(TRUE, loaded_curvatures(grid, cycles), cycles).unloaded

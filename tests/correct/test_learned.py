@@ -24,8 +24,8 @@ NOMINAL = Material()  # 235 MPa, what the correction is told
 TRUE = BendingLaw(T, NOMINAL.youngs_modulus_mpa, NOMINAL.poisson, 275.0, 2500.0)  # what the plate is
 
 
-@pytest.fixture(scope="module")
-def setup():
+def bowl():
+    """(press, active, design mid heights (NaN off the plate), grid): a doubly curved bowl on the example press."""
     press = load_press(example_press_path())
     active = np.zeros(press.shape, dtype=bool)
     active[3:11, 5:17] = True
@@ -33,6 +33,11 @@ def setup():
     cx, cy = x[active].mean(), y[active].mean()
     design = (x - cx) ** 2 / (2 * 5000.0) + (y - cy) ** 2 / (2 * 9000.0)  # a doubly curved bowl, mid-surface
     return press, active, np.where(active, design, np.nan), PunchGrid(press, active)
+
+
+@pytest.fixture(scope="module")
+def setup():
+    return bowl()
 
 
 def _measure(grid, design, cycles):
